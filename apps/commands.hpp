@@ -1,0 +1,13 @@
+// The subcommands of `hybridprof`, one file each. Each adds itself to the app with its options and a
+// callback; errors are thrown (hp::InputError, hp::DeviceError) and turned into exit codes by main.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace hp::cli {
+
+void add_render_command(CLI::App& app);
+void add_bvh_command(CLI::App& app);
+void add_cachesim_command(CLI::App& app);
+
+}  // namespace hp::cli
