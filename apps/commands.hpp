@@ -7,6 +7,7 @@
 namespace hp::cli {
 
 void add_render_command(CLI::App& app);
+void add_devices_command(CLI::App& app);
 void add_bvh_command(CLI::App& app);
 void add_cachesim_command(CLI::App& app);
 

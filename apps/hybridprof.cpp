@@ -1,0 +1,38 @@
+// `hybridprof`: one binary, one subcommand per job. Errors become one line on stderr and an exit code:
+// 2 bad input (file, field, option, limit), 3 no usable Vulkan device, 1 internal error.
+#include "apps/commands.hpp"
+#include "error.hpp"
+
+#include <cstdio>
+#include <exception>
+
+int main(int argc, char** argv) {
+  CLI::App app{"hybridprof: where the time and the memory traffic of a hybrid (raster + ray-traced) frame go"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("hybridprof ") + HP_VERSION + " (" + HP_GIT_COMMIT + ")");
+  hp::cli::add_render_command(app);
+  hp::cli::add_devices_command(app);
+#ifdef HP_HAVE_BVH_COMMAND
+  hp::cli::add_bvh_command(app);
+#endif
+#ifdef HP_HAVE_CACHESIM_COMMAND
+  hp::cli::add_cachesim_command(app);
+#endif
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version are "errors" with exit code 0; bad options are input errors (exit 2).
+    const int code = app.exit(e);
+    return code == 0 ? 0 : 2;
+  } catch (const hp::InputError& e) {
+    std::fprintf(stderr, "hybridprof: error: %s\n", e.what());
+    return 2;
+  } catch (const hp::DeviceError& e) {
+    std::fprintf(stderr, "hybridprof: error: %s\n", e.what());
+    return 3;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "hybridprof: internal error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,23 @@
+// The composite: direct lighting (Lambert + GGX, directional light, constant sky ambient) from the
+// G-buffer into a linear RGBA32F image; sky colour where the depth buffer holds the background.
+#pragma once
+
+#include "passes/gbuffer.hpp"
+
+namespace hp {
+
+class CompositePass {
+ public:
+  static constexpr VkFormat kOutputFormat = VK_FORMAT_R32G32B32A32_SFLOAT;
+
+  CompositePass(vk::Context& ctx, const vk::Buffer& frame_uniforms, const GBuffer& gbuffer, const vk::Image& output,
+                VkSampler sampler);
+  /// Expects the G-buffer in SHADER_READ_ONLY_OPTIMAL; leaves `output` in GENERAL.
+  void record(VkCommandBuffer cmd, const vk::Image& output) const;
+
+ private:
+  vk::DescriptorSet descriptors_;
+  vk::Pipeline pipeline_;
+};
+
+}  // namespace hp

@@ -1,0 +1,44 @@
+#include "view.hpp"
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include <cmath>
+
+namespace hp {
+
+View make_view(const Camera& camera, float aspect, bool reversed_z) {
+  View v;
+  v.reversed_z = reversed_z;
+  v.view = glm::lookAt(camera.position, camera.target, camera.up);
+  const float f = 1.0f / std::tan(glm::radians(camera.vfov_deg) * 0.5f);
+  const float n = camera.znear, fa = camera.zfar;
+  // Column-major; view space looks down -z. y is negated so that world up is framebuffer up.
+  glm::mat4 p(0.0f);
+  p[0][0] = f / aspect;
+  p[1][1] = -f;
+  p[2][3] = -1.0f;
+  if (!reversed_z) {  // z_ndc = fa (z + n) / ((n - fa) z) ... maps -n -> 0, -fa -> 1
+    p[2][2] = fa / (n - fa);
+    p[3][2] = fa * n / (n - fa);
+  } else {  // maps -n -> 1, -fa -> 0
+    p[2][2] = n / (fa - n);
+    p[3][2] = fa * n / (fa - n);
+  }
+  v.proj = p;
+  v.view_proj = p * v.view;
+  v.inv_view_proj = glm::inverse(v.view_proj);
+  return v;
+}
+
+glm::vec3 unproject(const View& view, float px, float py, uint32_t width, uint32_t height, float depth) {
+  const glm::vec2 ndc((px + 0.5f) / float(width) * 2.0f - 1.0f, (py + 0.5f) / float(height) * 2.0f - 1.0f);
+  const glm::vec4 h = view.inv_view_proj * glm::vec4(ndc, depth, 1.0f);
+  return glm::vec3(h) / h.w;
+}
+
+float project_depth(const View& view, const glm::vec3& world) {
+  const glm::vec4 c = view.view_proj * glm::vec4(world, 1.0f);
+  return c.z / c.w;
+}
+
+}  // namespace hp

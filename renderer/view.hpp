@@ -1,0 +1,31 @@
+// Camera matrices in Vulkan conventions: right-handed world, clip z in [0, 1], framebuffer y down.
+// Shared by the raster pass, the compute passes (world position from depth) and the CPU reference.
+#pragma once
+
+#include "scene/scene.hpp"
+
+#include <glm/glm.hpp>
+
+namespace hp {
+
+struct View {
+  glm::mat4 view{1.0f};
+  glm::mat4 proj{1.0f};
+  glm::mat4 view_proj{1.0f};
+  glm::mat4 inv_view_proj{1.0f};
+  bool reversed_z = false;
+  /// The depth-buffer value of the background (the clear value).
+  float far_depth() const { return reversed_z ? 0.0f : 1.0f; }
+};
+
+/// Perspective view of `camera` for an image of width/height `aspect`. Standard depth maps near -> 0 and
+/// far -> 1; reversed-Z maps near -> 1 and far -> 0 (better float precision far away).
+View make_view(const Camera& camera, float aspect, bool reversed_z);
+
+/// The world-space point of pixel centre (px + 0.5, py + 0.5) at depth-buffer value `depth`.
+glm::vec3 unproject(const View& view, float px, float py, uint32_t width, uint32_t height, float depth);
+
+/// The depth-buffer value of a world-space point (what the raster pass writes there).
+float project_depth(const View& view, const glm::vec3& world);
+
+}  // namespace hp

@@ -1,0 +1,26 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+#include "common/shared_types.h"
+
+layout(location = 0) in vec3 v_world_pos;
+layout(location = 1) in vec3 v_normal;
+
+layout(set = 0, binding = 0) uniform Frame { FrameUniforms frame; };
+layout(push_constant) uniform Push { GBufferPush pc; };
+
+layout(location = 0) out vec4 out_normal_roughness;  // world normal facing the camera, roughness
+layout(location = 1) out vec4 out_albedo_metal;      // base colour (sRGB target), metalness
+
+void main() {
+  // Orient by the geometric normal (from screen-space derivatives), not by the winding: glTF surfaces may
+  // be double-sided (foliage cards) and any winding convention then fails for one side.
+  vec3 to_camera = frame.camera_pos.xyz - v_world_pos;
+  vec3 ng = cross(dFdx(v_world_pos), dFdy(v_world_pos));
+  if (dot(ng, to_camera) < 0.0) ng = -ng;
+  vec3 n = v_normal;
+  float len2 = dot(n, n);
+  n = len2 > 1e-20 ? n * inversesqrt(len2) : normalize(ng);
+  if (dot(n, ng) < 0.0) n = -n;
+  out_normal_roughness = vec4(n, pc.material.y);
+  out_albedo_metal = vec4(pc.normal_row0.w, pc.normal_row1.w, pc.normal_row2.w, pc.material.x);
+}

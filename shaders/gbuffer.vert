@@ -1,0 +1,20 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+#include "common/shared_types.h"
+
+layout(location = 0) in vec3 in_position;
+layout(location = 1) in vec3 in_normal;
+
+layout(set = 0, binding = 0) uniform Frame { FrameUniforms frame; };
+layout(push_constant) uniform Push { GBufferPush pc; };
+
+layout(location = 0) out vec3 v_world_pos;
+layout(location = 1) out vec3 v_normal;
+
+void main() {
+  vec4 wp = pc.world * vec4(in_position, 1.0);
+  v_world_pos = wp.xyz;
+  v_normal = vec3(dot(pc.normal_row0.xyz, in_normal), dot(pc.normal_row1.xyz, in_normal),
+                  dot(pc.normal_row2.xyz, in_normal));
+  gl_Position = frame.view_proj * wp;
+}

@@ -1,0 +1,124 @@
+// The command line as a user meets it: exit codes, one-line errors, nothing half-written.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <sys/wait.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Run {
+  int code = -1;
+  std::string output;  // stdout + stderr
+};
+
+Run run(const std::string& args, const std::string& env = "") {
+  const std::string cmd = env + " " + std::string(HP_CLI_PATH) + " " + args + " 2>&1";
+  Run r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.output.append(buf.data(), n);
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+fs::path temp_dir() {
+  fs::path d = fs::temp_directory_path() / ("hp_cli_test_" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+size_t line_count(const std::string& s) {
+  size_t n = 0;
+  for (char c : s) n += c == '\n';
+  return n;
+}
+
+bool have_vulkan() { return run("devices").code == 0; }
+
+TEST(Cli, HelpListsSubcommands) {
+  Run r = run("--help");
+  EXPECT_EQ(r.code, 0);
+  EXPECT_NE(r.output.find("render"), std::string::npos);
+  EXPECT_NE(r.output.find("devices"), std::string::npos);
+}
+
+TEST(Cli, RenderWritesPngAndAov) {
+  if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
+  const fs::path d = temp_dir();
+  Run r = run("render --scene builtin:cornell --width 96 --height 64 --out " + (d / "c.png").string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(d / "c.png"));
+  EXPECT_GT(fs::file_size(d / "c.png"), 500u);
+  r = run("render --scene builtin:cornell --width 96 --height 64 --aov depth --out " + (d / "z.exr").string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(d / "z.exr"));
+  // No temporary files left beside the outputs.
+  for (const auto& e : fs::directory_iterator(d)) EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos);
+  fs::remove_all(d);
+}
+
+TEST(Cli, BadSceneIsOneLineExit2) {
+  Run r = run("render --scene /nonexistent/scene.gltf --out /tmp/never.png");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("/nonexistent/scene.gltf"), std::string::npos) << r.output;
+}
+
+TEST(Cli, UnknownBuiltinIsOneLineExit2) {
+  Run r = run("render --scene builtin:nope --out /tmp/never.png");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
+}
+
+TEST(Cli, AbsurdResolutionNamesTheLimitAndWritesNothing) {
+  const fs::path d = temp_dir();
+  const fs::path out = d / "huge.png";
+  Run r = run("render --scene builtin:cornell --width 100000 --height 10 --out " + out.string());
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("limit"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  r = run("render --scene builtin:cornell --width 0 --height 10 --out " + out.string());
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+  fs::remove_all(d);
+}
+
+TEST(Cli, UnknownAovAndBadVectorAreExit2) {
+  Run r = run("render --scene builtin:cornell --aov bogus --out /tmp/never.png");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--aov"), std::string::npos) << r.output;
+  r = run("render --scene builtin:cornell --light-dir 1,nan,0 --out /tmp/never.png");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--light-dir"), std::string::npos) << r.output;
+  r = run("render --bogus-option");
+  EXPECT_EQ(r.code, 2) << r.output;
+}
+
+TEST(Cli, NoVulkanDeviceIsExit3WithHowToInstall) {
+  // An ICD list that names no existing driver: the loader finds no device.
+  Run r = run("render --scene builtin:cornell --width 8 --height 8 --out /tmp/never.png",
+              "VK_ICD_FILENAMES=/nonexistent/icd.json VK_DRIVER_FILES=/nonexistent/icd.json");
+  EXPECT_EQ(r.code, 3) << r.output;
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("mesa-vulkan-drivers"), std::string::npos) << r.output;
+}
+
+TEST(Cli, UnknownDeviceIsExit3) {
+  if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
+  Run r = run("render --scene builtin:cornell --device no-such-gpu-xyz --out /tmp/never.png");
+  EXPECT_EQ(r.code, 3) << r.output;
+  EXPECT_NE(r.output.find("no-such-gpu-xyz"), std::string::npos) << r.output;
+}
+
+}  // namespace
