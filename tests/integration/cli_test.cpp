@@ -13,14 +13,14 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Run {
+struct CmdResult {
   int code = -1;
   std::string output;  // stdout + stderr
 };
 
-Run run(const std::string& args, const std::string& env = "") {
+CmdResult run(const std::string& args, const std::string& env = "") {
   const std::string cmd = env + " " + std::string(HP_CLI_PATH) + " " + args + " 2>&1";
-  Run r;
+  CmdResult r;
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
   std::array<char, 4096> buf;
@@ -46,7 +46,7 @@ size_t line_count(const std::string& s) {
 bool have_vulkan() { return run("devices").code == 0; }
 
 TEST(Cli, HelpListsSubcommands) {
-  Run r = run("--help");
+  CmdResult r = run("--help");
   EXPECT_EQ(r.code, 0);
   EXPECT_NE(r.output.find("render"), std::string::npos);
   EXPECT_NE(r.output.find("devices"), std::string::npos);
@@ -55,7 +55,7 @@ TEST(Cli, HelpListsSubcommands) {
 TEST(Cli, RenderWritesPngAndAov) {
   if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
   const fs::path d = temp_dir();
-  Run r = run("render --scene builtin:cornell --width 96 --height 64 --out " + (d / "c.png").string());
+  CmdResult r = run("render --scene builtin:cornell --width 96 --height 64 --out " + (d / "c.png").string());
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_TRUE(fs::exists(d / "c.png"));
   EXPECT_GT(fs::file_size(d / "c.png"), 500u);
@@ -68,14 +68,14 @@ TEST(Cli, RenderWritesPngAndAov) {
 }
 
 TEST(Cli, BadSceneIsOneLineExit2) {
-  Run r = run("render --scene /nonexistent/scene.gltf --out /tmp/never.png");
+  CmdResult r = run("render --scene /nonexistent/scene.gltf --out /tmp/never.png");
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_EQ(line_count(r.output), 1u) << r.output;
   EXPECT_NE(r.output.find("/nonexistent/scene.gltf"), std::string::npos) << r.output;
 }
 
 TEST(Cli, UnknownBuiltinIsOneLineExit2) {
-  Run r = run("render --scene builtin:nope --out /tmp/never.png");
+  CmdResult r = run("render --scene builtin:nope --out /tmp/never.png");
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_EQ(line_count(r.output), 1u) << r.output;
 }
@@ -83,7 +83,7 @@ TEST(Cli, UnknownBuiltinIsOneLineExit2) {
 TEST(Cli, AbsurdResolutionNamesTheLimitAndWritesNothing) {
   const fs::path d = temp_dir();
   const fs::path out = d / "huge.png";
-  Run r = run("render --scene builtin:cornell --width 100000 --height 10 --out " + out.string());
+  CmdResult r = run("render --scene builtin:cornell --width 100000 --height 10 --out " + out.string());
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_EQ(line_count(r.output), 1u) << r.output;
   EXPECT_NE(r.output.find("limit"), std::string::npos) << r.output;
@@ -95,7 +95,7 @@ TEST(Cli, AbsurdResolutionNamesTheLimitAndWritesNothing) {
 }
 
 TEST(Cli, UnknownAovAndBadVectorAreExit2) {
-  Run r = run("render --scene builtin:cornell --aov bogus --out /tmp/never.png");
+  CmdResult r = run("render --scene builtin:cornell --aov bogus --out /tmp/never.png");
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("--aov"), std::string::npos) << r.output;
   r = run("render --scene builtin:cornell --light-dir 1,nan,0 --out /tmp/never.png");
@@ -107,7 +107,7 @@ TEST(Cli, UnknownAovAndBadVectorAreExit2) {
 
 TEST(Cli, NoVulkanDeviceIsExit3WithHowToInstall) {
   // An ICD list that names no existing driver: the loader finds no device.
-  Run r = run("render --scene builtin:cornell --width 8 --height 8 --out /tmp/never.png",
+  CmdResult r = run("render --scene builtin:cornell --width 8 --height 8 --out /tmp/never.png",
               "VK_ICD_FILENAMES=/nonexistent/icd.json VK_DRIVER_FILES=/nonexistent/icd.json");
   EXPECT_EQ(r.code, 3) << r.output;
   EXPECT_EQ(line_count(r.output), 1u) << r.output;
@@ -116,7 +116,7 @@ TEST(Cli, NoVulkanDeviceIsExit3WithHowToInstall) {
 
 TEST(Cli, UnknownDeviceIsExit3) {
   if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
-  Run r = run("render --scene builtin:cornell --device no-such-gpu-xyz --out /tmp/never.png");
+  CmdResult r = run("render --scene builtin:cornell --device no-such-gpu-xyz --out /tmp/never.png");
   EXPECT_EQ(r.code, 3) << r.output;
   EXPECT_NE(r.output.find("no-such-gpu-xyz"), std::string::npos) << r.output;
 }
