@@ -47,10 +47,11 @@ Scene make_terrain_1m_scene();
 ///       |x| <= 0.1 is seen directly (the camera is at x = 0, so its rays to them stay inside the slab);
 ///     - the right wall (x = +1) for y >= 0.6 (above the short box, and the tall box is at x < 0);
 ///     - the left wall (x = -1) for z >= 0.1 (rays to it pass in front of the tall box).
-///   Light: directional, direction (toward the light) normalize(0.3, 0.4, 1.0): it enters through the open
-///     side, so the ceiling does not shadow the interior; the back-wall centre (0, 1, -1) is lit (its shadow
-///     ray leaves through the opening at (0.6, 1.8, 1) and passes above the short box); the boxes cast
-///     shadows toward the back left onto the floor and the back wall.
+///   Light: directional, direction (toward the light) normalize(0.3, 0.2, 1.0). It enters low through the
+///     open side, because from above the ceiling would shadow everything: the whole floor and the back wall
+///     below y = 1.6 (minus the boxes' shadows) are lit, the ceiling and right wall face away. The back-wall
+///     centre (0, 1, -1) is lit: its shadow ray leaves through the opening at (0.6, 1.4, 1), passing above
+///     the short box. The boxes cast shadows toward the back left onto the floor and the back wall.
 namespace cornell {
 inline constexpr float kFloorY = 0.0f;
 inline constexpr float kCeilingY = 2.0f;
@@ -72,7 +73,7 @@ inline constexpr float kCameraVfovDeg = 40.0f;
 inline constexpr float kCameraZnear = 0.1f;
 inline constexpr float kCameraZfar = 20.0f;
 /// Unnormalised; the scene stores normalize(kLightDirection).
-inline constexpr float kLightDirection[3] = {0.3f, 0.4f, 1.0f};
+inline constexpr float kLightDirection[3] = {0.3f, 0.2f, 1.0f};
 /// Half-width of the box-free slab around x = 0.
 inline constexpr float kClearSlabHalfWidth = 0.1f;
 
