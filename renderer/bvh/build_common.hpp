@@ -1,0 +1,145 @@
+// Internal to hp_bvh: what the two builders (binned SAH, full sweep) share.
+#pragma once
+
+#include "bvh/bvh.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cstdint>
+#include <exception>
+#include <mutex>
+#include <span>
+#include <thread>
+#include <vector>
+
+namespace hp::bvh::detail {
+
+/// A primitive's bounds and its scene index, 32 bytes so that partitioning moves whole cache-line halves.
+/// The centroid is never stored: the builders use lo + hi (twice the centroid) everywhere.
+struct PrimRef {
+  glm::vec3 lo;
+  uint32_t id;
+  glm::vec3 hi;
+  uint32_t pad;
+};
+static_assert(sizeof(PrimRef) == 32);
+
+/// Half the surface area: the SAH only compares ratios, so the factor 2 is dropped.
+inline float half_area(const glm::vec3& lo, const glm::vec3& hi) {
+  const glm::vec3 e = hi - lo;
+  return e.x * e.y + e.y * e.z + e.z * e.x;
+}
+
+/// Interior levels a balanced (median-split) subtree over n primitives needs with leaves of at most
+/// `leaf` primitives: the smallest k with leaf * 2^k >= n.
+inline int levels_needed(uint64_t n, uint64_t leaf) {
+  int k = 0;
+  while (leaf < n) {
+    leaf *= 2;
+    ++k;
+  }
+  return k;
+}
+
+/// Output of a builder before flattening: nodes where an interior node's children are the pair
+/// (offset, offset + 1), the root at 0; leaves index `order`.
+struct PairTree {
+  std::vector<gpu::BvhNode> nodes;
+  std::vector<uint32_t> order;  ///< leaf order -> scene index
+  std::size_t depth_limited_splits = 0;
+};
+
+inline gpu::BvhNode make_leaf(const glm::vec3& lo, const glm::vec3& hi, uint32_t first, uint32_t count) {
+  return gpu::BvhNode{lo, static_cast<int>(first), hi, count << HP_BVH_AXIS_BITS};
+}
+inline gpu::BvhNode make_interior(const glm::vec3& lo, const glm::vec3& hi, uint32_t first_child, uint32_t axis) {
+  return gpu::BvhNode{lo, static_cast<int>(first_child), hi, axis};
+}
+
+/// Fork-join helper: runs `a` on a new thread when a worker slot is free and the subtree is big enough to
+/// pay for a thread start, else inline; runs `b` inline; waits for both. Slots return as soon as a forked
+/// subtree finishes, so a long unbalanced branch picks up the core a short one gave back.
+class Forker {
+public:
+  explicit Forker(int threads) : free_slots_(threads - 1) {}
+
+  template <class A, class B>
+  void fork_join(std::size_t size_a, A&& a, B&& b) {
+    if (size_a >= kMinForkSize && try_acquire()) {
+      std::exception_ptr error;
+      std::thread t([&] {
+        try {
+          a(true);
+        } catch (...) {
+          error = std::current_exception();
+        }
+        free_slots_.fetch_add(1, std::memory_order_release);
+      });
+      try {
+        b();
+      } catch (...) {
+        t.join();
+        throw;
+      }
+      t.join();
+      if (error) std::rethrow_exception(error);
+    } else {
+      a(false);
+      b();
+    }
+  }
+
+  /// Splits [0, n) into one contiguous chunk per worker and runs f(begin, end, chunk) on each, in parallel.
+  template <class F>
+  static void parallel_chunks(std::size_t n, int threads, F&& f) {
+    const std::size_t chunks = std::max<std::size_t>(1, std::min<std::size_t>(threads, n / 65536 + 1));
+    std::vector<std::thread> pool;
+    std::exception_ptr error;
+    std::mutex error_mutex;
+    for (std::size_t c = 1; c < chunks; ++c) {
+      pool.emplace_back([&, c] {
+        try {
+          f(n * c / chunks, n * (c + 1) / chunks, c);
+        } catch (...) {
+          std::lock_guard lock(error_mutex);
+          error = std::current_exception();
+        }
+      });
+    }
+    try {
+      f(0, n / chunks, std::size_t{0});
+    } catch (...) {
+      std::lock_guard lock(error_mutex);
+      error = std::current_exception();
+    }
+    for (auto& t : pool) t.join();
+    if (error) std::rethrow_exception(error);
+  }
+
+private:
+  static constexpr std::size_t kMinForkSize = 8192;
+  bool try_acquire() {
+    int n = free_slots_.load(std::memory_order_relaxed);
+    while (n > 0) {
+      if (free_slots_.compare_exchange_weak(n, n - 1, std::memory_order_acquire)) return true;
+    }
+    return false;
+  }
+  std::atomic<int> free_slots_;
+};
+
+/// Knobs both builders read, already validated.
+struct BuildParams {
+  int buckets;
+  float traversal_cost;
+  uint32_t max_leaf;
+  int max_depth;
+  int threads;
+};
+
+/// Binned SAH over `prims` (reordered in place into leaf order).
+PairTree build_binned(std::span<PrimRef> prims, const BuildParams& params);
+/// Exact full-sweep SAH over all three axes.
+PairTree build_full_sweep(std::span<const PrimRef> prims, const BuildParams& params);
+
+}  // namespace hp::bvh::detail

@@ -1,0 +1,239 @@
+#include "bvh/bvh.hpp"
+
+#include "bvh/build_common.hpp"
+#include "error.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <limits>
+#include <string>
+#include <thread>
+
+namespace hp::bvh {
+namespace {
+
+using detail::PrimRef;
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+detail::BuildParams validate(const BuildOptions& o, std::size_t primitives) {
+  if (o.buckets < 2 || o.buckets > 1024) {
+    throw InputError("bvh build: buckets " + std::to_string(o.buckets) + " is outside 2..1024");
+  }
+  if (!(o.traversal_cost >= 0.0f) || !std::isfinite(o.traversal_cost)) {
+    throw InputError("bvh build: traversal cost must be a finite number >= 0");
+  }
+  constexpr int kMaxCount = (1 << (32 - HP_BVH_AXIS_BITS)) - 1;
+  if (o.max_leaf_size < 1 || o.max_leaf_size > kMaxCount) {
+    throw InputError("bvh build: leaf size " + std::to_string(o.max_leaf_size) + " is outside 1.." +
+                     std::to_string(kMaxCount));
+  }
+  if (o.max_depth < 1 || o.max_depth > HP_BVH_STACK_SIZE) {
+    throw InputError("bvh build: max depth " + std::to_string(o.max_depth) + " is outside 1.." +
+                     std::to_string(HP_BVH_STACK_SIZE) + " (the traversal stack size)");
+  }
+  if (o.threads < 0) throw InputError("bvh build: threads must be >= 0");
+  if (primitives > static_cast<std::size_t>(std::numeric_limits<int32_t>::max())) {
+    throw InputError("bvh build: " + std::to_string(primitives) + " primitives exceed the 32-bit node offsets");
+  }
+  // The depth bound holds for any tree that median splits can produce within max_depth levels.
+  if (detail::levels_needed(primitives, static_cast<uint64_t>(o.max_leaf_size)) > o.max_depth) {
+    throw InputError("bvh build: " + std::to_string(primitives) + " primitives do not fit in a tree of depth " +
+                     std::to_string(o.max_depth) + " with leaves of " + std::to_string(o.max_leaf_size) +
+                     ": raise the leaf size or the depth");
+  }
+  detail::BuildParams p;
+  p.buckets = o.buckets;
+  p.traversal_cost = o.traversal_cost;
+  p.max_leaf = static_cast<uint32_t>(o.max_leaf_size);
+  p.max_depth = o.max_depth;
+  p.threads = o.threads > 0 ? o.threads : std::max(1u, std::thread::hardware_concurrency());
+  return p;
+}
+
+PrimRef triangle_ref(const Triangle& t, uint32_t id) {
+  PrimRef r;
+  r.lo = glm::min(t.v0, glm::min(t.v1, t.v2));
+  r.hi = glm::max(t.v0, glm::max(t.v1, t.v2));
+  r.id = id;
+  r.pad = 0;
+  return r;
+}
+
+/// Primitive references for the valid primitives, in scene order, built in parallel chunks.
+std::vector<PrimRef> make_refs(std::span<const Triangle> tris, std::span<const uint32_t> object_first, int threads) {
+  const bool objects = !object_first.empty();
+  const std::size_t n = objects ? object_first.size() - 1 : tris.size();
+  // Pass 1: each chunk fills its own slice and counts its valid primitives; pass 2 compacts.
+  std::vector<PrimRef> refs(n);
+  std::vector<uint8_t> valid(n);
+  detail::Forker::parallel_chunks(n, threads, [&](std::size_t b, std::size_t e, std::size_t) {
+    for (std::size_t i = b; i < e; ++i) {
+      if (!objects) {
+        valid[i] = !is_degenerate(tris[i]);
+        if (valid[i]) refs[i] = triangle_ref(tris[i], static_cast<uint32_t>(i));
+        continue;
+      }
+      PrimRef r{glm::vec3(kInf), static_cast<uint32_t>(i), glm::vec3(-kInf), 0};
+      bool any = false;
+      for (uint32_t t = object_first[i]; t < object_first[i + 1]; ++t) {
+        if (is_degenerate(tris[t])) continue;
+        const PrimRef tr = triangle_ref(tris[t], t);
+        r.lo = glm::min(r.lo, tr.lo);
+        r.hi = glm::max(r.hi, tr.hi);
+        any = true;
+      }
+      valid[i] = any;
+      refs[i] = r;
+    }
+  });
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (valid[i]) refs[k++] = refs[i];
+  }
+  refs.resize(k);
+  return refs;
+}
+
+/// Rewrites the builders' pair layout (children at offset, offset + 1) depth-first, the first child right
+/// after its parent, and measures the depth.
+struct Flattener {
+  const std::vector<gpu::BvhNode>& in;
+  std::vector<gpu::BvhNode>& out;
+  int max_depth = 0;
+
+  void emit(uint32_t i, int depth) {
+    const uint32_t at = static_cast<uint32_t>(out.size());
+    out.push_back(in[i]);
+    if (node_is_leaf(in[i])) {
+      max_depth = std::max(max_depth, depth);
+      return;
+    }
+    const uint32_t child = static_cast<uint32_t>(in[i].offset);
+    emit(child, depth + 1);
+    out[at].offset = static_cast<int>(out.size());
+    emit(child + 1, depth + 1);
+  }
+};
+
+}  // namespace
+
+Bvh build_bvh(std::span<const Triangle> triangles, const BuildOptions& options, std::span<const uint32_t> object_first) {
+  const bool objects = options.granularity == Granularity::object;
+  if (objects) {
+    if (object_first.empty() || object_first.front() != 0 || object_first.back() != triangles.size()) {
+      throw InputError("bvh build: object ranges must start at 0 and end at the triangle count (" +
+                       std::to_string(triangles.size()) + ")");
+    }
+    for (std::size_t i = 1; i < object_first.size(); ++i) {
+      if (object_first[i] < object_first[i - 1]) {
+        throw InputError("bvh build: object ranges decrease at object " + std::to_string(i - 1));
+      }
+    }
+  } else if (!object_first.empty()) {
+    throw InputError("bvh build: object ranges given for the triangle granularity");
+  }
+  if (triangles.size() > static_cast<std::size_t>(std::numeric_limits<int32_t>::max())) {
+    throw InputError("bvh build: " + std::to_string(triangles.size()) + " triangles exceed 32-bit indices");
+  }
+  const std::size_t nprims = objects ? object_first.size() - 1 : triangles.size();
+  const detail::BuildParams params = validate(options, nprims);
+
+  Bvh bvh;
+  bvh.granularity = options.granularity;
+  bvh.traversal_cost = options.traversal_cost;
+  if (objects) bvh.object_first.assign(object_first.begin(), object_first.end());
+
+  std::vector<PrimRef> refs = make_refs(triangles, objects ? object_first : std::span<const uint32_t>{}, params.threads);
+  if (refs.empty()) {
+    // An inverted box fails every slab test, so a traversal that tests the root's box ends at once.
+    bvh.nodes.push_back(gpu::BvhNode{glm::vec3(kInf), 0, glm::vec3(-kInf), 0});
+    return bvh;
+  }
+
+  detail::PairTree tree = options.full_sweep ? detail::build_full_sweep(refs, params) : detail::build_binned(refs, params);
+  bvh.nodes.reserve(tree.nodes.size());
+  Flattener f{tree.nodes, bvh.nodes};
+  f.emit(0, 0);
+  bvh.max_depth = f.max_depth;
+  bvh.prim_ids = std::move(tree.order);
+  bvh.depth_limited_splits = tree.depth_limited_splits;
+  if (bvh.max_depth > options.max_depth) {
+    // The builders bound the depth by construction; this is a guard against a bug, not an input error.
+    throw std::logic_error("bvh build: depth " + std::to_string(bvh.max_depth) + " exceeds the bound " +
+                           std::to_string(options.max_depth));
+  }
+  return bvh;
+}
+
+BvhStats bvh_stats(const Bvh& bvh) {
+  BvhStats s;
+  if (bvh.prim_ids.empty()) return s;
+  const auto tri_count = [&](uint32_t first, uint32_t count) -> std::size_t {
+    if (bvh.granularity == Granularity::triangle) return count;
+    std::size_t total = 0;
+    for (uint32_t k = first; k < first + count; ++k) {
+      const uint32_t obj = bvh.prim_ids[k];
+      total += bvh.object_first[obj + 1] - bvh.object_first[obj];
+    }
+    return total;
+  };
+  const double root_area = detail::half_area(bvh.nodes[0].bmin, bvh.nodes[0].bmax);
+  const double inv_root = root_area > 0.0 ? 1.0 / root_area : 0.0;
+  // Depth-first walk with an explicit stack of (node, depth).
+  std::vector<std::pair<uint32_t, int>> stack{{0u, 0}};
+  while (!stack.empty()) {
+    const auto [i, depth] = stack.back();
+    stack.pop_back();
+    const gpu::BvhNode& n = bvh.nodes[i];
+    ++s.nodes;
+    const double rel_area = detail::half_area(n.bmin, n.bmax) * inv_root;
+    if (node_is_leaf(n)) {
+      const uint32_t count = node_count(n);
+      ++s.leaves;
+      s.primitives += count;
+      const std::size_t tris = tri_count(static_cast<uint32_t>(n.offset), count);
+      s.triangles += tris;
+      if (s.leaf_size_histogram.size() <= count) s.leaf_size_histogram.resize(count + 1);
+      ++s.leaf_size_histogram[count];
+      s.max_depth = std::max(s.max_depth, depth);
+      s.sah_cost += count * rel_area;
+      s.sah_cost_triangles += static_cast<double>(tris) * rel_area;
+    } else {
+      s.sah_cost += bvh.traversal_cost * rel_area;
+      s.sah_cost_triangles += bvh.traversal_cost * rel_area;
+      stack.emplace_back(static_cast<uint32_t>(n.offset), depth + 1);
+      stack.emplace_back(i + 1, depth + 1);
+    }
+  }
+  return s;
+}
+
+LeafOrderTriangles leaf_order(const Bvh& bvh, std::span<const Triangle> triangles) {
+  LeafOrderTriangles out;
+  if (bvh.granularity == Granularity::triangle) {
+    out.triangles.resize(bvh.prim_ids.size());
+    out.scene_index = bvh.prim_ids;
+    for (std::size_t k = 0; k < bvh.prim_ids.size(); ++k) out.triangles[k] = triangles[bvh.prim_ids[k]];
+    return out;
+  }
+  out.object_first.reserve(bvh.prim_ids.size() + 1);
+  out.object_first.push_back(0);
+  for (const uint32_t obj : bvh.prim_ids) {
+    for (uint32_t t = bvh.object_first[obj]; t < bvh.object_first[obj + 1]; ++t) {
+      Triangle tri = triangles[t];
+      if (is_degenerate(tri)) {
+        // A point: every edge function is exactly 0, in float and in double, so it is never hit.
+        const glm::vec3 p = !glm::any(glm::isnan(tri.v0)) && !glm::any(glm::isinf(tri.v0)) ? tri.v0 : glm::vec3(0.0f);
+        tri = Triangle{p, p, p};
+      }
+      out.triangles.push_back(tri);
+      out.scene_index.push_back(t);
+    }
+    out.object_first.push_back(static_cast<uint32_t>(out.triangles.size()));
+  }
+  return out;
+}
+
+}  // namespace hp::bvh

@@ -1,0 +1,40 @@
+#include "bvh/geometry.hpp"
+
+#include "error.hpp"
+
+#include <cmath>
+#include <string>
+
+namespace hp::bvh {
+
+std::vector<Triangle> make_triangles(std::span<const glm::vec3> positions, std::span<const uint32_t> indices) {
+  if (indices.size() % 3 != 0) {
+    throw InputError("triangle indices: count " + std::to_string(indices.size()) + " is not a multiple of 3");
+  }
+  std::vector<Triangle> tris(indices.size() / 3);
+  for (std::size_t t = 0; t < tris.size(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t i = indices[3 * t + k];
+      if (i >= positions.size()) {
+        throw InputError("triangle indices: index " + std::to_string(i) + " of triangle " + std::to_string(t) +
+                         " is out of range (" + std::to_string(positions.size()) + " positions)");
+      }
+    }
+    tris[t] = Triangle{positions[indices[3 * t]], positions[indices[3 * t + 1]], positions[indices[3 * t + 2]]};
+  }
+  return tris;
+}
+
+bool is_degenerate(const Triangle& tri) {
+  for (const glm::vec3* v : {&tri.v0, &tri.v1, &tri.v2}) {
+    if (!std::isfinite(v->x) || !std::isfinite(v->y) || !std::isfinite(v->z)) return true;
+  }
+  // Differences of floats and products of those differences are exact (or nearly) in double, so a zero
+  // here means the vertices are collinear, not merely close.
+  const glm::dvec3 e1 = glm::dvec3(tri.v1) - glm::dvec3(tri.v0);
+  const glm::dvec3 e2 = glm::dvec3(tri.v2) - glm::dvec3(tri.v0);
+  const glm::dvec3 n = glm::cross(e1, e2);
+  return n.x == 0.0 && n.y == 0.0 && n.z == 0.0;
+}
+
+}  // namespace hp::bvh
