@@ -1,14 +1,22 @@
 // One hybrid frame on the GPU: owns the scene's GPU copies, the render targets and the passes, records a
-// frame's command buffer and submits it. Today: G-buffer raster -> composite (direct light).
+// frame's command buffer with a timestamp pair around every pass, submits it and reads the timings back.
+//   gbuffer (raster) -> shadows (compute) -> reflections (compute) -> accumulate -> composite
+// A pass the settings do not ask for is neither compiled nor recorded, and no BVH is built when no ray is
+// traced.
 #pragma once
 
+#include "bvh/bvh.hpp"
 #include "gpu_scene.hpp"
 #include "image/image.hpp"
 #include "passes/composite.hpp"
 #include "passes/gbuffer.hpp"
+#include "passes/raytrace.hpp"
+#include "rt_scene.hpp"
 #include "view.hpp"
+#include "vk/timestamps.hpp"
 
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace hp {
@@ -17,6 +25,9 @@ struct FrameSettings {
   uint32_t width = 1280;
   uint32_t height = 720;
   bool reversed_z = false;
+  GeometryLayout geometry = GeometryLayout::indexed;
+  RayTracingOptions rt{.shadows = false, .reflections = false};
+  bvh::BuildOptions bvh;
 };
 
 /// Largest image side accepted (Vulkan guarantees 4096 for 2D images; lavapipe and GPUs allow 16384).
@@ -25,31 +36,59 @@ constexpr uint32_t kMaxImageSide = 16384;
 /// Throws hp::InputError naming the limit when width/height are zero or too large for the device.
 void validate_extent(uint32_t width, uint32_t height, uint32_t device_max_side);
 
-/// The G-buffer views `--aov` can write.
-enum class Aov { color, depth, normal, albedo, roughness, metallic };
+/// The views `--aov` can write.
+enum class Aov { color, depth, normal, albedo, roughness, metallic, shadow, reflection };
 Aov parse_aov(const std::string& name);  // throws InputError listing the choices
+
+/// What one frame cost. `source` says how the pass times were taken: "gpu-timestamps", or "cpu-wall"
+/// (one submission per pass, timed on the host) where the queue has no timestamps.
+struct FrameTiming {
+  struct Pass {
+    std::string name;
+    uint64_t begin_ns = 0, end_ns = 0;
+    uint64_t duration_ns() const { return end_ns - begin_ns; }
+  };
+  std::vector<Pass> passes;
+  uint64_t cpu_wall_ns = 0;  ///< record + submit + wait, on the host
+  std::string source;
+};
 
 class Frame {
  public:
   Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const FrameSettings& settings);
 
-  /// Records, submits and waits for one frame.
-  void render();
+  /// Records, submits and waits for one frame; accumulation advances by one sample.
+  FrameTiming render();
+  /// Restarts temporal accumulation (call after changing the camera or the light).
+  void reset_accumulation() { sample_index_ = 0; }
+  void set_camera(const Camera& camera);
+  void set_light(const DirectionalLight& light);
 
   const View& view() const { return view_; }
   const FrameSettings& settings() const { return settings_; }
+  /// The BVH and leaf-order geometry (when rays are traced), for CPU reference checks.
+  const RtGeometry* rt_geometry() const { return rt_geometry_ ? &*rt_geometry_ : nullptr; }
+  const RayTracingPasses* rt_passes() const { return rt_passes_.get(); }
+  uint32_t samples_accumulated() const { return sample_index_; }
+  bool timestamps_supported() const { return timestamps_.supported(); }
 
-  /// Host copies of the last frame's outputs (linear floats, RGBA).
   Image4f read_color() const;
-  /// G-buffer views: depth in r (raw depth-buffer value), normal in rgb (world, unit), albedo in rgb
-  /// (linear), roughness / metalness in r. Alpha is 1; background pixels have alpha 0.
+  /// G-buffer and ray-tracing views: depth in r (raw depth-buffer value), normal rgb (world, unit), albedo
+  /// rgb (linear), roughness / metalness in r, shadow mask in r (1 lit, 0 shadowed), reflection rgb (the
+  /// accumulated reflection grid, alpha 1 where reflective). Background pixels have alpha 0 for G-buffer
+  /// views.
   Image4f read_aov(Aov aov) const;
-  /// The raw depth buffer (width * height floats).
   std::vector<float> read_depth() const;
+  RayCounters read_counters() const;
 
  private:
+  void upload_uniforms();
+  void record_passes(VkCommandBuffer cmd, bool with_timestamps);
+
   vk::Context& ctx_;
   const Scene& scene_;
+  Camera camera_;
+  DirectionalLight light_;
   FrameSettings settings_;
   View view_;
   GpuScene gpu_scene_;
@@ -57,9 +96,15 @@ class Frame {
   GBuffer gbuffer_;
   vk::Image color_;
   vk::Sampler sampler_;
+  std::optional<RtGeometry> rt_geometry_;
+  std::unique_ptr<RtScene> rt_scene_;
+  std::unique_ptr<RayTracingPasses> rt_passes_;
+  vk::Image dummy_shadow_, dummy_reflection_;  // bound by the composite when no ray is traced
   GBufferPass gbuffer_pass_;
-  CompositePass composite_pass_;
+  std::unique_ptr<CompositePass> composite_pass_;
+  vk::TimestampQueries timestamps_;
   uint32_t frame_index_ = 0;
+  uint32_t sample_index_ = 0;
 };
 
 }  // namespace hp

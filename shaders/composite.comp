@@ -11,6 +11,11 @@ layout(set = 0, binding = 1) uniform sampler2D g_depth;
 layout(set = 0, binding = 2) uniform sampler2D g_normal_roughness;
 layout(set = 0, binding = 3) uniform sampler2D g_albedo_metal;
 layout(set = 0, binding = 4, rgba32f) uniform writeonly image2D out_color;
+layout(set = 0, binding = 5, r32f) uniform readonly image2D shadow_mask;
+layout(set = 0, binding = 6, rgba32f) uniform readonly image2D reflection_accum;
+
+#define HP_COMPOSITE_SHADOWS 1u
+#define HP_COMPOSITE_REFLECTIONS 2u
 
 vec3 world_position(ivec2 p, float depth) {
   vec2 ndc = (vec2(p) + 0.5) / vec2(frame.extent.xy) * 2.0 - 1.0;
@@ -34,7 +39,21 @@ void main() {
   vec3 v = normalize(frame.camera_pos.xyz - pos);
   vec3 l = frame.light_dir.xyz;
   vec3 light = frame.light_color.rgb * frame.light_dir.w;
-  vec3 c = shade_direct(n, v, l, am.rgb, am.a, nr.a, light) +
-           shade_ambient(n, v, am.rgb, am.a, frame.sky_color.rgb);
+  uint flags = frame.extent.w;
+  float lit = (flags & HP_COMPOSITE_SHADOWS) != 0u ? imageLoad(shadow_mask, p).r : 1.0;
+  vec3 c = lit * shade_direct(n, v, l, am.rgb, am.a, nr.a, light);
+  vec4 refl = vec4(0.0);
+  if ((flags & HP_COMPOSITE_REFLECTIONS) != 0u) {
+    // Nearest cell of the (possibly reduced) reflection grid.
+    refl = imageLoad(reflection_accum, p / int(frame.params.w));
+  }
+  if (refl.a > 0.5) {
+    // A traced reflection replaces the constant-sky specular term, weighted by Fresnel.
+    vec3 f0 = mix(vec3(0.04), am.rgb, am.a);
+    vec3 F = fresnel_schlick(f0, max(dot(n, v), 0.0));
+    c += shade_ambient_diffuse(n, v, am.rgb, am.a, frame.sky_color.rgb) + F * refl.rgb;
+  } else {
+    c += shade_ambient(n, v, am.rgb, am.a, frame.sky_color.rgb);
+  }
   imageStore(out_color, p, vec4(c, 1.0));
 }

@@ -28,6 +28,8 @@ std::string one_line(std::string_view text) {
   for (char c : text) {
     if (c == '\n' || c == '\r') {
       if (!out.empty() && out.back() != ' ' && !out.ends_with("; ")) out += "; ";
+    } else if ((c >= 0 && c < 0x20) || c == 0x7f) {
+      out += '?';  // parser messages quote raw input bytes; keep the terminal sane
     } else {
       out += c;
     }
@@ -423,7 +425,15 @@ class Converter {
     AccessorView v;
     v.count = acc.count;
     v.stride = elem;
-    if (acc.count == 0 || acc.bufferView < 0) return v;
+    if (acc.count == 0) return v;
+    if (acc.bufferView < 0) {
+      // No bufferView means all zeros (glTF 3.6.2.4): nothing bounds the count, so cap it before allocating.
+      constexpr std::size_t kMaxImplicit = std::size_t(1) << 24;
+      if (acc.count > kMaxImplicit)
+        fail(path_, field, af + " has no bufferView and " + std::to_string(acc.count) + " elements (at most " +
+                               std::to_string(kMaxImplicit) + " implicit zeros are accepted)");
+      return v;
+    }
     if (std::size_t(acc.bufferView) >= model_.bufferViews.size())
       fail(path_, af + ".bufferView", "index " + std::to_string(acc.bufferView) + " out of range");
     const auto& bv = model_.bufferViews[acc.bufferView];

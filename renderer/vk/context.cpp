@@ -271,6 +271,10 @@ Context::Context(const ContextOptions& options) {
     if (!f13.dynamicRendering || !f13.synchronization2) {
       throw DeviceError("Vulkan device '" + info_.name + "' lacks dynamicRendering or synchronization2");
     }
+    // The watertight triangle test recomputes edge functions in double on exact zeros (Woop et al. 2013).
+    if (!supported.features.shaderFloat64) {
+      throw DeviceError("Vulkan device '" + info_.name + "' lacks shaderFloat64 (the watertight ray/triangle test needs it)");
+    }
     VkPhysicalDeviceVulkan13Features e13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
     e13.dynamicRendering = VK_TRUE;
     e13.synchronization2 = VK_TRUE;
@@ -282,6 +286,7 @@ Context::Context(const ContextOptions& options) {
     enabled.pNext = &e12;
     enabled.features.pipelineStatisticsQuery = supported.features.pipelineStatisticsQuery;
     enabled.features.shaderInt64 = supported.features.shaderInt64;
+    enabled.features.shaderFloat64 = VK_TRUE;
     enabled.features.fragmentStoresAndAtomics = supported.features.fragmentStoresAndAtomics;
 
     float priority = 1.0f;

@@ -32,6 +32,14 @@ vec3 shade_direct(vec3 n, vec3 v, vec3 l, vec3 albedo, float metallic, float rou
   return (diffuse + D * V * F) * light * ndl;
 }
 
+// The diffuse half of the ambient term (where a traced reflection provides the specular half).
+vec3 shade_ambient_diffuse(vec3 n, vec3 v, vec3 albedo, float metallic, vec3 sky) {
+  vec3 f0 = mix(vec3(0.04), albedo, metallic);
+  vec3 F = fresnel_schlick(f0, max(dot(n, v), 0.0));
+  float up = 0.5 + 0.5 * n.y;
+  return sky * (0.25 + 0.25 * up) * (1.0 - metallic) * albedo * (1.0 - F);
+}
+
 // A crude constant-sky ambient term so that unlit sides are not black (no GI in this renderer).
 vec3 shade_ambient(vec3 n, vec3 v, vec3 albedo, float metallic, vec3 sky) {
   vec3 f0 = mix(vec3(0.04), albedo, metallic);

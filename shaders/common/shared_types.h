@@ -13,6 +13,7 @@ using vec2 = glm::vec2;
 using vec3 = glm::vec3;
 using vec4 = glm::vec4;
 using ivec2 = glm::ivec2;
+using ivec4 = glm::ivec4;
 using uvec2 = glm::uvec2;
 using uvec4 = glm::uvec4;
 using mat4 = glm::mat4;
@@ -73,6 +74,50 @@ struct GBufferPush {
   vec4 material;     // x = metallic, y = roughness, z = material index, w unused
 };
 HP_CHECK_SIZE(GBufferPush, 128);
+
+// ---------------------------------------------------------------------------------------------------------
+// Parameters of the ray-tracing passes (uniform buffer, std140-compatible: only 16-byte members).
+struct RayParams {
+  uvec4 grid;        // x, y = reflection grid size; z = reflection scale divisor (1, 2, 4); w = flags (HP_RT_*)
+  vec4 shadow;       // x = normal bias (world units), y = offset mode (HP_OFFSET_*)
+  vec4 reflection;   // x = roughness threshold (reflective when roughness < x), y = jitter mode (HP_JITTER_*)
+  uvec4 frame;       // x = sample index (frames since the last reset), y = seed, z = triangles, w = nodes
+  vec4 jitter;       // xy = this frame's shared offset in [0, 1)^2 (HP_JITTER_SHARED)
+};
+HP_CHECK_SIZE(RayParams, 80);
+
+#define HP_RT_COUNTERS 1u        // shaders add rays, nodes visited and triangles tested to the counter buffer
+#define HP_RT_DUMP_RAYS 2u       // shaders write every ray they cast and its result (tests, cross-checks)
+#define HP_RT_REFLECTION_SHADOWS 4u  // reflection hits are shaded with a shadow ray
+#define HP_OFFSET_NORMAL_BIAS 0
+#define HP_OFFSET_ROBUST 1
+#define HP_JITTER_SHARED 0
+#define HP_JITTER_PER_THREAD 1
+
+// A ray as the shaders dump it (HP_RT_DUMP_RAYS): the bvh::Ray layout, then the result.
+struct RayDump {
+  vec4 origin_tmin;
+  vec4 dir_tmax;
+  ivec4 hit;         // x = scene triangle index or -1 (any-hit: 0/-1 hit flag as prim), y = floatBitsToInt(t), z = cast (1) or not (0)
+};
+HP_CHECK_SIZE(RayDump, 48);
+
+// Counter buffer layout (uint pairs, low word then high word, added with carry).
+#define HP_COUNTER_SHADOW_RAYS 0
+#define HP_COUNTER_SHADOW_NODES 2
+#define HP_COUNTER_SHADOW_TRIS 4
+#define HP_COUNTER_REFL_RAYS 6
+#define HP_COUNTER_REFL_NODES 8
+#define HP_COUNTER_REFL_TRIS 10
+#define HP_COUNTER_REFL_SHADOW_RAYS 12
+#define HP_COUNTER_WORDS 16
+
+// A material as the reflection pass reads it.
+struct GpuMaterial {
+  vec4 base_color_metallic;  // rgb, a = metallic
+  vec4 roughness;            // x = roughness
+};
+HP_CHECK_SIZE(GpuMaterial, 32);
 
 #ifdef __cplusplus
 }  // namespace hp::gpu

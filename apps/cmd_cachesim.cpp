@@ -1,0 +1,226 @@
+// `hybridprof cachesim`: replays memory traces through the GPU cache model.
+//   hybridprof cachesim TRACE --preset vega56 [--out result.json] [--mrc curves.csv] [--shards RATE]
+//                             [--export-din FILE [--export-pass NAME] [--export-cu N]]
+//     per-pass and per-buffer L1/L2 tables of a trace file written by `hybridprof trace`.
+//   hybridprof cachesim --din FILE --l1 16k:64:4 --l2 4m:64:16 [--mrc curves.csv]
+//     a Dinero IV text trace through one L1 and an L2 (LRU, write-allocate) with Dinero's counting.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "cachesim/din_replay.hpp"
+#include "cachesim/preset.hpp"
+#include "cachesim/simulator.hpp"
+#include "commands.hpp"
+#include "error.hpp"
+#include "trace/din.hpp"
+#include "trace/trace_file.hpp"
+
+namespace hp::cli {
+
+namespace {
+
+using namespace hp::cachesim;
+
+struct CachesimArgs {
+  std::string trace_path, din_path, preset = "vega56", out_path, mrc_path, export_din_path, export_pass;
+  std::string l1 = "16k:64:4", l2 = "4m:64:16";
+  double shards = 1.0;
+  uint32_t export_cu = 0;
+  bool per_invocation = false;
+};
+
+std::string pct(uint64_t part, uint64_t whole) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.2f%%", whole ? 100.0 * double(part) / double(whole) : 0.0);
+  return b;
+}
+
+void print_level(const char* name, const LevelStats& s) {
+  std::printf("  %-3s %14llu %14llu %14llu %9s %14llu %14llu\n", name, (unsigned long long)s.requests,
+              (unsigned long long)s.hits, (unsigned long long)s.misses, pct(s.hits, s.requests).c_str(),
+              (unsigned long long)s.sectors, (unsigned long long)s.sector_misses);
+}
+
+nlohmann::json level_json(const LevelStats& s) {
+  return {{"requests", s.requests},       {"hits", s.hits},
+          {"misses", s.misses},           {"hit_rate", s.hit_rate()},
+          {"line_hits", s.line_hits},     {"line_misses", s.line_misses},
+          {"sectors", s.sectors},         {"sector_hits", s.sector_hits},
+          {"sector_misses", s.sector_misses}};
+}
+
+nlohmann::json curve_json(const MissRatioCurve& c) {
+  nlohmann::json pts = nlohmann::json::array();
+  for (uint64_t lines = 1; lines <= std::max<uint64_t>(c.footprint_lines(), 1) * 2; lines *= 2)
+    pts.push_back({{"size_bytes", lines * c.line_bytes}, {"miss_ratio", c.miss_ratio(lines)}});
+  return {{"sampling_rate", c.sampling_rate}, {"accesses", c.accesses}, {"cold", c.cold}, {"points", pts}};
+}
+
+// Results go to a temporary file renamed into place, so readers never see half a file.
+void write_atomically(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp);
+    if (!out) throw InputError(path + ": cannot write");
+    out << text;
+    if (!out.flush()) throw InputError(path + ": write failed");
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) throw InputError(path + ": cannot rename into place: " + ec.message());
+}
+
+void run_trace(const CachesimArgs& a) {
+  const Preset preset = find_preset(a.preset);
+  trace::TraceReader reader(a.trace_path);
+  const auto& header = reader.header();
+  SimOptions opt;
+  opt.per_invocation = a.per_invocation;
+  opt.l1_mrc = opt.l2_mrc = !a.mrc_path.empty() || !a.out_path.empty();
+  opt.mrc_sampling_rate = a.shards;
+  Simulator sim(preset, header, opt);
+
+  std::printf("preset %s: %u CUs, wave%u, max %u waves/CU, %s coalescing\n  L1 %s per CU\n  L2 %s\n",
+              preset.name.c_str(), preset.compute_units, preset.wave_width, preset.max_waves_per_cu,
+              preset.coalescing == Coalescing::line ? "line" : "sector", describe(preset.l1).c_str(),
+              describe(preset.l2).c_str());
+  nlohmann::json out = {{"trace", a.trace_path}, {"preset", preset.name}, {"passes", nlohmann::json::array()}};
+  std::string csv = "pass,level,size_bytes,lines,miss_ratio\n";
+  bool exported = a.export_din_path.empty();
+  for (uint32_t p = 0; p < reader.passes().size(); ++p) {
+    const auto& pass = reader.passes()[p];
+    const auto records = reader.read_pass(p);
+    if (!a.export_din_path.empty() && (a.export_pass.empty() ? p == 0 : pass.name == a.export_pass)) {
+      std::ofstream din(a.export_din_path);
+      if (!din) throw InputError(a.export_din_path + ": cannot write");
+      const uint64_t n = export_din(din, preset, header, pass, records, a.export_cu);
+      std::printf("exported %llu L1 requests of CU %u in pass '%s' to %s\n", (unsigned long long)n, a.export_cu,
+                  pass.name.c_str(), a.export_din_path.c_str());
+      exported = true;
+    }
+    const PassResult r = sim.run_pass(pass, records);
+    const auto& s = r.stats;
+    std::printf("\npass '%s': %llu lane accesses, %llu workgroups, %llu wavefront steps\n", r.name.c_str(),
+                (unsigned long long)r.lane_accesses, (unsigned long long)r.workgroups,
+                (unsigned long long)r.wave_steps);
+    std::printf("  %-3s %14s %14s %14s %9s %14s %14s\n", "", "requests", "hits", "misses", "hit rate", "sectors",
+                "sector misses");
+    print_level("L1", s.l1);
+    print_level("L2", s.l2);
+    std::printf("  stores %llu, atomics %llu (write through the L1 / performed at the L2)\n",
+                (unsigned long long)s.stores, (unsigned long long)s.atomics);
+    std::printf("  DRAM read %llu bytes, written back %llu bytes\n", (unsigned long long)s.dram_read_bytes,
+                (unsigned long long)s.dram_write_bytes);
+    std::printf("  %-20s %12s %12s %9s %12s %12s %9s %14s\n", "buffer", "L1 requests", "L1 misses", "L1 miss",
+                "L2 requests", "L2 misses", "L2 miss", "DRAM read B");
+    nlohmann::json buffers = nlohmann::json::array();
+    for (const auto& b : header.buffers) {
+      const BufferStats& bs = r.buffers[b.id];
+      if (!bs.l1_requests && !bs.l2_requests) continue;
+      std::printf("  %-20s %12llu %12llu %9s %12llu %12llu %9s %14llu\n", b.name.c_str(),
+                  (unsigned long long)bs.l1_requests, (unsigned long long)bs.l1_misses,
+                  pct(bs.l1_misses, bs.l1_requests).c_str(), (unsigned long long)bs.l2_requests,
+                  (unsigned long long)bs.l2_misses, pct(bs.l2_misses, bs.l2_requests).c_str(),
+                  (unsigned long long)bs.dram_read_bytes);
+      buffers.push_back({{"id", b.id}, {"name", b.name}, {"l1_requests", bs.l1_requests},
+                         {"l1_misses", bs.l1_misses}, {"l2_requests", bs.l2_requests},
+                         {"l2_misses", bs.l2_misses}, {"dram_read_bytes", bs.dram_read_bytes}});
+    }
+    nlohmann::json pj = {{"name", r.name},
+                         {"lane_accesses", r.lane_accesses},
+                         {"wave_steps", r.wave_steps},
+                         {"workgroups", r.workgroups},
+                         {"l1", level_json(s.l1)},
+                         {"l2", level_json(s.l2)},
+                         {"stores", s.stores},
+                         {"atomics", s.atomics},
+                         {"dram_read_bytes", s.dram_read_bytes},
+                         {"dram_write_bytes", s.dram_write_bytes},
+                         {"buffers", buffers}};
+    if (opt.l2_mrc) {
+      pj["l1_mrc"] = curve_json(r.l1_curve);
+      pj["l2_mrc"] = curve_json(r.l2_curve);
+      std::ostringstream c;
+      write_mrc_csv(c, "l1", r.l1_curve);
+      write_mrc_csv(c, "l2", r.l2_curve);
+      std::istringstream lines(c.str());
+      for (std::string line; std::getline(lines, line);) csv += pass.name + "," + line + "\n";
+    }
+    if (a.per_invocation) {
+      pj["l1_misses_per_invocation"] = r.l1_misses;
+      pj["l2_misses_per_invocation"] = r.l2_misses;
+    }
+    out["passes"].push_back(pj);
+  }
+  if (!exported) throw InputError("--export-pass: no pass named '" + a.export_pass + "' in " + a.trace_path);
+  const uint64_t flushed = sim.finish();
+  std::printf("\nend of frame: %llu dirty bytes written back from the L2\n", (unsigned long long)flushed);
+  out["final_writeback_bytes"] = flushed;
+  if (!a.out_path.empty()) write_atomically(a.out_path, out.dump(1) + "\n");
+  if (!a.mrc_path.empty()) write_atomically(a.mrc_path, csv);
+}
+
+void print_din_level(const char* name, const DinLevelStats& s) {
+  std::printf("%s\n  demand fetches %14llu   (read %llu, write %llu)\n  demand misses  %14llu   (read %llu, write %llu)\n"
+              "  miss ratio     %14.6f\n",
+              name, (unsigned long long)s.fetches, (unsigned long long)s.read_fetches,
+              (unsigned long long)s.write_fetches, (unsigned long long)s.misses, (unsigned long long)s.read_misses,
+              (unsigned long long)s.write_misses, s.miss_ratio());
+}
+
+void run_din(const CachesimArgs& a) {
+  const CacheConfig l1 = parse_cache_spec(a.l1, "--l1");
+  const CacheConfig l2 = parse_cache_spec(a.l2, "--l2");
+  const auto accesses = trace::read_din(a.din_path);
+  const DinResult r = replay_din(accesses, l1, l2, !a.mrc_path.empty());
+  std::printf("%zu references from %s\nL1: %s, write-allocate, write-back\nL2: %s\n", accesses.size(),
+              a.din_path.c_str(), describe(l1).c_str(), describe(l2).c_str());
+  print_din_level("l1 (data)", r.l1);
+  std::printf("  copies back    %14llu\n", (unsigned long long)r.l1_copies_back);
+  print_din_level("l2 (unified; demand fetches are the L1 misses)", r.l2);
+  if (!a.mrc_path.empty()) {
+    std::ostringstream c;
+    c << "level,size_bytes,lines,miss_ratio\n";
+    write_mrc_csv(c, "l1", r.l1_curve);
+    write_mrc_csv(c, "l2", r.l2_curve);
+    write_atomically(a.mrc_path, c.str());
+  }
+}
+
+}  // namespace
+
+void add_cachesim_command(CLI::App& app) {
+  auto args = std::make_shared<CachesimArgs>();
+  CLI::App* cmd = app.add_subcommand("cachesim", "Replay a memory trace through a GPU cache model");
+  auto* trace_opt = cmd->add_option("trace", args->trace_path, "Trace file written by `hybridprof trace`");
+  auto* din_opt = cmd->add_option("--din", args->din_path, "Dinero IV text trace (r|w ADDR SIZE) to replay instead");
+  trace_opt->excludes(din_opt);
+  cmd->add_option("--preset", args->preset, "GPU preset name (vega56, ga102, h100) or JSON file")
+      ->capture_default_str();
+  cmd->add_option("--out", args->out_path, "Write per-pass and per-buffer results as JSON");
+  cmd->add_option("--mrc", args->mrc_path, "Write L1/L2 miss-ratio curves (CSV)");
+  cmd->add_option("--shards", args->shards, "Sample miss-ratio curves at this rate (SHARDS), 1 = exact")
+      ->check(CLI::Range(1e-6, 1.0));
+  cmd->add_flag("--per-invocation", args->per_invocation, "Include per-invocation L1/L2 miss counts in --out");
+  cmd->add_option("--export-din", args->export_din_path, "Write one CU's coalesced L1 load stream as Dinero text");
+  cmd->add_option("--export-pass", args->export_pass, "Pass to export (default: the first)");
+  cmd->add_option("--export-cu", args->export_cu, "Compute unit to export")->capture_default_str();
+  cmd->add_option("--l1", args->l1, "Dinero replay L1 as SIZE:LINE:ASSOC")->capture_default_str();
+  cmd->add_option("--l2", args->l2, "Dinero replay L2 as SIZE:LINE:ASSOC")->capture_default_str();
+  cmd->callback([args] {
+    if (!args->din_path.empty())
+      run_din(*args);
+    else if (!args->trace_path.empty())
+      run_trace(*args);
+    else
+      throw InputError("cachesim: give a trace file or --din FILE");
+  });
+}
+
+}  // namespace hp::cli

@@ -1,0 +1,231 @@
+#include "passes/raytrace.hpp"
+
+#include "error.hpp"
+#include "vk/check.hpp"
+
+#include "shaders/accumulate_comp.h"
+#include "shaders/reflections_comp.h"
+#include "shaders/shadows_comp.h"
+
+#include <cmath>
+#include <cstring>
+
+namespace hp {
+
+ShadowOffset parse_shadow_offset(const std::string& name) {
+  if (name == "normal-bias") return ShadowOffset::normal_bias;
+  if (name == "robust") return ShadowOffset::robust;
+  throw InputError("--shadow-offset " + name + ": unknown mode (choose normal-bias or robust)");
+}
+
+JitterMode parse_jitter_mode(const std::string& name) {
+  if (name == "shared") return JitterMode::shared;
+  if (name == "per-thread") return JitterMode::per_thread;
+  throw InputError("--jitter " + name + ": unknown mode (choose shared or per-thread)");
+}
+
+const char* to_string(ShadowOffset o) { return o == ShadowOffset::robust ? "robust" : "normal-bias"; }
+const char* to_string(JitterMode j) { return j == JitterMode::shared ? "shared" : "per-thread"; }
+
+namespace {
+
+constexpr VkShaderStageFlags kCS = VK_SHADER_STAGE_COMPUTE_BIT;
+
+vk::Pipeline specialized_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
+                                  uint32_t soup, uint32_t objects) {
+  const uint32_t values[2] = {soup, objects};
+  const VkSpecializationMapEntry entries[2] = {{0, 0, 4}, {1, 4, 4}};
+  VkSpecializationInfo spec{2, entries, sizeof(values), values};
+  VkShaderModule module = vk::create_shader_module(ctx.device(), spirv);
+  VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  ci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  ci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  ci.stage.module = module;
+  ci.stage.pName = "main";
+  ci.stage.pSpecializationInfo = &spec;
+  ci.layout = layout;
+  VkPipeline p = VK_NULL_HANDLE;
+  VkResult r = vkCreateComputePipelines(ctx.device(), VK_NULL_HANDLE, 1, &ci, nullptr, &p);
+  vkDestroyShaderModule(ctx.device(), module, nullptr);
+  HP_VK(r);
+  return vk::Pipeline(ctx.device(), p);
+}
+
+// Halton (2, 3) point i, the shared jitter of frame i: the same sequence the per-thread mode rotates.
+glm::vec2 halton23(uint32_t i) {
+  float f = 0.5f, r2 = 0.0f;
+  for (uint32_t k = i; k > 0; k >>= 1, f *= 0.5f) r2 += f * float(k & 1u);
+  float g = 1.0f / 3.0f, r3 = 0.0f;
+  for (uint32_t k = i; k > 0; k /= 3, g /= 3.0f) r3 += g * float(k % 3u);
+  return {r2, r3};
+}
+
+}  // namespace
+
+RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const GBuffer& gbuffer,
+                                   const vk::Buffer& frame_uniforms, VkSampler sampler,
+                                   const RayTracingOptions& options)
+    : options_(options), width_(gbuffer.depth.width()), height_(gbuffer.depth.height()) {
+  if (options.reflection_divisor != 1 && options.reflection_divisor != 2 && options.reflection_divisor != 4) {
+    throw InputError("--reflection-scale: must be 1, 0.5 or 0.25");
+  }
+  if (!std::isfinite(options.bias) || options.bias < 0.0f) {
+    throw InputError("--bias " + std::to_string(options.bias) + ": must be a finite value >= 0");
+  }
+  const uint32_t d = options.reflection_divisor;
+  grid_w_ = (width_ + d - 1) / d;
+  grid_h_ = (height_ + d - 1) / d;
+
+  params_ = vk::Buffer(ctx, sizeof(gpu::RayParams), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
+  counters_ = vk::Buffer(ctx, HP_COUNTER_WORDS * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                                        VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                                                        VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
+  const VkBufferUsageFlags dump_usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+  shadow_dump_ = vk::Buffer(ctx, options.dump_rays ? uint64_t(width_) * height_ * sizeof(gpu::RayDump) : 4,
+                            dump_usage, false);
+  reflection_dump_ = vk::Buffer(ctx, options.dump_rays ? uint64_t(grid_w_) * grid_h_ * sizeof(gpu::RayDump) : 4,
+                                dump_usage, false);
+  const VkImageUsageFlags img_usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+  shadow_mask_ = vk::Image(ctx, width_, height_, VK_FORMAT_R32_SFLOAT, img_usage);
+  reflection_ = vk::Image(ctx, grid_w_, grid_h_, VK_FORMAT_R32G32B32A32_SFLOAT, img_usage);
+  accum_ = vk::Image(ctx, grid_w_, grid_h_, VK_FORMAT_R32G32B32A32_SFLOAT, img_usage);
+
+  std::vector<VkDescriptorSetLayoutBinding> b;
+  b.push_back({0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kCS, nullptr});
+  b.push_back({1, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kCS, nullptr});
+  for (uint32_t i = 2; i <= 14; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
+  for (uint32_t i = 15; i <= 17; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCS, nullptr});
+  for (uint32_t i = 18; i <= 20; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCS, nullptr});
+  descriptors_ = vk::DescriptorSet(ctx, b, 0, 0);
+  auto& ds = descriptors_;
+  const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  ds.write_buffer(0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
+  ds.write_buffer(1, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, params_.handle());
+  ds.write_buffer(2, SB, scene.nodes().handle());
+  ds.write_buffer(3, SB, scene.positions().handle());
+  ds.write_buffer(4, SB, scene.indices().handle());
+  ds.write_buffer(5, SB, scene.soup().handle());
+  ds.write_buffer(6, SB, scene.object_first().handle());
+  ds.write_buffer(7, SB, scene.slot_scene().handle());
+  ds.write_buffer(8, SB, scene.normals().handle());
+  ds.write_buffer(9, SB, scene.soup_normals().handle());
+  ds.write_buffer(10, SB, scene.slot_material().handle());
+  ds.write_buffer(11, SB, scene.materials().handle());
+  ds.write_buffer(12, SB, counters_.handle());
+  ds.write_buffer(13, SB, shadow_dump_.handle());
+  ds.write_buffer(14, SB, reflection_dump_.handle());
+  const VkImageLayout ro = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+  ds.write_image(15, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.depth.view(), ro, sampler);
+  ds.write_image(16, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.normal_roughness.view(), ro, sampler);
+  ds.write_image(17, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.albedo_metal.view(), ro, sampler);
+  ds.write_image(18, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, shadow_mask_.view(), VK_IMAGE_LAYOUT_GENERAL);
+  ds.write_image(19, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, reflection_.view(), VK_IMAGE_LAYOUT_GENERAL);
+  ds.write_image(20, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, accum_.view(), VK_IMAGE_LAYOUT_GENERAL);
+
+  const uint32_t soup = scene.layout() == GeometryLayout::soup ? 1u : 0u;
+  const uint32_t objects = scene.object_leaves() ? 1u : 0u;
+  // Only the pipelines the options ask for are compiled (lavapipe compiles each one with LLVM).
+  if (options.shadows) shadow_pipeline_ = specialized_pipeline(ctx, shadows_comp, ds.pipeline_layout(), soup, objects);
+  if (options.reflections) {
+    reflection_pipeline_ = specialized_pipeline(ctx, reflections_comp, ds.pipeline_layout(), soup, objects);
+    accumulate_pipeline_ = specialized_pipeline(ctx, accumulate_comp, ds.pipeline_layout(), soup, objects);
+  }
+  begin_frame(0);
+}
+
+void RayTracingPasses::begin_frame(uint32_t sample_index) {
+  gpu::RayParams p{};
+  uint32_t flags = 0;
+  if (options_.counters) flags |= HP_RT_COUNTERS;
+  if (options_.dump_rays) flags |= HP_RT_DUMP_RAYS;
+  if (options_.reflection_shadows) flags |= HP_RT_REFLECTION_SHADOWS;
+  p.grid = glm::uvec4(grid_w_, grid_h_, options_.reflection_divisor, flags);
+  p.shadow = glm::vec4(options_.bias, options_.offset == ShadowOffset::robust ? HP_OFFSET_ROBUST : HP_OFFSET_NORMAL_BIAS,
+                       0.0f, 0.0f);
+  p.reflection = glm::vec4(options_.roughness_threshold,
+                           options_.jitter == JitterMode::shared ? HP_JITTER_SHARED : HP_JITTER_PER_THREAD, 0.0f, 0.0f);
+  p.frame = glm::uvec4(sample_index, options_.seed, 0u, 0u);
+  // The shared offset: the Halton point of this frame, Cranley-Patterson-rotated by the seed so that a
+  // different seed gives a different (still low-discrepancy) sequence.
+  const glm::vec2 h = halton23(sample_index + 1);
+  const float rx = float((options_.seed * 2654435761u) >> 16) / 65536.0f;
+  const float ry = float((options_.seed * 2246822519u) >> 16) / 65536.0f;
+  p.jitter = glm::vec4(glm::fract(h + glm::vec2(rx, ry)), 0.0f, 0.0f);
+  std::memcpy(params_.mapped(), &p, sizeof(p));
+}
+
+void RayTracingPasses::record_prepare(VkCommandBuffer cmd) {
+  // The accumulation image keeps its contents between frames: only its first use starts from UNDEFINED.
+  const VkImageLayout from = images_initialised_ ? VK_IMAGE_LAYOUT_GENERAL : VK_IMAGE_LAYOUT_UNDEFINED;
+  for (const vk::Image* img : {&shadow_mask_, &reflection_}) {
+    vk::transition(cmd, *img, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL,
+                   VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT, 0,
+                   VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+  }
+  vk::transition(cmd, accum_, from, VK_IMAGE_LAYOUT_GENERAL,
+                 VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
+                 VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | VK_ACCESS_2_TRANSFER_READ_BIT,
+                 VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                 VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+  images_initialised_ = true;
+  vkCmdFillBuffer(cmd, counters_.handle(), 0, VK_WHOLE_SIZE, 0);
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+}
+
+void RayTracingPasses::dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h) const {
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.handle());
+  VkDescriptorSet set = descriptors_.set();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
+  vkCmdDispatch(cmd, (w + 7) / 8, (h + 7) / 8, 1);
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
+                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
+                         VK_ACCESS_2_TRANSFER_READ_BIT);
+}
+
+void RayTracingPasses::record_shadows(VkCommandBuffer cmd) const { dispatch(cmd, shadow_pipeline_, width_, height_); }
+
+void RayTracingPasses::record_reflections(VkCommandBuffer cmd) const {
+  dispatch(cmd, reflection_pipeline_, grid_w_, grid_h_);
+}
+
+void RayTracingPasses::record_accumulate(VkCommandBuffer cmd) const {
+  dispatch(cmd, accumulate_pipeline_, grid_w_, grid_h_);
+}
+
+RayCounters RayTracingPasses::read_counters(vk::Context& ctx) const {
+  const auto bytes = vk::read_buffer(ctx, counters_);
+  uint32_t w[HP_COUNTER_WORDS];
+  std::memcpy(w, bytes.data(), sizeof(w));
+  auto at = [&](int i) { return uint64_t(w[i]) | (uint64_t(w[i + 1]) << 32); };
+  RayCounters c;
+  c.shadow_rays = at(HP_COUNTER_SHADOW_RAYS);
+  c.shadow_nodes = at(HP_COUNTER_SHADOW_NODES);
+  c.shadow_tris = at(HP_COUNTER_SHADOW_TRIS);
+  c.reflection_rays = at(HP_COUNTER_REFL_RAYS);
+  c.reflection_nodes = at(HP_COUNTER_REFL_NODES);
+  c.reflection_tris = at(HP_COUNTER_REFL_TRIS);
+  c.reflection_shadow_rays = at(HP_COUNTER_REFL_SHADOW_RAYS);
+  return c;
+}
+
+namespace {
+std::vector<gpu::RayDump> read_dump(vk::Context& ctx, const vk::Buffer& b, bool enabled) {
+  if (!enabled) throw std::logic_error("ray dumps were not enabled (RayTracingOptions::dump_rays)");
+  const auto bytes = vk::read_buffer(ctx, b);
+  std::vector<gpu::RayDump> out(bytes.size() / sizeof(gpu::RayDump));
+  std::memcpy(out.data(), bytes.data(), out.size() * sizeof(gpu::RayDump));
+  return out;
+}
+}  // namespace
+
+std::vector<gpu::RayDump> RayTracingPasses::read_shadow_dump(vk::Context& ctx) const {
+  return read_dump(ctx, shadow_dump_, options_.dump_rays);
+}
+std::vector<gpu::RayDump> RayTracingPasses::read_reflection_dump(vk::Context& ctx) const {
+  return read_dump(ctx, reflection_dump_, options_.dump_rays);
+}
+
+}  // namespace hp

@@ -1,0 +1,83 @@
+// The ray-tracing compute passes (shadows, reflections, temporal accumulation) and what they share: one
+// descriptor set (shaders/common/rt_bindings.glsl), the ray parameters, the output images, the counter
+// buffer and the optional ray dumps.
+#pragma once
+
+#include "common/shared_types.h"
+#include "passes/gbuffer.hpp"
+#include "rt_scene.hpp"
+#include "vk/pipeline.hpp"
+
+#include <array>
+#include <optional>
+
+namespace hp {
+
+enum class ShadowOffset { normal_bias, robust };
+enum class JitterMode { shared, per_thread };
+ShadowOffset parse_shadow_offset(const std::string& name);
+JitterMode parse_jitter_mode(const std::string& name);
+const char* to_string(ShadowOffset o);
+const char* to_string(JitterMode j);
+
+struct RayTracingOptions {
+  bool shadows = true;
+  bool reflections = true;
+  ShadowOffset offset = ShadowOffset::normal_bias;
+  float bias = 0.1f;                 ///< world units, for ShadowOffset::normal_bias (the study's 0.1)
+  JitterMode jitter = JitterMode::per_thread;
+  uint32_t reflection_divisor = 1;   ///< 1, 2 or 4: reflection grid = ceil(extent / divisor) per axis
+  float roughness_threshold = 0.35f; ///< reflective where roughness < this
+  bool reflection_shadows = true;    ///< shadow rays from reflection hits
+  bool counters = false;             ///< count rays, nodes visited, triangles tested (deterministic)
+  bool dump_rays = false;            ///< record every ray and its result (tests, cross-checks)
+  uint32_t seed = 1;
+};
+
+/// Deterministic work counters of one frame (HP_RT_COUNTERS).
+struct RayCounters {
+  uint64_t shadow_rays = 0, shadow_nodes = 0, shadow_tris = 0;
+  uint64_t reflection_rays = 0, reflection_nodes = 0, reflection_tris = 0, reflection_shadow_rays = 0;
+  bool operator==(const RayCounters&) const = default;
+};
+
+class RayTracingPasses {
+ public:
+  RayTracingPasses(vk::Context& ctx, const RtScene& scene, const GBuffer& gbuffer, const vk::Buffer& frame_uniforms,
+                   VkSampler sampler, const RayTracingOptions& options);
+
+  uint32_t grid_width() const { return grid_w_; }
+  uint32_t grid_height() const { return grid_h_; }
+  const RayTracingOptions& options() const { return options_; }
+
+  /// Sets the per-frame parameters (sample index for accumulation and jitter) before recording.
+  void begin_frame(uint32_t sample_index);
+  /// Each expects the G-buffer in SHADER_READ_ONLY_OPTIMAL and leaves its outputs readable by the next pass.
+  void record_prepare(VkCommandBuffer cmd);  ///< layouts of the output images, counter reset
+  void record_shadows(VkCommandBuffer cmd) const;
+  void record_reflections(VkCommandBuffer cmd) const;
+  void record_accumulate(VkCommandBuffer cmd) const;
+
+  const vk::Image& shadow_mask() const { return shadow_mask_; }
+  const vk::Image& reflection() const { return reflection_; }
+  const vk::Image& reflection_accum() const { return accum_; }
+
+  RayCounters read_counters(vk::Context& ctx) const;
+  std::vector<gpu::RayDump> read_shadow_dump(vk::Context& ctx) const;
+  std::vector<gpu::RayDump> read_reflection_dump(vk::Context& ctx) const;
+
+ private:
+  void dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h) const;
+
+  RayTracingOptions options_;
+  uint32_t width_, height_, grid_w_, grid_h_;
+  vk::Buffer params_;
+  vk::Buffer counters_;
+  vk::Buffer shadow_dump_, reflection_dump_;
+  vk::Image shadow_mask_, reflection_, accum_;
+  vk::DescriptorSet descriptors_;
+  vk::Pipeline shadow_pipeline_, reflection_pipeline_, accumulate_pipeline_;
+  bool images_initialised_ = false;
+};
+
+}  // namespace hp

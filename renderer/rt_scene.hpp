@@ -1,0 +1,61 @@
+// The scene as the ray-tracing passes read it: a BVH built on the CPU and the geometry uploaded in BVH
+// leaf order, in one of two layouts. Only what the passes read is uploaded.
+#pragma once
+
+#include "bvh/bvh.hpp"
+#include "bvh/traverse.hpp"
+#include "scene/scene.hpp"
+#include "vk/resources.hpp"
+
+#include <string>
+
+namespace hp {
+
+enum class GeometryLayout {
+  indexed,  ///< "EBO": world-space vertex positions + an index buffer whose triangles are in leaf order
+  soup,     ///< "no EBO": de-indexed triangles, three vertices each, in leaf order
+};
+GeometryLayout parse_geometry_layout(const std::string& name);  // throws InputError
+const char* to_string(GeometryLayout g);
+
+/// The CPU side: world geometry, the tree and the leaf-order triangles the reference traversal uses.
+struct RtGeometry {
+  WorldGeometry world;
+  std::vector<bvh::Triangle> triangles;  ///< scene order
+  bvh::Bvh bvh;
+  bvh::LeafOrderTriangles leaf;
+  double build_ms = 0.0;
+};
+RtGeometry build_rt_geometry(const Scene& scene, const bvh::BuildOptions& options);
+
+class RtScene {
+ public:
+  /// `shading`: also upload normals, per-slot material ids and materials (reflections shade their hits).
+  RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& geometry, GeometryLayout layout, bool shading);
+
+  GeometryLayout layout() const { return layout_; }
+  bool object_leaves() const { return object_leaves_; }
+  /// Every binding of shaders/common/rt_bindings.glsl 2..11; a buffer the configuration does not read is
+  /// a 4-byte dummy.
+  const vk::Buffer& nodes() const { return nodes_; }
+  const vk::Buffer& positions() const { return positions_; }
+  const vk::Buffer& indices() const { return indices_; }
+  const vk::Buffer& soup() const { return soup_; }
+  const vk::Buffer& object_first() const { return object_first_; }
+  const vk::Buffer& slot_scene() const { return slot_scene_; }
+  const vk::Buffer& normals() const { return normals_; }
+  const vk::Buffer& soup_normals() const { return soup_normals_; }
+  const vk::Buffer& slot_material() const { return slot_material_; }
+  const vk::Buffer& materials() const { return materials_; }
+  /// Bytes uploaded for the traversal and shading (dummies excluded).
+  uint64_t uploaded_bytes() const { return uploaded_bytes_; }
+
+ private:
+  GeometryLayout layout_;
+  bool object_leaves_;
+  uint64_t uploaded_bytes_ = 0;
+  vk::Buffer nodes_, positions_, indices_, soup_, object_first_, slot_scene_, normals_, soup_normals_,
+      slot_material_, materials_;
+};
+
+}  // namespace hp

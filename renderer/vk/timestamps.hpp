@@ -1,0 +1,47 @@
+// GPU timestamps around the passes of a frame. Each pass gets a begin and an end timestamp written at
+// VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT: the begin one waits for all earlier work, the end one for the
+// pass, so a pass's interval holds that pass alone (on lavapipe every timestamp not at top-of-pipe waits
+// for all earlier work anyway). Ticks are masked with timestampValidBits and converted with
+// timestampPeriod.
+#pragma once
+
+#include "vk/context.hpp"
+
+#include <string>
+#include <vector>
+
+namespace hp::vk {
+
+class TimestampQueries {
+ public:
+  TimestampQueries(Context& ctx, uint32_t max_passes);
+  ~TimestampQueries();
+  TimestampQueries(const TimestampQueries&) = delete;
+  TimestampQueries& operator=(const TimestampQueries&) = delete;
+
+  /// False when the queue family has no timestamp support (timestampValidBits == 0).
+  bool supported() const { return pool_ != VK_NULL_HANDLE; }
+
+  void reset(VkCommandBuffer cmd);
+  void begin(VkCommandBuffer cmd, const std::string& pass);
+  void end(VkCommandBuffer cmd);
+
+  struct Interval {
+    std::string pass;
+    uint64_t begin_ns = 0;  ///< device time base (nanoseconds), valid bits only
+    uint64_t end_ns = 0;
+  };
+  /// After the frame's submission completed: the intervals of the passes recorded since reset().
+  std::vector<Interval> read(Context& ctx) const;
+
+ private:
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkQueryPool pool_ = VK_NULL_HANDLE;
+  uint32_t capacity_ = 0;
+  uint32_t used_ = 0;
+  uint64_t mask_ = 0;
+  double period_ns_ = 1.0;
+  std::vector<std::string> names_;
+};
+
+}  // namespace hp::vk

@@ -1,0 +1,53 @@
+// The descriptor set every ray-tracing pass uses (one layout, bound once per frame). Buffers a pass does
+// not need in a configuration are bound to a 4-byte dummy and never read: the specialization constants
+// below remove the code that would read them.
+#ifndef HP_RT_BINDINGS_GLSL
+#define HP_RT_BINDINGS_GLSL
+
+#include "common/shared_types.h"
+
+// Geometry layout: 0 = "indexed" (EBO: vertex positions + an index buffer in leaf order),
+// 1 = "soup" (de-indexed: three vertices per triangle in leaf order).
+layout(constant_id = 0) const uint HP_GEOMETRY_SOUP = 0;
+// BVH granularity: 0 = triangle leaves, 1 = object leaves (a leaf's objects are tested triangle by triangle).
+layout(constant_id = 1) const uint HP_OBJECT_LEAVES = 0;
+
+layout(set = 0, binding = 0) uniform FrameBlock { FrameUniforms frame; };
+layout(set = 0, binding = 1) uniform RayBlock { RayParams rt; };
+layout(std430, set = 0, binding = 2) readonly buffer NodeBuffer { BvhNode nodes[]; };
+layout(std430, set = 0, binding = 3) readonly buffer PositionBuffer { float positions[]; };      // 3 per vertex
+layout(std430, set = 0, binding = 4) readonly buffer IndexBuffer { uint indices[]; };           // 3 per slot
+layout(std430, set = 0, binding = 5) readonly buffer SoupBuffer { float soup[]; };              // 9 per slot
+layout(std430, set = 0, binding = 6) readonly buffer ObjectBuffer { uint object_first[]; };     // object leaves
+layout(std430, set = 0, binding = 7) readonly buffer SlotSceneBuffer { uint slot_scene[]; };    // slot -> scene tri
+layout(std430, set = 0, binding = 8) readonly buffer NormalBuffer { float normals[]; };         // 3 per vertex
+layout(std430, set = 0, binding = 9) readonly buffer SoupNormalBuffer { float soup_normals[]; };// 9 per slot
+layout(std430, set = 0, binding = 10) readonly buffer SlotMaterialBuffer { uint slot_material[]; };
+layout(std430, set = 0, binding = 11) readonly buffer MaterialBuffer { GpuMaterial materials[]; };
+layout(std430, set = 0, binding = 12) coherent buffer CounterBuffer { uint counters[]; };
+layout(std430, set = 0, binding = 13) writeonly buffer ShadowDumpBuffer { RayDump shadow_dump[]; };
+layout(std430, set = 0, binding = 14) writeonly buffer ReflectionDumpBuffer { RayDump reflection_dump[]; };
+layout(set = 0, binding = 15) uniform sampler2D g_depth;
+layout(set = 0, binding = 16) uniform sampler2D g_normal_roughness;
+layout(set = 0, binding = 17) uniform sampler2D g_albedo_metal;
+layout(set = 0, binding = 18, r32f) uniform image2D shadow_mask;
+layout(set = 0, binding = 19, rgba32f) uniform image2D reflection_image;
+layout(set = 0, binding = 20, rgba32f) uniform image2D reflection_accum;
+
+// Adds `v` to the 64-bit counter at word `at` (low word, high word); the carry is exact under concurrency:
+// the one add that wraps the low word is the one that sees old + v overflow.
+void hp_counter_add(uint at, uint v) {
+  if (v == 0u) return;
+  uint old = atomicAdd(counters[at], v);
+  if (old > 0xFFFFFFFFu - v) atomicAdd(counters[at + 1u], 1u);
+}
+
+vec3 hp_world_position(ivec2 p, float depth) {
+  vec2 ndc = (vec2(p) + 0.5) / vec2(frame.extent.xy) * 2.0 - 1.0;
+  vec4 h = frame.inv_view_proj * vec4(ndc, depth, 1.0);
+  return h.xyz / h.w;
+}
+
+bool hp_is_background(float depth) { return depth == (frame.params.x > 0.5 ? 0.0 : 1.0); }
+
+#endif

@@ -1,0 +1,47 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// Ray-traced shadows of the directional light: one any-hit ray per G-buffer pixel.
+#include "common/traversal.glsl"
+#include "common/ray_offset.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+
+const float HP_FLT_MAX = 3.402823466e+38;
+
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  // A ragged edge is covered by rounding the dispatch up and skipping here (the study truncated it).
+  if (p.x >= int(frame.extent.x) || p.y >= int(frame.extent.y)) return;
+  uint pix = uint(p.y) * frame.extent.x + uint(p.x);
+  HpStats st;
+  st.nodes = 0u; st.tris = 0u;
+  float lit = 1.0;
+  RayDump dump;
+  dump.origin_tmin = vec4(0.0); dump.dir_tmax = vec4(0.0); dump.hit = ivec4(-1, 0, 0, 0);
+  float depth = texelFetch(g_depth, p, 0).r;
+  if (!hp_is_background(depth)) {
+    vec3 n = normalize(texelFetch(g_normal_roughness, p, 0).xyz);
+    vec3 pos = hp_world_position(p, depth);
+    vec3 l = frame.light_dir.xyz;
+    if (dot(n, l) <= 0.0) {
+      lit = 0.0;  // the surface faces away from the light: in its own shadow, no ray needed
+    } else {
+      vec3 o = int(rt.shadow.y) == HP_OFFSET_ROBUST ? hp_offset_robust(pos, n) : hp_offset_bias(pos, n, rt.shadow.x);
+      HpRay r;
+      if (hp_prepare(o, l, 0.0, HP_FLT_MAX, r)) {
+        HpHit h = hp_trace(r, true, st);
+        lit = h.slot < 0 ? 1.0 : 0.0;
+        dump.hit = ivec4(h.slot < 0 ? -1 : int(slot_scene[h.slot]), floatBitsToInt(h.t), 1, 0);
+      }
+      dump.origin_tmin = vec4(o, 0.0);
+      dump.dir_tmax = vec4(l, HP_FLT_MAX);
+    }
+  }
+  imageStore(shadow_mask, p, vec4(lit));
+  if ((rt.grid.w & HP_RT_DUMP_RAYS) != 0u) shadow_dump[pix] = dump;
+  if ((rt.grid.w & HP_RT_COUNTERS) != 0u) {
+    hp_counter_add(HP_COUNTER_SHADOW_RAYS, uint(dump.hit.z));
+    hp_counter_add(HP_COUNTER_SHADOW_NODES, st.nodes);
+    hp_counter_add(HP_COUNTER_SHADOW_TRIS, st.tris);
+  }
+}
