@@ -390,6 +390,15 @@ TEST(GltfErrors, WrongAccessorTypes) {
   }
 }
 
+TEST(GltfErrors, AccessorWithoutBufferViewAndAHugeCount) {
+  TempDir dir;
+  QuadGltf q;
+  // Without a bufferView an accessor is all zeros, so nothing in the file bounds its count.
+  q.doc["accessors"][1].erase("bufferView");
+  q.doc["accessors"][1]["count"] = 4000000000ull;
+  expect_input_error(q.write(dir), "meshes[0].primitives[0].attributes.POSITION", "no bufferView");
+}
+
 TEST(GltfErrors, MissingBufferFile) {
   TempDir dir;
   QuadGltf q;
