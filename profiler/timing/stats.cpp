@@ -1,0 +1,285 @@
+#include "timing/stats.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <random>
+#include <stdexcept>
+
+namespace hp {
+namespace {
+
+void require_finite(std::span<const double> samples, const char* what) {
+  if (samples.empty()) throw std::invalid_argument(std::string(what) + ": empty sample");
+  for (double v : samples) {
+    if (!std::isfinite(v)) throw std::invalid_argument(std::string(what) + ": non-finite value");
+  }
+}
+
+// Median of a scratch buffer (reordered in place), type 7 (mean of the middle two for even n).
+double median_in_place(std::vector<double>& v) {
+  const std::size_t n = v.size();
+  const std::size_t mid = n / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  const double upper = v[mid];
+  if (n % 2 == 1) return upper;
+  const double lower = *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid));
+  return lower + 0.5 * (upper - lower);
+}
+
+// Uniform index in [0, bound) from raw 64-bit draws, by rejection: std::uniform_int_distribution
+// differs between standard libraries, and a fixed seed must give the same CI everywhere.
+std::size_t draw_index(std::mt19937_64& rng, std::size_t bound) {
+  const std::uint64_t b = bound;
+  const std::uint64_t max = std::numeric_limits<std::uint64_t>::max();
+  const std::uint64_t reject_from = max - max % b;
+  std::uint64_t x = rng();
+  while (x >= reject_from) x = rng();
+  return static_cast<std::size_t>(x % b);
+}
+
+double binomial_half_pmf(std::size_t n, std::size_t k) {
+  const double dn = static_cast<double>(n);
+  const double dk = static_cast<double>(k);
+  return std::exp(std::lgamma(dn + 1.0) - std::lgamma(dk + 1.0) - std::lgamma(dn - dk + 1.0) -
+                  dn * std::log(2.0));
+}
+
+// Null distribution of U for sample sizes m, n without ties, as probabilities indexed by U.
+// Recurrence on the largest of the m+n values: it is an x with probability m/(m+n) and then beats
+// all n y's, otherwise it is a y and adds nothing. Probabilities (not counts) keep every term
+// positive and in range, so the tails the p-value needs carry no cancellation.
+std::vector<double> exact_u_distribution(std::size_t m, std::size_t n) {
+  // prev[j]: distribution for (i-1, j); cur[j]: for (i, j).
+  std::vector<std::vector<double>> prev(n + 1, std::vector<double>{1.0});
+  for (std::size_t i = 1; i <= m; ++i) {
+    std::vector<std::vector<double>> cur(n + 1);
+    cur[0] = {1.0};
+    for (std::size_t j = 1; j <= n; ++j) {
+      std::vector<double> d(i * j + 1, 0.0);
+      const double px = static_cast<double>(i) / static_cast<double>(i + j);
+      const double py = 1.0 - px;
+      const std::vector<double>& a = prev[j];     // (i-1, j), shifted by j
+      const std::vector<double>& b = cur[j - 1];  // (i, j-1)
+      for (std::size_t u = 0; u < a.size(); ++u) d[u + j] += px * a[u];
+      for (std::size_t u = 0; u < b.size(); ++u) d[u] += py * b[u];
+      cur[j] = std::move(d);
+    }
+    prev = std::move(cur);
+  }
+  return prev[n];
+}
+
+}  // namespace
+
+double quantile_sorted(std::span<const double> sorted, double p) {
+  if (sorted.empty()) throw std::invalid_argument("quantile: empty sample");
+  if (!(p >= 0.0 && p <= 1.0)) throw std::invalid_argument("quantile: p outside [0, 1]");
+  const double h = static_cast<double>(sorted.size() - 1) * p;
+  const auto lo = static_cast<std::size_t>(std::floor(h));
+  const std::size_t hi = std::min(lo + 1, sorted.size() - 1);
+  return sorted[lo] + (h - static_cast<double>(lo)) * (sorted[hi] - sorted[lo]);
+}
+
+double quantile(std::span<const double> samples, double p) {
+  std::vector<double> s(samples.begin(), samples.end());
+  std::sort(s.begin(), s.end());
+  return quantile_sorted(s, p);
+}
+
+double binomial_half_cdf(std::size_t n, std::size_t k) {
+  if (k >= n) return 1.0;
+  double sum = 0.0;
+  for (std::size_t i = 0; i <= k; ++i) sum += binomial_half_pmf(n, i);
+  return std::min(sum, 1.0);
+}
+
+MedianCi median_ci_order_statistic(std::span<const double> sorted, double level) {
+  if (sorted.empty()) throw std::invalid_argument("median CI: empty sample");
+  if (!(level > 0.0 && level < 1.0)) throw std::invalid_argument("median CI: level outside (0, 1)");
+  const std::size_t n = sorted.size();
+  const double tail = (1.0 - level) / 2.0;
+  // Walk the lower tail: rank r is usable while P(B <= r-1) <= tail; keep r <= n+1-r.
+  std::size_t rank = 0;
+  double cum = 0.0;
+  double cum_at_rank = 0.0;
+  for (std::size_t j = 0; j + 1 <= (n + 1) / 2; ++j) {
+    cum += binomial_half_pmf(n, j);
+    if (cum > tail) break;
+    rank = j + 1;
+    cum_at_rank = cum;
+  }
+  MedianCi ci;
+  ci.level = level;
+  ci.method = "order-statistic";
+  if (rank == 0) {
+    // Too few samples for this level: the full range is the widest interval there is.
+    ci.valid = false;
+    ci.lower_rank = 1;
+    ci.upper_rank = n;
+    ci.low = sorted.front();
+    ci.high = sorted.back();
+    ci.coverage = 1.0 - 2.0 * binomial_half_pmf(n, 0);
+    return ci;
+  }
+  ci.valid = true;
+  ci.lower_rank = rank;
+  ci.upper_rank = n + 1 - rank;
+  ci.low = sorted[ci.lower_rank - 1];
+  ci.high = sorted[ci.upper_rank - 1];
+  ci.coverage = 1.0 - 2.0 * cum_at_rank;
+  return ci;
+}
+
+MedianCi median_ci_bootstrap(std::span<const double> samples, std::size_t resamples,
+                             std::uint64_t seed, double level) {
+  require_finite(samples, "bootstrap CI");
+  if (resamples == 0) throw std::invalid_argument("bootstrap CI: zero resamples");
+  if (!(level > 0.0 && level < 1.0)) throw std::invalid_argument("bootstrap CI: level outside (0, 1)");
+  std::mt19937_64 rng(seed);
+  std::vector<double> scratch(samples.size());
+  std::vector<double> medians(resamples);
+  for (std::size_t r = 0; r < resamples; ++r) {
+    for (double& v : scratch) v = samples[draw_index(rng, samples.size())];
+    medians[r] = median_in_place(scratch);
+  }
+  std::sort(medians.begin(), medians.end());
+  const double tail = (1.0 - level) / 2.0;
+  MedianCi ci;
+  ci.level = level;
+  ci.coverage = level;
+  ci.method = "bootstrap-percentile";
+  ci.low = quantile_sorted(medians, tail);
+  ci.high = quantile_sorted(medians, 1.0 - tail);
+  // One or two values cannot say anything about spread; flag it like the order-statistic CI.
+  ci.valid = samples.size() >= 3;
+  return ci;
+}
+
+Summary summarize(std::span<const double> samples, const SummaryOptions& options) {
+  require_finite(samples, "summarize");
+  std::vector<double> s(samples.begin(), samples.end());
+  std::sort(s.begin(), s.end());
+  const std::size_t n = s.size();
+  Summary out;
+  out.count = n;
+  out.min = s.front();
+  out.max = s.back();
+  out.median = quantile_sorted(s, 0.5);
+  out.p95 = quantile_sorted(s, 0.95);
+  out.mean = std::accumulate(s.begin(), s.end(), 0.0) / static_cast<double>(n);
+  if (n >= 2) {
+    // Two-pass variance: frame times are large (1e6 ns) with small spread, where the one-pass
+    // formula loses most of its digits.
+    double ss = 0.0;
+    for (double v : s) ss += (v - out.mean) * (v - out.mean);
+    out.stddev = std::sqrt(ss / static_cast<double>(n - 1));
+    if (out.mean != 0.0) out.cv = *out.stddev / out.mean;
+  }
+  out.median_ci = median_ci_order_statistic(s, options.ci_level);
+  if (options.bootstrap_resamples > 0) {
+    out.median_ci_bootstrap =
+        median_ci_bootstrap(samples, options.bootstrap_resamples, options.bootstrap_seed, options.ci_level);
+  }
+  return out;
+}
+
+double normal_cdf(double z) { return 0.5 * std::erfc(-z / std::sqrt(2.0)); }
+
+double hodges_lehmann_shift(std::span<const double> x, std::span<const double> y) {
+  require_finite(x, "Hodges-Lehmann x");
+  require_finite(y, "Hodges-Lehmann y");
+  std::vector<double> d;
+  d.reserve(x.size() * y.size());
+  for (double a : x)
+    for (double b : y) d.push_back(a - b);
+  return median_in_place(d);
+}
+
+MannWhitneyResult mann_whitney_u(std::span<const double> x, std::span<const double> y) {
+  require_finite(x, "Mann-Whitney x");
+  require_finite(y, "Mann-Whitney y");
+  const std::size_t m = x.size();
+  const std::size_t n = y.size();
+  const std::size_t total = m + n;
+
+  // Mid-ranks of the pooled sample; tie groups feed the variance correction.
+  std::vector<std::pair<double, bool>> pooled;  // value, is_x
+  pooled.reserve(total);
+  for (double v : x) pooled.emplace_back(v, true);
+  for (double v : y) pooled.emplace_back(v, false);
+  std::sort(pooled.begin(), pooled.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  double rank_sum_x = 0.0;
+  double tie_term = 0.0;  // sum over tie groups of t^3 - t
+  bool ties = false;
+  for (std::size_t i = 0; i < total;) {
+    std::size_t j = i;
+    while (j < total && pooled[j].first == pooled[i].first) ++j;
+    const double t = static_cast<double>(j - i);
+    const double mid_rank = (static_cast<double>(i + 1) + static_cast<double>(j)) / 2.0;
+    for (std::size_t k = i; k < j; ++k)
+      if (pooled[k].second) rank_sum_x += mid_rank;
+    if (j - i > 1) {
+      ties = true;
+      tie_term += t * t * t - t;
+    }
+    i = j;
+  }
+
+  MannWhitneyResult r;
+  const double dm = static_cast<double>(m);
+  const double dn = static_cast<double>(n);
+  r.u = rank_sum_x - dm * (dm + 1.0) / 2.0;
+  r.hodges_lehmann = hodges_lehmann_shift(x, y);
+
+  if (m < 50 && n < 50 && !ties) {
+    r.exact = true;
+    const std::vector<double> dist = exact_u_distribution(m, n);
+    const auto u = static_cast<std::size_t>(std::llround(r.u));
+    double tail = 0.0;
+    if (r.u > dm * dn / 2.0) {
+      for (std::size_t k = u; k < dist.size(); ++k) tail += dist[k];
+    } else {
+      for (std::size_t k = 0; k <= u; ++k) tail += dist[k];
+    }
+    r.p_value = std::min(1.0, 2.0 * tail);
+    return r;
+  }
+
+  const double centered = r.u - dm * dn / 2.0;
+  const double dt = static_cast<double>(total);
+  const double sigma = std::sqrt(dm * dn / 12.0 * ((dt + 1.0) - tie_term / (dt * (dt - 1.0))));
+  if (!(sigma > 0.0)) {
+    // Every value equal: no evidence of any shift.
+    r.p_value = 1.0;
+    return r;
+  }
+  const double correction = centered > 0.0 ? 0.5 : (centered < 0.0 ? -0.5 : 0.0);
+  r.z = (centered - correction) / sigma;
+  r.p_value = std::min(1.0, 2.0 * std::min(normal_cdf(r.z), normal_cdf(-r.z)));
+  return r;
+}
+
+std::vector<double> holm_adjust(std::span<const double> p_values) {
+  const std::size_t m = p_values.size();
+  for (double p : p_values) {
+    if (!(p >= 0.0 && p <= 1.0)) throw std::invalid_argument("Holm: p-value outside [0, 1]");
+  }
+  std::vector<std::size_t> order(m);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return p_values[a] < p_values[b]; });
+  std::vector<double> adjusted(m);
+  double running = 0.0;
+  for (std::size_t i = 0; i < m; ++i) {
+    // The i-th smallest p is tested at alpha / (m - i); the running max keeps the step-down monotone.
+    const double a = std::min(1.0, static_cast<double>(m - i) * p_values[order[i]]);
+    running = std::max(running, a);
+    adjusted[order[i]] = running;
+  }
+  return adjusted;
+}
+
+}  // namespace hp
