@@ -1,0 +1,111 @@
+#include "timing/environment.hpp"
+
+#include <sys/utsname.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <ctime>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+// Both come from profiler/CMakeLists.txt; the fallbacks keep a stray build of this file honest.
+#ifndef HP_GIT_COMMIT
+#define HP_GIT_COMMIT "unknown"
+#endif
+#ifndef HP_BUILD_TYPE
+#define HP_BUILD_TYPE "unknown"
+#endif
+
+namespace hp {
+namespace {
+
+std::string trim(std::string_view s) {
+  const auto first = s.find_first_not_of(" \t\r\n");
+  if (first == std::string_view::npos) return {};
+  const auto last = s.find_last_not_of(" \t\r\n");
+  return std::string(s.substr(first, last - first + 1));
+}
+
+std::string or_unknown(std::string s) { return s.empty() ? "unknown" : s; }
+
+}  // namespace
+
+std::string parse_cpu_model(std::string_view cpuinfo) {
+  // Preference order: x86's "model name" first; Arm kernels print "Model" or "Hardware" (and a
+  // "Processor" line on older ones), MIPS "cpu model".
+  static constexpr std::string_view keys[] = {"model name", "Model", "Hardware", "cpu model",
+                                              "Processor"};
+  for (std::string_view key : keys) {
+    std::size_t pos = 0;
+    while (pos < cpuinfo.size()) {
+      std::size_t eol = cpuinfo.find('\n', pos);
+      if (eol == std::string_view::npos) eol = cpuinfo.size();
+      const std::string_view line = cpuinfo.substr(pos, eol - pos);
+      pos = eol + 1;
+      const std::size_t colon = line.find(':');
+      if (colon == std::string_view::npos) continue;
+      if (trim(line.substr(0, colon)) != key) continue;
+      std::string value = trim(line.substr(colon + 1));
+      if (!value.empty()) return value;
+    }
+  }
+  return "unknown";
+}
+
+std::string compiler_id() {
+  char buf[64];
+#if defined(__clang__)
+  std::snprintf(buf, sizeof buf, "clang %d.%d.%d", __clang_major__, __clang_minor__,
+                __clang_patchlevel__);
+#elif defined(__GNUC__)
+  std::snprintf(buf, sizeof buf, "gcc %d.%d.%d", __GNUC__, __GNUC_MINOR__, __GNUC_PATCHLEVEL__);
+#elif defined(_MSC_VER)
+  std::snprintf(buf, sizeof buf, "msvc %d", _MSC_FULL_VER);
+#else
+  std::snprintf(buf, sizeof buf, "unknown");
+#endif
+  return buf;
+}
+
+std::string iso8601_utc(std::int64_t unix_seconds) {
+  const auto t = static_cast<std::time_t>(unix_seconds);
+  std::tm tm{};
+  if (gmtime_r(&t, &tm) == nullptr) return "unknown";
+  char buf[32];
+  if (std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm) == 0) return "unknown";
+  return buf;
+}
+
+Environment capture_environment(const DeviceDescription& device) {
+  Environment env;
+  env.cpu_model = "unknown";
+  if (std::ifstream in("/proc/cpuinfo"); in) {
+    std::stringstream ss;
+    ss << in.rdbuf();
+    env.cpu_model = parse_cpu_model(ss.str());
+  }
+  env.core_count = std::thread::hardware_concurrency();
+  const char* lp = std::getenv("LP_NUM_THREADS");
+  env.lp_num_threads = lp != nullptr ? std::string(lp) : "unset";
+  env.build_type = or_unknown(HP_BUILD_TYPE);
+  env.compiler = compiler_id();
+  env.git_commit = or_unknown(HP_GIT_COMMIT);
+  const auto now = std::chrono::system_clock::now();
+  env.date_utc = iso8601_utc(
+      std::chrono::duration_cast<std::chrono::seconds>(now.time_since_epoch()).count());
+  char host[256] = {};
+  env.hostname = gethostname(host, sizeof host - 1) == 0 ? or_unknown(host) : "unknown";
+  utsname u{};
+  if (uname(&u) == 0) {
+    env.os = std::string(u.sysname) + " " + u.release + " " + u.machine;
+  } else {
+    env.os = "unknown";
+  }
+  env.device = device;
+  return env;
+}
+
+}  // namespace hp

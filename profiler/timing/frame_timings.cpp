@@ -1,0 +1,118 @@
+#include "timing/frame_timings.hpp"
+
+#include <algorithm>
+#include <limits>
+#include <map>
+#include <stdexcept>
+
+namespace hp {
+
+std::uint64_t FrameSample::span_begin_ns() const {
+  if (begin_ns) return *begin_ns;
+  if (passes.empty()) return end_ns.value_or(0);
+  std::uint64_t b = std::numeric_limits<std::uint64_t>::max();
+  for (const PassSample& p : passes) b = std::min(b, p.begin_ns);
+  return b;
+}
+
+std::uint64_t FrameSample::span_end_ns() const {
+  std::uint64_t e = 0;
+  if (end_ns) {
+    e = *end_ns;
+  } else if (passes.empty()) {
+    e = begin_ns.value_or(0);
+  } else {
+    for (const PassSample& p : passes) e = std::max(e, p.end_ns);
+  }
+  // A span never runs backwards (a bad explicit end would otherwise wrap the duration).
+  return std::max(e, span_begin_ns());
+}
+
+std::string_view to_string(TimingSource source) {
+  switch (source) {
+    case TimingSource::GpuTimestamps: return "gpu-timestamps";
+    case TimingSource::CpuWall: return "cpu-wall";
+  }
+  return "unknown";
+}
+
+TimingSource timing_source_from_string(std::string_view text) {
+  if (text == "gpu-timestamps") return TimingSource::GpuTimestamps;
+  if (text == "cpu-wall") return TimingSource::CpuWall;
+  throw std::invalid_argument("unknown timing source '" + std::string(text) + "'");
+}
+
+double QueryOverhead::overhead_fraction() const {
+  return frame_ns_without_queries > 0.0 ? overhead_ns() / frame_ns_without_queries : 0.0;
+}
+
+FrameTimings::FrameTimings(std::uint32_t warmup, std::uint32_t measured, TimingSource source)
+    : warmup_wanted_(warmup), measured_wanted_(measured), source_(source) {
+  measured_.reserve(measured);
+}
+
+bool FrameTimings::add(FrameSample frame) {
+  if (complete()) throw std::logic_error("FrameTimings::add: the run already has all its frames");
+  for (const PassSample& p : frame.passes) {
+    if (p.end_ns < p.begin_ns) {
+      throw std::invalid_argument("FrameTimings::add: pass '" + p.pass + "' ends before it begins");
+    }
+  }
+  if (warmup_seen_ < warmup_wanted_) {
+    ++warmup_seen_;
+  } else {
+    measured_.push_back(std::move(frame));
+  }
+  return !complete();
+}
+
+TimingSummary FrameTimings::summarize(const SummaryOptions& options) const {
+  if (measured_.empty()) throw std::logic_error("FrameTimings::summarize: no measured frames");
+  TimingSummary s;
+  s.source = source_;
+  s.warmup_frames = warmup_seen_;
+  s.measured_frames = static_cast<std::uint32_t>(measured_.size());
+  s.query_overhead = overhead_;
+
+  std::vector<std::string> order;
+  std::map<std::string, std::vector<double>> per_pass;
+  std::vector<double> frame_ns;
+  std::vector<double> wall_ns;
+  for (const FrameSample& f : measured_) {
+    std::map<std::string, std::uint64_t> in_frame;  // summed per name within the frame
+    for (const PassSample& p : f.passes) {
+      if (!per_pass.contains(p.pass)) {
+        per_pass[p.pass];
+        order.push_back(p.pass);
+      }
+      in_frame[p.pass] += p.duration_ns();
+    }
+    for (const auto& [name, ns] : in_frame) per_pass[name].push_back(static_cast<double>(ns));
+    frame_ns.push_back(static_cast<double>(f.duration_ns()));
+    wall_ns.push_back(static_cast<double>(f.cpu_wall_ns));
+  }
+  for (const std::string& name : order) {
+    s.passes.push_back({name, hp::summarize(per_pass[name], options)});
+  }
+  s.frame_ns = hp::summarize(frame_ns, options);
+  s.cpu_wall_ns = hp::summarize(wall_ns, options);
+  return s;
+}
+
+Counters FrameTimings::total_counters() const {
+  Counters total;
+  for (const FrameSample& f : measured_) total.add(f.counters);
+  return total;
+}
+
+FrameTimings FrameTimings::from_measured(std::uint32_t warmup, TimingSource source,
+                                         std::vector<FrameSample> measured,
+                                         std::optional<QueryOverhead> overhead) {
+  FrameTimings t(warmup, static_cast<std::uint32_t>(measured.size()), source);
+  t.warmup_seen_ = warmup;
+  t.measured_ = std::move(measured);
+  t.overhead_ = overhead;
+  return t;
+}
+
+}  // namespace hp

@@ -1,0 +1,136 @@
+// Per-frame timing samples and the collector that turns a run of frames into per-pass statistics.
+//
+// The caller (the frame's timestamp-query code) converts ticks to nanoseconds with
+// timestampPeriod and masks them with timestampValidBits before building a PassSample; everything
+// here works on plain nanoseconds and knows nothing about Vulkan.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "timing/counters.hpp"
+#include "timing/stats.hpp"
+
+namespace hp {
+
+// One pass of one frame: begin/end on the timing source's clock, in nanoseconds.
+struct PassSample {
+  std::string pass;
+  std::uint64_t begin_ns = 0;
+  std::uint64_t end_ns = 0;
+  // The queue the pass ran on; one timeline track per queue.
+  std::string queue = "graphics";
+
+  std::uint64_t duration_ns() const { return end_ns >= begin_ns ? end_ns - begin_ns : 0; }
+  bool operator==(const PassSample&) const = default;
+};
+
+struct FrameSample {
+  std::vector<PassSample> passes;
+  // CPU wall time of the frame (record + submit + wait), from a steady clock.
+  std::uint64_t cpu_wall_ns = 0;
+  // The frame's own span on the timing source's clock (e.g. a TOP_OF_PIPE timestamp before the first
+  // pass and one after the last). Absent: the span of the passes (earliest begin, latest end).
+  std::optional<std::uint64_t> begin_ns;
+  std::optional<std::uint64_t> end_ns;
+  // Work counters of this frame (empty when the scenario does not ask for them).
+  Counters counters;
+
+  // Span actually used: the explicit one, else the passes'; {0, 0} for a frame with neither.
+  std::uint64_t span_begin_ns() const;
+  std::uint64_t span_end_ns() const;
+  std::uint64_t duration_ns() const { return span_end_ns() - span_begin_ns(); }
+  bool operator==(const FrameSample&) const = default;
+};
+
+enum class TimingSource {
+  GpuTimestamps,  // vkCmdWriteTimestamp around each pass
+  CpuWall,        // the queue has no timestamp support: CPU clock around submit/wait per pass
+};
+
+// "gpu-timestamps" / "cpu-wall".
+std::string_view to_string(TimingSource source);
+// Inverse of to_string; throws std::invalid_argument on anything else.
+TimingSource timing_source_from_string(std::string_view text);
+
+// Cost of the queries themselves: mean frame time over frames with and without the timestamp
+// queries, measured and filled in by the caller.
+struct QueryOverhead {
+  double frame_ns_with_queries = 0.0;
+  double frame_ns_without_queries = 0.0;
+  std::uint32_t frames = 0;  // frames per side
+
+  double overhead_ns() const { return frame_ns_with_queries - frame_ns_without_queries; }
+  // overhead_ns / frame_ns_without_queries; 0 when the baseline is 0. Target: under 0.01.
+  double overhead_fraction() const;
+  bool operator==(const QueryOverhead&) const = default;
+};
+
+struct PassSummary {
+  std::string pass;
+  Summary duration_ns;
+  bool operator==(const PassSummary&) const = default;
+};
+
+struct TimingSummary {
+  TimingSource source = TimingSource::GpuTimestamps;
+  std::uint32_t warmup_frames = 0;
+  std::uint32_t measured_frames = 0;
+  // One per pass name in order of first appearance. A pass recorded several times in one frame
+  // contributes the sum of its durations as that frame's sample; a pass absent from some frames has
+  // a smaller count.
+  std::vector<PassSummary> passes;
+  Summary frame_ns;        // frame span on the timing source's clock
+  Summary cpu_wall_ns;     // CPU wall time per frame
+  std::optional<QueryOverhead> query_overhead;
+  bool operator==(const TimingSummary&) const = default;
+};
+
+// Collects a run: discards the first `warmup` frames (the first runs on lavapipe are 5-60% slower),
+// then keeps `measured` frames with their raw samples.
+class FrameTimings {
+ public:
+  FrameTimings(std::uint32_t warmup, std::uint32_t measured, TimingSource source);
+
+  // Hands over one frame. Returns true while more frames are wanted (so `while (t.add(f()))` runs
+  // exactly warmup + measured frames). Throws std::logic_error once the run is complete, and
+  // std::invalid_argument for a pass ending before it begins.
+  bool add(FrameSample frame);
+
+  bool complete() const { return measured_.size() == measured_wanted_; }
+  std::uint32_t warmup_frames() const { return warmup_wanted_; }
+  std::uint32_t warmup_seen() const { return warmup_seen_; }
+  std::uint32_t measured_wanted() const { return measured_wanted_; }
+  const std::vector<FrameSample>& measured() const { return measured_; }
+  TimingSource source() const { return source_; }
+
+  void set_query_overhead(const QueryOverhead& overhead) { overhead_ = overhead; }
+  const std::optional<QueryOverhead>& query_overhead() const { return overhead_; }
+
+  // Per-pass and whole-frame statistics over the measured frames (at least one needed, else
+  // std::logic_error).
+  TimingSummary summarize(const SummaryOptions& options = {}) const;
+
+  // Sum of every measured frame's counters.
+  Counters total_counters() const;
+
+  // Rebuilds a finished collector from stored frames (reading a result back).
+  static FrameTimings from_measured(std::uint32_t warmup, TimingSource source,
+                                    std::vector<FrameSample> measured,
+                                    std::optional<QueryOverhead> overhead);
+
+  bool operator==(const FrameTimings&) const = default;
+
+ private:
+  std::uint32_t warmup_wanted_ = 0;
+  std::uint32_t measured_wanted_ = 0;
+  std::uint32_t warmup_seen_ = 0;
+  TimingSource source_ = TimingSource::GpuTimestamps;
+  std::vector<FrameSample> measured_;
+  std::optional<QueryOverhead> overhead_;
+};
+
+}  // namespace hp
