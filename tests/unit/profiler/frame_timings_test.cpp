@@ -1,0 +1,105 @@
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+
+#include "timing/frame_timings.hpp"
+#include "timing_fixture.hpp"
+
+namespace hp {
+namespace {
+
+TEST(FrameTimings, DiscardsWarmupAndStopsAtMeasuredCount) {
+  FrameTimings t(3, 4, TimingSource::GpuTimestamps);
+  int calls = 0;
+  // Warm-up frames are made 10x slower, as a first lavapipe run can be; none may reach the result.
+  for (;;) {
+    FrameSample f = test::synthetic_frame(static_cast<std::uint64_t>(calls));
+    if (calls < 3) f.passes[0].end_ns += 10'000'000;
+    ++calls;
+    if (!t.add(std::move(f))) break;
+  }
+  EXPECT_EQ(calls, 7);
+  EXPECT_TRUE(t.complete());
+  EXPECT_EQ(t.warmup_seen(), 3u);
+  ASSERT_EQ(t.measured().size(), 4u);
+  // The first kept frame is call 3 (its gbuffer lasts 100'000 + 3 ns).
+  EXPECT_EQ(t.measured().front().passes[0].duration_ns(), 100'003u);
+  EXPECT_THROW(t.add(test::synthetic_frame(99)), std::logic_error);
+
+  const TimingSummary s = t.summarize();
+  EXPECT_EQ(s.warmup_frames, 3u);
+  EXPECT_EQ(s.measured_frames, 4u);
+  ASSERT_EQ(s.passes.size(), 3u);
+  EXPECT_EQ(s.passes[0].pass, "gbuffer");
+  EXPECT_EQ(s.passes[1].pass, "shadows");
+  EXPECT_EQ(s.passes[2].pass, "reflections");
+  // gbuffer durations 100003..100006: max 100006 proves the 10 ms warm-up frames were dropped.
+  EXPECT_DOUBLE_EQ(s.passes[0].duration_ns.min, 100'003);
+  EXPECT_DOUBLE_EQ(s.passes[0].duration_ns.max, 100'006);
+  EXPECT_DOUBLE_EQ(s.passes[0].duration_ns.median, 100'004.5);
+  EXPECT_DOUBLE_EQ(s.passes[1].duration_ns.median, 200'000);
+  // Frame span: first begin to last end = 600'000 + i ns.
+  EXPECT_DOUBLE_EQ(s.frame_ns.min, 600'003);
+  EXPECT_DOUBLE_EQ(s.cpu_wall_ns.max, 700'060);
+  EXPECT_EQ(s.source, TimingSource::GpuTimestamps);
+}
+
+TEST(FrameTimings, ZeroWarmupKeepsEverything) {
+  FrameTimings t(0, 2, TimingSource::CpuWall);
+  EXPECT_TRUE(t.add(test::synthetic_frame(0)));
+  EXPECT_FALSE(t.add(test::synthetic_frame(1)));
+  EXPECT_EQ(t.measured().size(), 2u);
+  EXPECT_EQ(t.summarize().source, TimingSource::CpuWall);
+}
+
+TEST(FrameTimings, RepeatedPassNamesAreSummedPerFrameAndExplicitSpanWins) {
+  FrameTimings t(0, 1, TimingSource::GpuTimestamps);
+  FrameSample f;
+  f.passes.push_back({"blur", 1000, 1100});
+  f.passes.push_back({"blur", 1200, 1250});
+  f.begin_ns = 900;
+  f.end_ns = 1400;
+  t.add(f);
+  const TimingSummary s = t.summarize();
+  ASSERT_EQ(s.passes.size(), 1u);
+  EXPECT_DOUBLE_EQ(s.passes[0].duration_ns.median, 150);
+  EXPECT_DOUBLE_EQ(s.frame_ns.median, 500);
+}
+
+TEST(FrameTimings, RejectsBackwardsPassAndEmptySummary) {
+  FrameTimings t(0, 1, TimingSource::GpuTimestamps);
+  EXPECT_THROW(t.summarize(), std::logic_error);
+  FrameSample bad;
+  bad.passes.push_back({"gbuffer", 200, 100});
+  EXPECT_THROW(t.add(bad), std::invalid_argument);
+}
+
+TEST(FrameTimings, SourceLabels) {
+  EXPECT_EQ(to_string(TimingSource::GpuTimestamps), "gpu-timestamps");
+  EXPECT_EQ(to_string(TimingSource::CpuWall), "cpu-wall");
+  EXPECT_EQ(timing_source_from_string("cpu-wall"), TimingSource::CpuWall);
+  EXPECT_THROW(timing_source_from_string("gpu"), std::invalid_argument);
+}
+
+TEST(FrameTimings, QueryOverhead) {
+  const QueryOverhead q{1'010'000.0, 1'000'000.0, 50};
+  EXPECT_DOUBLE_EQ(q.overhead_ns(), 10'000.0);
+  EXPECT_DOUBLE_EQ(q.overhead_fraction(), 0.01);
+  FrameTimings t(0, 1, TimingSource::GpuTimestamps);
+  t.add(test::synthetic_frame(0));
+  EXPECT_FALSE(t.summarize().query_overhead.has_value());
+  t.set_query_overhead(q);
+  EXPECT_EQ(t.summarize().query_overhead, q);
+}
+
+TEST(FrameTimings, TotalCountersSumFrames) {
+  FrameTimings t(1, 3, TimingSource::GpuTimestamps);
+  for (std::uint64_t i = 0; t.add(test::synthetic_frame(i)); ++i) {
+  }
+  const Counters c = t.total_counters();
+  EXPECT_EQ(c.get("shadows", counter::rays_cast), 3u * 4096u);  // warm-up frame not counted
+  EXPECT_EQ(c.total(counter::nodes_visited), 3u * 130'000u);
+}
+
+}  // namespace
+}  // namespace hp
