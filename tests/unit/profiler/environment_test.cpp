@@ -2,6 +2,7 @@
 
 #include <cstdlib>
 #include <regex>
+#include <string>
 
 #include "timing/environment.hpp"
 
@@ -27,10 +28,14 @@ TEST(Environment, CapturedFieldsAreFilled) {
 }
 
 TEST(Environment, LpNumThreadsIsReadOrUnset) {
+  // Restores the caller's value: the rest of the process (lavapipe included) reads it too.
+  const char* before = std::getenv("LP_NUM_THREADS");
+  const std::string saved = before != nullptr ? before : "";
   ASSERT_EQ(setenv("LP_NUM_THREADS", "3", 1), 0);
   EXPECT_EQ(capture_environment().lp_num_threads, "3");
   ASSERT_EQ(unsetenv("LP_NUM_THREADS"), 0);
   EXPECT_EQ(capture_environment().lp_num_threads, "unset");
+  if (before != nullptr) setenv("LP_NUM_THREADS", saved.c_str(), 1);
 }
 
 TEST(Environment, CpuModelParsing) {
