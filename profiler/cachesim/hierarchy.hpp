@@ -1,0 +1,164 @@
+// A GPU's memory hierarchy below the coalescer: one L1 per compute unit and one shared, address-sliced
+// L2, with the policies of GCN's vector L1 and of NVIDIA's sectored L1/L2 (docs/cache-model.md):
+//   load    L1 lookup, allocate on miss; the missing sectors go to the L2, which allocates and reads
+//           the sectors it lacks from DRAM.
+//   store   write-through the L1 without allocating and without touching its state; written back at
+//           the L2 (allocate, mark the sectors valid + dirty, no DRAM read: write-validate).
+//   atomic  bypasses the L1 (atomics execute at the L2): read-modify-write at the L2.
+// DRAM bytes: sectors read on L2 misses, and dirty sectors written back on eviction or flush.
+#pragma once
+
+#include <array>
+#include <bit>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "cachesim/cache.hpp"
+#include "cachesim/stack_distance.hpp"
+
+namespace hp::cachesim {
+
+enum class AccessKind : uint8_t { load = 0, store = 1, atomic = 2 };
+
+// One coalesced request: a line (address >> line bits) and the sectors of it that lanes touched.
+struct Request {
+  uint64_t line;
+  uint32_t sectors;
+  AccessKind kind;
+  uint8_t buffer;
+};
+
+// Counters of one level. `requests` are line requests; a request hits when all its sectors were
+// present. Line hits/misses say whether the tag was present (a sectored line can hit its tag and
+// still miss sectors); sector counts are the requested sectors.
+struct LevelStats {
+  uint64_t requests = 0, hits = 0, misses = 0;
+  uint64_t line_hits = 0, line_misses = 0;
+  uint64_t sectors = 0, sector_hits = 0, sector_misses = 0;
+  double hit_rate() const { return requests ? double(hits) / double(requests) : 0.0; }
+  void add(const LevelStats& o);
+};
+
+struct HierarchyStats {
+  LevelStats l1;  // loads only (stores and atomics do not look up the L1 state)
+  LevelStats l2;  // every request reaching the L2: L1 load misses, stores, atomics
+  uint64_t stores = 0, atomics = 0;  // requests issued by the coalescer, besides l1.requests loads
+  uint64_t dram_read_bytes = 0, dram_write_bytes = 0;
+  void add(const HierarchyStats& o);
+};
+
+struct BufferStats {
+  uint64_t l1_requests = 0, l1_misses = 0;
+  uint64_t l2_requests = 0, l2_misses = 0;
+  uint64_t dram_read_bytes = 0;
+};
+
+// Which levels missed for one request (per-invocation attribution).
+struct IssueResult {
+  bool l1_miss = false;
+  bool l2_miss = false;
+};
+
+class Hierarchy {
+ public:
+  // l1 and l2 must pass check_config and share line and sector sizes (the L1 forwards its lines).
+  Hierarchy(const CacheConfig& l1, uint32_t compute_units, const CacheConfig& l2);
+
+  // Curves of the L1 load stream (each CU's own stack, merged) and of the L2 request stream.
+  void enable_mrc(bool l1, bool l2, double sampling_rate = 1.0);
+
+  // Host-side prefetch of the sets a request may touch (see Cache::prefetch); no simulated effect.
+  void prefetch(uint32_t cu, uint64_t line) const {
+    l1_[cu].prefetch(line);
+    l2_.prefetch(line);
+  }
+
+  IssueResult issue(uint32_t cu, const Request& r) {
+    IssueResult res;
+    uint32_t to_l2 = r.sectors;
+    if (r.kind == AccessKind::load) {
+      BufferStats& b = buffers_[r.buffer];
+      const uint32_t n = uint32_t(std::popcount(r.sectors));
+      ++stats_.l1.requests;
+      ++b.l1_requests;
+      stats_.l1.sectors += n;
+      if (!l1_mrc_.empty()) l1_mrc_[cu]->access(r.line);
+      const Outcome o = l1_[cu].load(r.line, r.sectors);
+      stats_.l1.line_hits += o.line_hit;
+      stats_.l1.line_misses += !o.line_hit;
+      const uint32_t m = uint32_t(std::popcount(o.missing));
+      stats_.l1.sector_misses += m;
+      stats_.l1.sector_hits += n - m;
+      if (!o.missing) {
+        ++stats_.l1.hits;
+        return res;
+      }
+      ++stats_.l1.misses;
+      ++b.l1_misses;
+      res.l1_miss = true;
+      to_l2 = o.missing;
+    } else if (r.kind == AccessKind::store) {
+      ++stats_.stores;
+    } else {
+      ++stats_.atomics;
+    }
+    res.l2_miss = issue_l2(r.line, to_l2, r.kind, r.buffer);
+    return res;
+  }
+
+  // Start of a pass: L1s are invalidated (a barrier between dispatches does that on GPUs); the L2
+  // keeps its contents and counters start from zero.
+  void begin_pass();
+  // Writes back every dirty L2 sector (counted in dram_write_bytes); end of a frame.
+  void flush();
+
+  const HierarchyStats& stats() const { return stats_; }
+  const std::array<BufferStats, 256>& buffers() const { return buffers_; }
+  MissRatioCurve l1_curve() const;
+  MissRatioCurve l2_curve() const;
+  uint32_t compute_units() const { return uint32_t(l1_.size()); }
+  const Cache& l1(uint32_t cu) const { return l1_[cu]; }
+  const Cache& l2() const { return l2_; }
+
+ private:
+  bool issue_l2(uint64_t line, uint32_t sectors, AccessKind kind, uint8_t buffer) {
+    BufferStats& b = buffers_[buffer];
+    const uint32_t n = uint32_t(std::popcount(sectors));
+    ++stats_.l2.requests;
+    ++b.l2_requests;
+    stats_.l2.sectors += n;
+    if (l2_mrc_) l2_mrc_->access(line);
+    Outcome o = kind == AccessKind::load    ? l2_.load(line, sectors)
+                : kind == AccessKind::store ? l2_.store(line, sectors)
+                                            : l2_.update(line, sectors);
+    stats_.l2.line_hits += o.line_hit;
+    stats_.l2.line_misses += !o.line_hit;
+    const uint32_t m = uint32_t(std::popcount(o.missing));
+    stats_.l2.sector_misses += m;
+    stats_.l2.sector_hits += n - m;
+    stats_.dram_write_bytes += uint64_t(o.written_back_sectors) * sector_bytes_;
+    if (!o.missing) {
+      ++stats_.l2.hits;
+      return false;
+    }
+    ++stats_.l2.misses;
+    ++b.l2_misses;
+    if (kind != AccessKind::store) {  // write-validate: a store miss reads nothing
+      const uint64_t bytes = uint64_t(m) * sector_bytes_;
+      stats_.dram_read_bytes += bytes;
+      b.dram_read_bytes += bytes;
+    }
+    return true;
+  }
+
+  std::vector<Cache> l1_;
+  Cache l2_;
+  uint32_t sector_bytes_;
+  HierarchyStats stats_;
+  std::array<BufferStats, 256> buffers_{};
+  std::vector<std::unique_ptr<StackDistance>> l1_mrc_;
+  std::unique_ptr<StackDistance> l2_mrc_;
+};
+
+}  // namespace hp::cachesim

@@ -1,0 +1,188 @@
+#include "cachesim/preset.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+
+#include "error.hpp"
+
+namespace hp::cachesim {
+
+namespace {
+
+using nlohmann::json;
+
+// Walks one JSON object, consuming keys; every error names the origin and the full key path.
+struct Fields {
+  const json& obj;
+  std::string origin, path;
+  std::set<std::string> used;
+
+  [[noreturn]] void fail(const std::string& key, const std::string& why) const {
+    throw InputError(origin + ": " + path + key + ": " + why);
+  }
+  const json* find(const std::string& key) {
+    used.insert(key);
+    auto it = obj.find(key);
+    return it == obj.end() ? nullptr : &*it;
+  }
+  const json& need(const std::string& key) {
+    const json* v = find(key);
+    if (!v) fail(key, "missing");
+    return *v;
+  }
+  uint64_t positive(const std::string& key, const json* v) {
+    if (!v->is_number_unsigned() || v->get<uint64_t>() == 0) fail(key, "expected a positive integer, got " + v->dump());
+    return v->get<uint64_t>();
+  }
+  uint32_t u32(const std::string& key) {
+    uint64_t v = positive(key, &need(key));
+    if (v > 0xFFFFFFFFull) fail(key, "too large");
+    return uint32_t(v);
+  }
+  uint32_t u32_or(const std::string& key, uint32_t fallback) {
+    const json* v = find(key);
+    if (!v) return fallback;
+    uint64_t x = positive(key, v);
+    if (x > 0xFFFFFFFFull) fail(key, "too large");
+    return uint32_t(x);
+  }
+  std::string string(const std::string& key, bool required = true) {
+    const json* v = required ? &need(key) : find(key);
+    if (!v) return {};
+    if (!v->is_string()) fail(key, "expected a string, got " + v->dump());
+    return v->get<std::string>();
+  }
+  void no_unknown_keys() const {
+    for (auto it = obj.begin(); it != obj.end(); ++it)
+      if (!used.count(it.key())) fail(it.key(), "unknown key");
+  }
+};
+
+CacheConfig parse_cache(const json& j, const std::string& origin, const std::string& key) {
+  if (!j.is_object()) throw InputError(origin + ": " + key + ": expected an object");
+  Fields f{j, origin, key + "."};
+  CacheConfig c;
+  c.size_bytes = f.positive("size_bytes", &f.need("size_bytes"));
+  c.line_bytes = f.u32("line_bytes");
+  c.sector_bytes = f.u32_or("sector_bytes", c.line_bytes);
+  c.ways = f.u32("ways");
+  c.channels = f.u32_or("channels", 1);
+  c.channel_interleave_bytes = f.u32_or("channel_interleave_bytes", 0);
+  const std::string repl = f.string("replacement", false);
+  if (repl.empty() || repl == "lru")
+    c.replacement = Replacement::lru;
+  else if (repl == "fifo")
+    c.replacement = Replacement::fifo;
+  else if (repl == "random")
+    c.replacement = Replacement::random;
+  else
+    f.fail("replacement", "'" + repl + "' is not lru, fifo or random");
+  if (const json* s = f.find("seed")) {
+    if (!s->is_number_unsigned()) f.fail("seed", "expected a non-negative integer, got " + s->dump());
+    c.seed = s->get<uint64_t>();
+  }
+  f.no_unknown_keys();
+  if (std::string err = check_config(c); !err.empty()) throw InputError(origin + ": " + key + "." + err);
+  return c;
+}
+
+std::filesystem::path exe_dir() {
+  std::error_code ec;
+  auto p = std::filesystem::read_symlink("/proc/self/exe", ec);
+  return ec ? std::filesystem::path() : p.parent_path();
+}
+
+}  // namespace
+
+Preset parse_preset(std::string_view text, const std::string& origin) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::parse_error& e) {
+    throw InputError(origin + ": invalid JSON: " + e.what());
+  }
+  if (!j.is_object()) throw InputError(origin + ": expected a JSON object");
+  Fields f{j, origin, ""};
+  Preset p;
+  p.name = f.string("name");
+  p.description = f.string("description", false);
+  const json& src = f.need("sources");
+  if (!src.is_array() || src.empty()) f.fail("sources", "expected a non-empty array of strings");
+  for (size_t i = 0; i < src.size(); ++i) {
+    if (!src[i].is_string()) f.fail("sources[" + std::to_string(i) + "]", "expected a string");
+    p.sources.push_back(src[i].get<std::string>());
+  }
+  p.compute_units = f.u32("compute_units");
+  p.wave_width = f.u32("wave_width");
+  if (p.wave_width > 1024) f.fail("wave_width", "at most 1024");
+  p.max_waves_per_cu = f.u32("max_waves_per_cu");
+  const std::string co = f.string("coalescing");
+  if (co == "line")
+    p.coalescing = Coalescing::line;
+  else if (co == "sector")
+    p.coalescing = Coalescing::sector;
+  else
+    f.fail("coalescing", "'" + co + "' is not line or sector");
+  p.l1 = parse_cache(f.need("l1"), origin, "l1");
+  p.l2 = parse_cache(f.need("l2"), origin, "l2");
+  f.no_unknown_keys();
+  if (p.l1.line_bytes != p.l2.line_bytes)
+    throw InputError(origin + ": l2.line_bytes: must equal l1.line_bytes (the L1 forwards whole lines)");
+  if (p.l1.sector_bytes != p.l2.sector_bytes)
+    throw InputError(origin + ": l2.sector_bytes: must equal l1.sector_bytes");
+  return p;
+}
+
+Preset load_preset_file(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path.string() + ": cannot open preset");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  Preset p = parse_preset(ss.str(), path.string());
+  p.file = path;
+  return p;
+}
+
+std::vector<std::filesystem::path> preset_dirs() {
+  std::vector<std::filesystem::path> dirs;
+#ifdef HP_CACHESIM_PRESET_DIR
+  dirs.emplace_back(HP_CACHESIM_PRESET_DIR);
+#endif
+  if (auto e = exe_dir(); !e.empty()) {
+    dirs.push_back(e / "presets");
+    dirs.push_back(e / ".." / "share" / "hybridprof" / "presets");
+  }
+  return dirs;
+}
+
+std::vector<std::string> known_presets() {
+  std::set<std::string> names;
+  for (const auto& d : preset_dirs()) {
+    std::error_code ec;
+    for (auto it = std::filesystem::directory_iterator(d, ec); !ec && it != std::filesystem::directory_iterator();
+         it.increment(ec))
+      if (it->path().extension() == ".json") names.insert(it->path().stem().string());
+  }
+  return {names.begin(), names.end()};
+}
+
+Preset find_preset(std::string_view name_or_path) {
+  const std::string arg(name_or_path);
+  if (arg.find('/') != std::string::npos || (arg.size() > 5 && arg.ends_with(".json")))
+    return load_preset_file(arg);
+  for (const auto& d : preset_dirs()) {
+    std::error_code ec;
+    const auto file = d / (arg + ".json");
+    if (std::filesystem::is_regular_file(file, ec)) return load_preset_file(file);
+  }
+  std::string known;
+  for (const auto& n : known_presets()) known += (known.empty() ? "" : ", ") + n;
+  throw InputError("unknown preset '" + arg + "' (known: " + (known.empty() ? "none found" : known) + ")");
+}
+
+}  // namespace hp::cachesim

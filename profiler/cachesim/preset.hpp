@@ -1,0 +1,51 @@
+// GPU presets: the execution model and cache figures of one GPU, loaded from a JSON file.
+//
+// Shipped presets live in profiler/cachesim/presets/NAME.json (vega56, ga102, h100), each citing the
+// sources of its figures in "sources". A preset is found by name in the source tree's presets folder
+// (compile definition HP_CACHESIM_PRESET_DIR), then beside the installed executable
+// (EXE_DIR/presets, EXE_DIR/../share/hybridprof/presets); an argument containing '/' or ending in
+// ".json" is a path to a custom preset.
+//
+// Schema (every key required unless marked optional; unknown keys are errors):
+//   name (string), description (string, optional), sources (array of strings),
+//   compute_units, wave_width, max_waves_per_cu (positive integers),
+//   coalescing ("line": unique lines per wavefront step, AMD-like; "sector": unique sectors grouped
+//               by line, NVIDIA-like),
+//   l1, l2: { size_bytes, line_bytes, sector_bytes (optional, default line_bytes), ways,
+//             channels (optional, 1), channel_interleave_bytes (optional, line_bytes),
+//             replacement ("lru" | "fifo" | "random", optional, lru), seed (optional, 1) }
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "cachesim/cache.hpp"
+
+namespace hp::cachesim {
+
+enum class Coalescing : uint8_t { line, sector };
+
+struct Preset {
+  std::string name;
+  std::string description;
+  std::vector<std::string> sources;
+  uint32_t compute_units = 1;
+  uint32_t wave_width = 64;
+  uint32_t max_waves_per_cu = 40;
+  Coalescing coalescing = Coalescing::line;
+  CacheConfig l1, l2;
+  std::filesystem::path file;  // where it was loaded from (empty when built in code)
+};
+
+// Parses and validates preset JSON text; errors are hp::InputError "ORIGIN: KEY.PATH: reason".
+Preset parse_preset(std::string_view json_text, const std::string& origin);
+Preset load_preset_file(const std::filesystem::path& path);
+// By name (shipped presets) or path; an unknown name lists the known ones.
+Preset find_preset(std::string_view name_or_path);
+std::vector<std::string> known_presets();
+std::vector<std::filesystem::path> preset_dirs();
+
+}  // namespace hp::cachesim

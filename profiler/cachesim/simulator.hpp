@@ -1,0 +1,78 @@
+// The SIMT execution model that turns a pass's per-invocation access records into the request stream
+// a GPU's caches would see, and replays it through a Hierarchy (docs/cache-model.md states every
+// approximation):
+//   - workgroups go to compute units in dispatch order: first round-robin over the CUs, then each
+//     freed slot takes the next workgroup; a CU holds at most max_waves_per_cu wavefronts (at least
+//     one workgroup);
+//   - a workgroup is cut into wavefronts of wave_width lanes by local invocation index;
+//   - a wavefront issues together the lanes' next accesses that share the lowest pending sequence
+//     number (lockstep by seq: with dense 0, 1, 2, ... numbering, the lanes' k-th accesses);
+//   - the coalescer merges one step's lane accesses into unique lines (Coalescing::line) or unique
+//     sectors grouped by line (Coalescing::sector), separately per access kind, in lane order;
+//   - each cycle every CU with resident wavefronts issues one step of its next wavefront in
+//     round-robin order, CUs in index order, so CUs interleave at the L2 step by step.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "cachesim/hierarchy.hpp"
+#include "cachesim/preset.hpp"
+#include "trace/trace_file.hpp"
+
+namespace hp::cachesim {
+
+struct SimOptions {
+  bool per_invocation = true;  // per-invocation L1/L2 miss counts (heatmaps)
+  bool l1_mrc = false, l2_mrc = false;
+  double mrc_sampling_rate = 1.0;  // < 1: SHARDS
+  // Sees every coalesced request, in issue order, before the caches do (Dinero export, debugging).
+  std::function<void(uint32_t cu, const Request&)> observer;
+};
+
+struct PassResult {
+  std::string name;
+  HierarchyStats stats;
+  std::array<BufferStats, 256> buffers{};  // by buffer id
+  // Per global invocation: requests of its accesses that missed the L1 / the L2 (an access spanning
+  // two lines counts for both; lanes sharing a request all see its outcome).
+  std::vector<uint32_t> l1_misses, l2_misses;
+  uint64_t lane_accesses = 0, wave_steps = 0, waves = 0, workgroups = 0, cycles = 0;
+  MissRatioCurve l1_curve, l2_curve;  // filled when requested
+};
+
+class Simulator {
+ public:
+  // Throws InputError when the preset and trace cannot work together.
+  Simulator(const Preset& preset, const trace::TraceHeader& header, SimOptions options = {});
+
+  // Replays one pass. Records must be validated (TraceReader::read_pass does it); any order.
+  // L1s start empty (barrier between dispatches), the L2 stays warm from earlier passes.
+  PassResult run_pass(const trace::PassInfo& pass, std::span<const trace::TraceRecord> records);
+
+  // End of the frame: dirty L2 sectors written back, in bytes.
+  uint64_t finish();
+
+  const Preset& preset() const { return preset_; }
+
+ private:
+  Preset preset_;
+  const trace::BufferInfo* buffers_[256] = {};
+  std::vector<trace::BufferInfo> buffer_storage_;
+  SimOptions options_;
+  Hierarchy hierarchy_;
+};
+
+// Writes the coalesced request stream that compute unit `cu` sends to its L1 during one pass, in
+// Dinero IV text ("r ADDR SIZE", one line per contiguous run of sectors), loads only unless
+// include_stores (stores as "w": replay them in Dinero with -l1-dwalloc n to mirror our L1).
+// Returns the number of lines written.
+uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceHeader& header,
+                    const trace::PassInfo& pass, std::span<const trace::TraceRecord> records, uint32_t cu,
+                    bool include_stores = false);
+
+}  // namespace hp::cachesim

@@ -1,0 +1,372 @@
+#include "trace/trace_file.hpp"
+
+#include <bit>
+#include <cstring>
+#include <system_error>
+
+#include "error.hpp"
+
+namespace hp::trace {
+
+static_assert(std::endian::native == std::endian::little, "the trace format is little-endian");
+
+namespace {
+
+constexpr uint32_t tag(char a, char b, char c, char d) {
+  return uint32_t(uint8_t(a)) | uint32_t(uint8_t(b)) << 8 | uint32_t(uint8_t(c)) << 16 | uint32_t(uint8_t(d)) << 24;
+}
+constexpr uint32_t kTagBuffers = tag('B', 'U', 'F', 'S');
+constexpr uint32_t kTagPass = tag('P', 'A', 'S', 'S');
+constexpr uint32_t kTagRecords = tag('R', 'E', 'C', 'S');
+constexpr uint32_t kTagEnd = tag('E', 'N', 'D', ' ');
+
+struct FileHeader {
+  char magic[8];
+  uint32_t version;
+  uint32_t flags;
+  uint32_t image_width;
+  uint32_t image_height;
+  uint64_t reserved;
+};
+static_assert(sizeof(FileHeader) == 32);
+
+struct ChunkHeader {
+  uint32_t tag;
+  uint32_t reserved;
+  uint64_t payload_bytes;
+};
+static_assert(sizeof(ChunkHeader) == 16);
+
+struct BufferEntry {
+  uint32_t id, kind;
+  uint64_t base_address, size_bytes;
+  uint32_t texel_bytes, width, height, row_pitch_bytes, tile_width, tile_height, name_bytes;
+};
+static_assert(sizeof(BufferEntry) == 56);
+
+struct PassEntry {
+  uint32_t index;
+  uint32_t workgroup_size[3];
+  uint32_t workgroup_count[3];
+  uint32_t name_bytes;
+};
+static_assert(sizeof(PassEntry) == 32);
+
+struct RecordsEntry {
+  uint32_t pass, reserved;
+  uint64_t first_workgroup, end_workgroup, count;
+};
+static_assert(sizeof(RecordsEntry) == 32);
+
+struct EndEntry {
+  uint64_t total_records;
+  uint32_t passes, reserved;
+};
+static_assert(sizeof(EndEntry) == 16);
+
+size_t pad8(size_t n) { return (8 - n % 8) % 8; }
+
+// Reads bytes out of an in-memory payload, failing (via the reader) when a field runs past its end.
+struct Cursor {
+  const std::vector<char>& data;
+  size_t pos = 0;
+  bool get(void* out, size_t bytes) {
+    if (pos + bytes > data.size()) return false;
+    std::memcpy(out, data.data() + pos, bytes);
+    pos += bytes;
+    return true;
+  }
+};
+
+}  // namespace
+
+uint64_t BufferInfo::address(uint32_t offset) const {
+  switch (kind) {
+    case BufferKind::buffer:
+      return base_address + offset;
+    case BufferKind::image_linear: {
+      uint32_t texel = offset / texel_bytes, byte = offset % texel_bytes;
+      uint32_t x = texel % width, y = texel / width;
+      return base_address + uint64_t(y) * row_pitch_bytes + uint64_t(x) * texel_bytes + byte;
+    }
+    case BufferKind::image_tiled: {
+      uint32_t texel = offset / texel_bytes, byte = offset % texel_bytes;
+      uint32_t x = texel % width, y = texel / width;
+      uint32_t tiles_x = (width + tile_width - 1) / tile_width;
+      uint64_t tile = uint64_t(y / tile_height) * tiles_x + x / tile_width;
+      uint64_t in_tile = uint64_t(y % tile_height) * tile_width + x % tile_width;
+      return base_address + (tile * tile_width * tile_height + in_tile) * texel_bytes + byte;
+    }
+  }
+  return base_address + offset;
+}
+
+const BufferInfo* TraceHeader::find_buffer(uint32_t id) const {
+  for (const BufferInfo& b : buffers)
+    if (b.id == id) return &b;
+  return nullptr;
+}
+
+// ------------------------------------------------------------------------------------------------ writer
+
+TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header)
+    : path_(std::move(path)), tmp_path_(path_.string() + ".tmp") {
+  file_ = std::fopen(tmp_path_.c_str(), "wb");
+  if (!file_) throw InputError(tmp_path_.string() + ": cannot create trace file: " + std::strerror(errno));
+  FileHeader fh{};
+  std::memcpy(fh.magic, kTraceMagic, 8);
+  fh.version = kTraceVersion;
+  fh.image_width = header.image_width;
+  fh.image_height = header.image_height;
+  put(&fh, sizeof fh);
+
+  std::vector<char> payload;
+  auto append = [&](const void* p, size_t n) {
+    payload.insert(payload.end(), static_cast<const char*>(p), static_cast<const char*>(p) + n);
+  };
+  uint32_t count = uint32_t(header.buffers.size());
+  append(&count, 4);
+  for (const BufferInfo& b : header.buffers) {
+    BufferEntry e{b.id, uint32_t(b.kind), b.base_address, b.size_bytes, b.texel_bytes, b.width, b.height,
+                  b.row_pitch_bytes, b.tile_width, b.tile_height, uint32_t(b.name.size())};
+    append(&e, sizeof e);
+    append(b.name.data(), b.name.size());
+    payload.resize(payload.size() + pad8(b.name.size()), 0);
+  }
+  put_chunk_header(kTagBuffers, payload.size());
+  put(payload.data(), payload.size());
+}
+
+TraceWriter::~TraceWriter() {
+  if (file_) {
+    std::fclose(file_);
+    std::error_code ec;
+    std::filesystem::remove(tmp_path_, ec);  // unfinished: never leave a file that looks like a trace
+  }
+}
+
+void TraceWriter::put(const void* data, size_t bytes) {
+  if (bytes && std::fwrite(data, 1, bytes, file_) != bytes)
+    throw InputError(tmp_path_.string() + ": write failed: " + std::strerror(errno));
+}
+
+void TraceWriter::put_chunk_header(uint32_t t, uint64_t payload_bytes) {
+  ChunkHeader ch{t, 0, payload_bytes};
+  put(&ch, sizeof ch);
+}
+
+uint32_t TraceWriter::begin_pass(const PassInfo& pass) {
+  PassEntry e{passes_, {}, {}, uint32_t(pass.name.size())};
+  for (int i = 0; i < 3; ++i) {
+    e.workgroup_size[i] = pass.dispatch.workgroup_size[i];
+    e.workgroup_count[i] = pass.dispatch.workgroup_count[i];
+  }
+  size_t pad = pad8(sizeof e + pass.name.size());
+  put_chunk_header(kTagPass, sizeof e + pass.name.size() + pad);
+  put(&e, sizeof e);
+  put(pass.name.data(), pass.name.size());
+  const uint64_t zero = 0;
+  put(&zero, pad);
+  return passes_++;
+}
+
+void TraceWriter::write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
+                                uint64_t end_workgroup) {
+  RecordsEntry e{pass, 0, first_workgroup, end_workgroup, records.size()};
+  put_chunk_header(kTagRecords, sizeof e + records.size_bytes());
+  put(&e, sizeof e);
+  put(records.data(), records.size_bytes());
+  total_records_ += records.size();
+}
+
+void TraceWriter::finish() {
+  EndEntry e{total_records_, passes_, 0};
+  put_chunk_header(kTagEnd, sizeof e);
+  put(&e, sizeof e);
+  if (std::fclose(file_) != 0) {
+    file_ = nullptr;
+    throw InputError(tmp_path_.string() + ": close failed: " + std::strerror(errno));
+  }
+  file_ = nullptr;
+  std::error_code ec;
+  std::filesystem::rename(tmp_path_, path_, ec);
+  if (ec) throw InputError(path_.string() + ": cannot rename the finished trace into place: " + ec.message());
+}
+
+// ------------------------------------------------------------------------------------------------ reader
+
+void TraceReader::fail(const std::string& what) const { throw InputError(path_.string() + ": " + what); }
+
+TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
+  file_ = std::fopen(path_.c_str(), "rb");
+  if (!file_) fail(std::string("cannot open trace file: ") + std::strerror(errno));
+  std::fseek(file_, 0, SEEK_END);
+  const uint64_t file_size = uint64_t(std::ftell(file_));
+  std::fseek(file_, 0, SEEK_SET);
+
+  FileHeader fh{};
+  if (std::fread(&fh, sizeof fh, 1, file_) != 1) fail("truncated: shorter than the 32-byte header");
+  if (std::memcmp(fh.magic, kTraceMagic, 8) != 0) fail("bad magic: not a hybridprof trace file");
+  if (fh.version != kTraceVersion)
+    fail("unsupported version " + std::to_string(fh.version) + " (this build reads version " +
+         std::to_string(kTraceVersion) + ")");
+  header_.image_width = fh.image_width;
+  header_.image_height = fh.image_height;
+
+  uint64_t pos = sizeof fh;
+  bool have_buffers = false, have_end = false;
+  uint64_t total = 0;
+  while (pos < file_size && !have_end) {
+    ChunkHeader ch{};
+    if (file_size - pos < sizeof ch || std::fread(&ch, sizeof ch, 1, file_) != 1)
+      fail("truncated: chunk header at byte " + std::to_string(pos));
+    pos += sizeof ch;
+    if (ch.payload_bytes > file_size - pos)
+      fail("truncated: chunk at byte " + std::to_string(pos - sizeof ch) + " declares " +
+           std::to_string(ch.payload_bytes) + " bytes, " + std::to_string(file_size - pos) + " remain");
+    const std::string at = " chunk at byte " + std::to_string(pos - sizeof ch);
+    if (ch.tag == kTagRecords) {
+      RecordsEntry e{};
+      if (ch.payload_bytes < sizeof e || std::fread(&e, sizeof e, 1, file_) != 1) fail("malformed RECS" + at);
+      if (e.pass >= passes_.size()) fail("RECS" + at + " names pass " + std::to_string(e.pass) + " before its PASS");
+      if (ch.payload_bytes != sizeof e + e.count * sizeof(TraceRecord))
+        fail("malformed RECS" + at + ": record count does not match the chunk size");
+      chunks_.push_back({e.pass, pos + sizeof e, e.count});
+      total += e.count;
+    } else {
+      std::vector<char> payload(ch.payload_bytes);
+      if (!payload.empty() && std::fread(payload.data(), 1, payload.size(), file_) != payload.size())
+        fail("truncated" + at);
+      Cursor c{payload};
+      if (ch.tag == kTagBuffers) {
+        if (have_buffers) fail("second BUFS" + at);
+        have_buffers = true;
+        uint32_t count = 0;
+        if (!c.get(&count, 4)) fail("malformed BUFS" + at);
+        for (uint32_t i = 0; i < count; ++i) {
+          BufferEntry e{};
+          if (!c.get(&e, sizeof e)) fail("malformed BUFS" + at + ": entry " + std::to_string(i));
+          BufferInfo b;
+          b.name.resize(e.name_bytes);
+          if (!c.get(b.name.data(), e.name_bytes)) fail("malformed BUFS" + at + ": name of entry " + std::to_string(i));
+          c.pos += pad8(e.name_bytes);
+          if (e.kind > uint32_t(BufferKind::image_tiled) || e.id > HP_TRACE_BUFFER_MASK)
+            fail("BUFS" + at + ": entry " + std::to_string(i) + " has an invalid kind or id");
+          b.id = e.id;
+          b.kind = BufferKind(e.kind);
+          b.base_address = e.base_address;
+          b.size_bytes = e.size_bytes;
+          b.texel_bytes = e.texel_bytes;
+          b.width = e.width;
+          b.height = e.height;
+          b.row_pitch_bytes = e.row_pitch_bytes;
+          b.tile_width = e.tile_width;
+          b.tile_height = e.tile_height;
+          if (b.kind != BufferKind::buffer &&
+              (b.texel_bytes == 0 || b.width == 0 || b.height == 0 ||
+               (b.kind == BufferKind::image_linear && b.row_pitch_bytes < uint64_t(b.width) * b.texel_bytes) ||
+               (b.kind == BufferKind::image_tiled && (b.tile_width == 0 || b.tile_height == 0))))
+            fail("BUFS" + at + ": image '" + b.name + "' has an impossible layout");
+          if (header_.find_buffer(b.id)) fail("BUFS" + at + ": duplicate buffer id " + std::to_string(b.id));
+          header_.buffers.push_back(std::move(b));
+        }
+      } else if (ch.tag == kTagPass) {
+        PassEntry e{};
+        if (!c.get(&e, sizeof e)) fail("malformed PASS" + at);
+        if (e.index != passes_.size()) fail("PASS" + at + " out of order");
+        PassInfo p;
+        p.name.resize(e.name_bytes);
+        if (!c.get(p.name.data(), e.name_bytes)) fail("malformed PASS" + at);
+        for (int i = 0; i < 3; ++i) {
+          p.dispatch.workgroup_size[i] = e.workgroup_size[i];
+          p.dispatch.workgroup_count[i] = e.workgroup_count[i];
+          if (e.workgroup_size[i] == 0) fail("PASS '" + p.name + "': workgroup size 0");
+        }
+        passes_.push_back(std::move(p));
+      } else if (ch.tag == kTagEnd) {
+        EndEntry e{};
+        if (!c.get(&e, sizeof e)) fail("malformed END" + at);
+        if (e.total_records != total || e.passes != passes_.size())
+          fail("END" + at + " counts " + std::to_string(e.total_records) + " records in " +
+               std::to_string(e.passes) + " passes, the file holds " + std::to_string(total) + " in " +
+               std::to_string(passes_.size()));
+        have_end = true;
+      } else {
+        fail("unknown chunk tag" + at);
+      }
+    }
+    pos += ch.payload_bytes;
+    std::fseek(file_, long(pos), SEEK_SET);
+  }
+  if (!have_buffers) fail("truncated: no buffer table");
+  if (!have_end) fail("truncated: no END chunk (the writer did not finish)");
+}
+
+TraceReader::~TraceReader() {
+  if (file_) std::fclose(file_);
+}
+
+uint64_t TraceReader::record_count(uint32_t pass) const {
+  uint64_t n = 0;
+  for (const Chunk& c : chunks_)
+    if (c.pass == pass) n += c.count;
+  return n;
+}
+
+std::vector<TraceRecord> TraceReader::read_pass(uint32_t pass) const {
+  if (pass >= passes_.size()) fail("no pass " + std::to_string(pass));
+  std::vector<TraceRecord> out(record_count(pass));
+  size_t at = 0;
+  for (const Chunk& c : chunks_) {
+    if (c.pass != pass) continue;
+    std::fseek(file_, long(c.file_offset), SEEK_SET);
+    if (c.count && std::fread(out.data() + at, sizeof(TraceRecord), c.count, file_) != c.count)
+      fail("truncated records of pass " + std::to_string(pass));
+    at += c.count;
+  }
+  validate_records(path_.string() + ": pass '" + passes_[pass].name + "'", header_, passes_[pass], out);
+  return out;
+}
+
+void validate_records(const std::string& where, const TraceHeader& header, const PassInfo& pass,
+                      std::span<const TraceRecord> records) {
+  const BufferInfo* by_id[256] = {};
+  for (const BufferInfo& b : header.buffers)
+    if (b.id < 256) by_id[b.id] = &b;
+  const uint64_t invocations = pass.dispatch.invocations();
+  for (size_t i = 0; i < records.size(); ++i) {
+    const TraceRecord& r = records[i];
+    auto bad = [&](const std::string& why) {
+      throw InputError(where + ": record " + std::to_string(i) + ": " + why);
+    };
+    if (r.info & HP_TRACE_RESERVED_MASK) bad("reserved info bits set");
+    if (gpu::trace_kind(r.info) > HP_TRACE_ATOMIC) bad("unknown access kind");
+    const BufferInfo* b = by_id[gpu::trace_buffer(r.info)];
+    if (!b) bad("unknown buffer id " + std::to_string(gpu::trace_buffer(r.info)));
+    if (r.invocation >= invocations)
+      bad("invocation " + std::to_string(r.invocation) + " outside the dispatch of " + std::to_string(invocations));
+    if (uint64_t(r.offset) + gpu::trace_size(r.info) > b->size_bytes)
+      bad("offset " + std::to_string(r.offset) + " past the end of buffer '" + b->name + "'");
+  }
+}
+
+void write_trace(const std::filesystem::path& path, const Trace& trace) {
+  TraceWriter w(path, trace.header);
+  for (size_t p = 0; p < trace.passes.size(); ++p) {
+    uint32_t index = w.begin_pass(trace.passes[p]);
+    if (p < trace.records.size())
+      w.write_records(index, trace.records[p], 0, trace.passes[p].dispatch.workgroups());
+  }
+  w.finish();
+}
+
+Trace read_trace(const std::filesystem::path& path) {
+  TraceReader r(path);
+  Trace t;
+  t.header = r.header();
+  t.passes = r.passes();
+  for (uint32_t p = 0; p < t.passes.size(); ++p) t.records.push_back(r.read_pass(p));
+  return t;
+}
+
+}  // namespace hp::trace

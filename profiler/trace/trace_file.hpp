@@ -1,0 +1,149 @@
+// Memory-trace files: what an instrumented frame wrote, for the cache simulator to replay.
+//
+// Binary format, version 1, little-endian, every field naturally aligned:
+//
+//   FileHeader   32 bytes: magic "HPTRACE\0", u32 version, u32 flags (0), u32 image_width,
+//                u32 image_height, u64 reserved (0)
+//   then chunks, each a 16-byte ChunkHeader {u32 tag, u32 reserved, u64 payload_bytes} and its payload:
+//   'BUFS'  exactly once, before any pass: u32 count, then per buffer
+//           u32 id, u32 kind, u64 base_address, u64 size_bytes, u32 texel_bytes, u32 width, u32 height,
+//           u32 row_pitch_bytes, u32 tile_width, u32 tile_height, u32 name_bytes, name (no NUL),
+//           padded with zeros to 8 bytes
+//   'PASS'  u32 pass index (0, 1, ... in order), u32 workgroup_size[3], u32 workgroup_count[3],
+//           u32 name_bytes, name, padded to 8 bytes
+//   'RECS'  u32 pass index, u32 reserved, u64 first_workgroup, u64 end_workgroup, u64 count,
+//           count * 16-byte hp::gpu::TraceRecord (any order). One chunk per streamed slice: the
+//           workgroup range says which workgroups the slice dispatched, records need not be sorted.
+//   'END '  u64 total records, u32 pass count, u32 reserved. A file without it is reported as
+//           truncated: the writer writes it last and renames the file into place only then.
+//
+// Buffers of kind image_* are addressed in records by logical offset (see trace_record.h) and mapped
+// to bytes by their declared layout: image_linear rows of row_pitch_bytes, or image_tiled blocks of
+// tile_width x tile_height texels stored contiguously, blocks in row-major order.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/trace_record.h"
+
+namespace hp::trace {
+
+using gpu::TraceRecord;
+
+inline constexpr char kTraceMagic[8] = {'H', 'P', 'T', 'R', 'A', 'C', 'E', '\0'};
+inline constexpr uint32_t kTraceVersion = 1;
+
+enum class BufferKind : uint32_t { buffer = 0, image_linear = 1, image_tiled = 2 };
+
+struct BufferInfo {
+  uint32_t id = 0;  // the buffer id records carry in their info word (< 256)
+  std::string name;
+  uint64_t base_address = 0;
+  uint64_t size_bytes = 0;  // bytes the records may address (images: width * height * texel_bytes)
+  BufferKind kind = BufferKind::buffer;
+  uint32_t texel_bytes = 0;  // images only
+  uint32_t width = 0, height = 0;
+  uint32_t row_pitch_bytes = 0;  // image_linear: >= width * texel_bytes
+  uint32_t tile_width = 0, tile_height = 0;  // image_tiled
+
+  // Byte address of a record's offset: buffers add the base; images apply the declared layout.
+  uint64_t address(uint32_t offset) const;
+};
+
+struct DispatchGeometry {
+  uint32_t workgroup_size[3] = {1, 1, 1};
+  uint32_t workgroup_count[3] = {1, 1, 1};
+  uint64_t invocations_per_workgroup() const {
+    return uint64_t(workgroup_size[0]) * workgroup_size[1] * workgroup_size[2];
+  }
+  uint64_t workgroups() const { return uint64_t(workgroup_count[0]) * workgroup_count[1] * workgroup_count[2]; }
+  uint64_t invocations() const { return invocations_per_workgroup() * workgroups(); }
+};
+
+struct PassInfo {
+  std::string name;
+  DispatchGeometry dispatch;
+};
+
+struct TraceHeader {
+  uint32_t image_width = 0, image_height = 0;
+  std::vector<BufferInfo> buffers;
+  const BufferInfo* find_buffer(uint32_t id) const;
+};
+
+// A whole trace in memory: fine for tests, tools and moderate frames; streaming code uses the
+// writer's per-slice chunks and the reader's per-pass reads.
+struct Trace {
+  TraceHeader header;
+  std::vector<PassInfo> passes;
+  std::vector<std::vector<TraceRecord>> records;  // records[pass]
+};
+
+// Streams a trace file: header and buffer table at construction, then passes and record slices.
+// Writes to PATH.tmp and renames to PATH in finish(), so a crashed capture never leaves a file that
+// looks complete; destroying an unfinished writer removes the temporary file.
+class TraceWriter {
+ public:
+  TraceWriter(std::filesystem::path path, const TraceHeader& header);
+  ~TraceWriter();
+  TraceWriter(const TraceWriter&) = delete;
+  TraceWriter& operator=(const TraceWriter&) = delete;
+
+  uint32_t begin_pass(const PassInfo& pass);  // returns the pass index
+  // One slice of a pass; [first_workgroup, end_workgroup) is the slice's dispatched range.
+  void write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
+                     uint64_t end_workgroup);
+  void finish();
+
+ private:
+  void put(const void* data, size_t bytes);
+  void put_chunk_header(uint32_t tag, uint64_t payload_bytes);
+  std::filesystem::path path_, tmp_path_;
+  std::FILE* file_ = nullptr;
+  uint32_t passes_ = 0;
+  uint64_t total_records_ = 0;
+};
+
+// Reads a trace file's directory (header, buffers, passes, where each pass's record chunks lie) at
+// open, and a pass's records on demand. Every defect is an hp::InputError of one line naming the file.
+class TraceReader {
+ public:
+  explicit TraceReader(std::filesystem::path path);
+  ~TraceReader();
+  TraceReader(const TraceReader&) = delete;
+  TraceReader& operator=(const TraceReader&) = delete;
+
+  const TraceHeader& header() const { return header_; }
+  const std::vector<PassInfo>& passes() const { return passes_; }
+  uint64_t record_count(uint32_t pass) const;
+  // All records of a pass, validated: reserved bits zero, known buffer id, invocation inside the
+  // dispatch, offset + size inside the buffer.
+  std::vector<TraceRecord> read_pass(uint32_t pass) const;
+
+ private:
+  struct Chunk {
+    uint32_t pass;
+    uint64_t file_offset;  // of the first record
+    uint64_t count;
+  };
+  [[noreturn]] void fail(const std::string& what) const;
+  std::filesystem::path path_;
+  std::FILE* file_ = nullptr;
+  TraceHeader header_;
+  std::vector<PassInfo> passes_;
+  std::vector<Chunk> chunks_;
+};
+
+void write_trace(const std::filesystem::path& path, const Trace& trace);
+Trace read_trace(const std::filesystem::path& path);
+
+// Checks one pass's records against the header and dispatch; throws InputError naming `where`.
+void validate_records(const std::string& where, const TraceHeader& header, const PassInfo& pass,
+                      std::span<const TraceRecord> records);
+
+}  // namespace hp::trace

@@ -1,0 +1,158 @@
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "cachesim/hierarchy.hpp"
+#include "reference_model.hpp"
+
+namespace hp::cachesim {
+namespace {
+
+CacheConfig cfg(uint64_t size, uint32_t line, uint32_t sector, uint32_t ways, uint32_t channels = 1) {
+  CacheConfig c;
+  c.size_bytes = size;
+  c.line_bytes = line;
+  c.sector_bytes = sector;
+  c.ways = ways;
+  c.channels = channels;
+  return c;
+}
+
+// The hierarchy's policies restated over reference caches, counting everything by hand.
+struct RefHierarchy {
+  std::vector<ref::RefCache> l1;
+  ref::RefCache l2;
+  uint32_t sector_bytes;
+  HierarchyStats s;
+  RefHierarchy(const CacheConfig& c1, uint32_t cus, const CacheConfig& c2)
+      : l1(cus, ref::RefCache(c1)), l2(c2), sector_bytes(c2.sector_bytes) {}
+  void issue(uint32_t cu, const Request& r) {
+    uint32_t to_l2 = r.sectors;
+    if (r.kind == AccessKind::load) {
+      ++s.l1.requests;
+      s.l1.sectors += std::popcount(r.sectors);
+      auto o = l1[cu].access(r.line, r.sectors, 0);
+      (o.line_hit ? s.l1.line_hits : s.l1.line_misses)++;
+      s.l1.sector_misses += std::popcount(o.missing);
+      s.l1.sector_hits += std::popcount(r.sectors) - std::popcount(o.missing);
+      if (!o.missing) {
+        ++s.l1.hits;
+        return;
+      }
+      ++s.l1.misses;
+      to_l2 = o.missing;
+    } else if (r.kind == AccessKind::store) {
+      ++s.stores;
+    } else {
+      ++s.atomics;
+    }
+    ++s.l2.requests;
+    s.l2.sectors += std::popcount(to_l2);
+    auto o = l2.access(r.line, to_l2, int(r.kind));
+    (o.line_hit ? s.l2.line_hits : s.l2.line_misses)++;
+    s.l2.sector_misses += std::popcount(o.missing);
+    s.l2.sector_hits += std::popcount(to_l2) - std::popcount(o.missing);
+    s.dram_write_bytes += uint64_t(o.written_back) * sector_bytes;
+    if (!o.missing) {
+      ++s.l2.hits;
+      return;
+    }
+    ++s.l2.misses;
+    if (r.kind != AccessKind::store) s.dram_read_bytes += uint64_t(std::popcount(o.missing)) * sector_bytes;
+  }
+};
+
+void expect_level(const LevelStats& a, const LevelStats& b, const char* name) {
+  SCOPED_TRACE(name);
+  EXPECT_EQ(a.requests, b.requests);
+  EXPECT_EQ(a.hits, b.hits);
+  EXPECT_EQ(a.misses, b.misses);
+  EXPECT_EQ(a.line_hits, b.line_hits);
+  EXPECT_EQ(a.line_misses, b.line_misses);
+  EXPECT_EQ(a.sectors, b.sectors);
+  EXPECT_EQ(a.sector_hits, b.sector_hits);
+  EXPECT_EQ(a.sector_misses, b.sector_misses);
+}
+
+void run_random(const CacheConfig& c1, const CacheConfig& c2, uint32_t cus, uint64_t seed) {
+  Hierarchy h(c1, cus, c2);
+  RefHierarchy r(c1, cus, c2);
+  Cache probe(c1);
+  std::mt19937_64 rng(seed);
+  const uint64_t lines = c2.size_bytes / c2.line_bytes * 3;
+  for (int i = 0; i < 80000; ++i) {
+    Request q;
+    q.line = rng() % 3 ? rng() % (lines / 16) : rng() % lines;
+    q.sectors = probe.full_mask() == 1 ? 1u : uint32_t(rng() % probe.full_mask()) + 1;
+    const uint64_t k = rng() % 10;
+    q.kind = k < 7 ? AccessKind::load : k < 9 ? AccessKind::store : AccessKind::atomic;
+    q.buffer = uint8_t(rng() % 4);
+    const uint32_t cu = uint32_t(rng() % cus);
+    h.issue(cu, q);
+    r.issue(cu, q);
+  }
+  h.flush();
+  r.s.dram_write_bytes += r.l2.dirty_sectors() * c2.sector_bytes;
+  expect_level(h.stats().l1, r.s.l1, "L1");
+  expect_level(h.stats().l2, r.s.l2, "L2");
+  EXPECT_EQ(h.stats().stores, r.s.stores);
+  EXPECT_EQ(h.stats().atomics, r.s.atomics);
+  EXPECT_EQ(h.stats().dram_read_bytes, r.s.dram_read_bytes);
+  EXPECT_EQ(h.stats().dram_write_bytes, r.s.dram_write_bytes);
+  uint64_t l1 = 0, l2 = 0;
+  for (const BufferStats& b : h.buffers()) l1 += b.l1_requests, l2 += b.l2_misses;
+  EXPECT_EQ(l1, h.stats().l1.requests);
+  EXPECT_EQ(l2, h.stats().l2.misses);
+}
+
+TEST(Hierarchy, MatchesReferenceAmdLike) { run_random(cfg(4 << 10, 64, 64, 4), cfg(32 << 10, 64, 64, 16, 4), 4, 11); }
+
+TEST(Hierarchy, MatchesReferenceSectored) {
+  run_random(cfg(8 << 10, 128, 32, 8), cfg(64 << 10, 128, 32, 16, 2), 3, 12);
+}
+
+TEST(Hierarchy, L1IsPrivatePerComputeUnit) {
+  Hierarchy h(cfg(1 << 10, 64, 64, 4), 2, cfg(64 << 10, 64, 64, 16));
+  EXPECT_TRUE(h.issue(0, {100, 1, AccessKind::load, 0}).l1_miss);
+  EXPECT_FALSE(h.issue(0, {100, 1, AccessKind::load, 0}).l1_miss);
+  IssueResult other = h.issue(1, {100, 1, AccessKind::load, 0});
+  EXPECT_TRUE(other.l1_miss);    // CU 1's L1 never saw the line
+  EXPECT_FALSE(other.l2_miss);   // but the shared L2 did
+  EXPECT_EQ(h.stats().l2.requests, 2u);
+}
+
+TEST(Hierarchy, StoresWriteThroughWithoutAllocatingInL1) {
+  Hierarchy h(cfg(1 << 10, 64, 64, 4), 1, cfg(64 << 10, 64, 64, 16));
+  h.issue(0, {5, 1, AccessKind::store, 1});
+  EXPECT_EQ(h.stats().l1.requests, 0u);
+  EXPECT_EQ(h.stats().l2.requests, 1u);
+  EXPECT_EQ(h.stats().dram_read_bytes, 0u);  // write-validate at the L2
+  IssueResult r = h.issue(0, {5, 1, AccessKind::load, 1});
+  EXPECT_TRUE(r.l1_miss);   // the store did not allocate in the L1
+  EXPECT_FALSE(r.l2_miss);  // but the L2 holds the written line
+  h.flush();
+  EXPECT_EQ(h.stats().dram_write_bytes, 64u);
+  EXPECT_EQ(h.buffers()[1].l2_requests, 2u);
+}
+
+TEST(Hierarchy, AtomicsBypassTheL1) {
+  Hierarchy h(cfg(1 << 10, 64, 64, 4), 1, cfg(64 << 10, 64, 64, 16));
+  IssueResult a = h.issue(0, {9, 1, AccessKind::atomic, 0});
+  EXPECT_FALSE(a.l1_miss);
+  EXPECT_TRUE(a.l2_miss);
+  EXPECT_EQ(h.stats().dram_read_bytes, 64u);  // read-modify-write fetches the line
+  EXPECT_TRUE(h.issue(0, {9, 1, AccessKind::load, 0}).l1_miss);
+}
+
+TEST(Hierarchy, BeginPassInvalidatesL1KeepsL2) {
+  Hierarchy h(cfg(1 << 10, 64, 64, 4), 1, cfg(64 << 10, 64, 64, 16));
+  h.issue(0, {3, 1, AccessKind::load, 0});
+  h.begin_pass();
+  EXPECT_EQ(h.stats().l1.requests, 0u);
+  IssueResult r = h.issue(0, {3, 1, AccessKind::load, 0});
+  EXPECT_TRUE(r.l1_miss);
+  EXPECT_FALSE(r.l2_miss);
+}
+
+}  // namespace
+}  // namespace hp::cachesim

@@ -1,0 +1,103 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "cachesim/preset.hpp"
+#include "error.hpp"
+
+namespace hp::cachesim {
+namespace {
+
+const char* kValid = R"({
+  "name": "t", "sources": ["test"], "compute_units": 2, "wave_width": 64, "max_waves_per_cu": 4,
+  "coalescing": "line",
+  "l1": {"size_bytes": 16384, "line_bytes": 64, "ways": 4},
+  "l2": {"size_bytes": 65536, "line_bytes": 64, "ways": 16, "channels": 4, "replacement": "fifo"}
+})";
+
+std::string error_of(const std::string& text) {
+  try {
+    parse_preset(text, "custom.json");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+std::string replace(std::string s, const std::string& from, const std::string& to) {
+  const size_t at = s.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return s.replace(at, from.size(), to);
+}
+
+TEST(Preset, ShippedPresetsLoadWithTheirFigures) {
+  Preset v = find_preset("vega56");
+  EXPECT_EQ(v.compute_units, 56u);
+  EXPECT_EQ(v.wave_width, 64u);
+  EXPECT_EQ(v.l1.size_bytes, 16u << 10);
+  EXPECT_EQ(v.l1.ways, 4u);
+  EXPECT_EQ(v.l2.size_bytes, 4u << 20);
+  EXPECT_EQ(v.l2.channels, 16u);
+  EXPECT_FALSE(v.sources.empty());
+  Preset g = find_preset("ga102");
+  EXPECT_EQ(g.wave_width, 32u);
+  EXPECT_EQ(g.coalescing, Coalescing::sector);
+  EXPECT_EQ(g.l1.sector_bytes, 32u);
+  Preset h = find_preset("h100");
+  EXPECT_EQ(h.compute_units, 132u);
+  EXPECT_EQ(h.l2.size_bytes, 50u << 20);
+  EXPECT_EQ(find_preset(std::string(HP_TEST_PRESET_DIR) + "/vega56.json").name, "vega56");
+}
+
+TEST(Preset, UnknownNameListsKnownPresets) {
+  try {
+    find_preset("vega65");
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("vega65"), std::string::npos);
+    EXPECT_NE(m.find("ga102, h100, vega56"), std::string::npos) << m;
+  }
+}
+
+TEST(Preset, ValidOneParses) {
+  Preset p = parse_preset(kValid, "custom.json");
+  EXPECT_EQ(p.l2.replacement, Replacement::fifo);
+  EXPECT_EQ(p.l1.sector_bytes, 64u);
+}
+
+TEST(Preset, ErrorsNameFileAndKeyPath) {
+  EXPECT_EQ(error_of(replace(kValid, "\"ways\": 4}", "\"ways\": 4, \"assoc\": 2}")), "custom.json: l1.assoc: unknown key");
+  EXPECT_EQ(error_of(replace(kValid, "\"compute_units\": 2", "\"compute_units\": \"2\"")),
+            "custom.json: compute_units: expected a positive integer, got \"2\"");
+  EXPECT_EQ(error_of(replace(kValid, "\"line_bytes\": 64, \"ways\": 4", "\"line_bytes\": 48, \"ways\": 4")),
+            "custom.json: l1.line_bytes: 48 is not a power of two");
+  EXPECT_NE(error_of(replace(kValid, "\"size_bytes\": 16384", "\"size_bytes\": 16000")).find("custom.json: l1.size_bytes:"),
+            std::string::npos);
+  EXPECT_EQ(error_of(replace(kValid, "\"fifo\"", "\"plru\"")), "custom.json: l2.replacement: 'plru' is not lru, fifo or random");
+  EXPECT_EQ(error_of(replace(kValid, "\"coalescing\": \"line\",", "")), "custom.json: coalescing: missing");
+  EXPECT_EQ(error_of(replace(kValid, "\"name\"", "\"nme\"")), "custom.json: name: missing");
+  EXPECT_NE(error_of("{ not json").find("custom.json: invalid JSON"), std::string::npos);
+  EXPECT_EQ(error_of(replace(kValid, "\"wave_width\": 64", "\"wave_width\": -1")),
+            "custom.json: wave_width: expected a positive integer, got -1");
+  EXPECT_EQ(error_of(replace(kValid, "\"sources\": [\"test\"]", "\"sources\": [3]")),
+            "custom.json: sources[0]: expected a string");
+}
+
+TEST(Preset, FileErrorsNameThePath) {
+  const auto dir = std::filesystem::temp_directory_path() / "hp_preset_test";
+  std::filesystem::create_directories(dir);
+  const auto f = dir / "bad.json";
+  std::ofstream(f) << replace(kValid, "\"channels\": 4", "\"channels\": 0");
+  try {
+    find_preset(f.string());
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), f.string() + ": l2.channels: expected a positive integer, got 0");
+  }
+  EXPECT_THROW(find_preset((dir / "missing.json").string()), InputError);
+}
+
+}  // namespace
+}  // namespace hp::cachesim

@@ -1,0 +1,109 @@
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "cachesim/hierarchy.hpp"
+#include "cachesim/stack_distance.hpp"
+#include "reference_model.hpp"
+
+namespace hp::cachesim {
+namespace {
+
+std::vector<uint64_t> stream(uint64_t seed, size_t n, uint64_t distinct) {
+  std::mt19937_64 rng(seed);
+  std::vector<uint64_t> s;
+  for (size_t i = 0; i < n; ++i) {
+    // Mixture of a small hot set, a sliding window (streaming) and uniform picks.
+    const uint64_t k = rng() % 10;
+    if (k < 4)
+      s.push_back(rng() % 32);
+    else if (k < 7)
+      s.push_back(1000 + (i / 3 + rng() % 50) % distinct);
+    else
+      s.push_back(rng() % distinct * 7919);
+  }
+  return s;
+}
+
+TEST(StackDistance, OnePassCurveEqualsSeparateFullyAssociativeSimulations) {
+  // 6000 distinct lines against a first capacity of 4096 times: compaction and growth both happen.
+  const auto s = stream(1, 40000, 6000);
+  StackDistance sd(64);
+  for (uint64_t x : s) sd.access(x);
+  const MissRatioCurve& c = sd.curve();
+  EXPECT_EQ(c.accesses, s.size());
+  for (uint64_t lines : {1ull, 2ull, 3ull, 7ull, 32ull, 33ull, 100ull, 512ull, 1000ull, 4096ull, 5000ull, 20000ull}) {
+    SCOPED_TRACE(lines);
+    EXPECT_EQ(c.misses(lines), ref::fully_associative_misses(s, lines));
+    // And against the production cache configured fully associative (one set).
+    CacheConfig fa{lines * 64, 64, 64, uint32_t(lines)};
+    if (check_config(fa).empty() && lines <= 1024) {
+      Cache cache(fa);
+      uint64_t misses = 0;
+      for (uint64_t x : s) misses += cache.load(x, 1).missing != 0;
+      EXPECT_EQ(c.misses(lines), misses);
+    }
+  }
+}
+
+TEST(StackDistance, DistancesOfAHandTrace) {
+  StackDistance sd;
+  EXPECT_EQ(sd.access(1), StackDistance::kCold);
+  EXPECT_EQ(sd.access(2), StackDistance::kCold);
+  EXPECT_EQ(sd.access(3), StackDistance::kCold);
+  EXPECT_EQ(sd.access(1), 2u);  // 2 and 3 since
+  EXPECT_EQ(sd.access(1), 0u);
+  EXPECT_EQ(sd.access(3), 1u);
+  EXPECT_EQ(sd.access(2), 2u);
+  EXPECT_EQ(sd.curve().cold, 3u);
+  EXPECT_EQ(sd.curve().misses(2), 3u + 2u);  // distances 2 and 2 miss in two lines
+}
+
+TEST(StackDistance, HierarchyL2CurveMatchesItsRequestStream) {
+  CacheConfig l1{1024, 64, 64, 2}, l2{16384, 64, 64, 4};
+  Hierarchy h(l1, 2, l2);
+  h.enable_mrc(true, true);
+  std::mt19937_64 rng(5);
+  std::vector<uint64_t> l2_stream;
+  std::vector<std::vector<uint64_t>> l1_stream(2);
+  Cache shadow0(l1), shadow1(l1);
+  for (int i = 0; i < 20000; ++i) {
+    const uint64_t line = rng() % 3 ? rng() % 64 : rng() % 4000;
+    const uint32_t cu = uint32_t(rng() % 2);
+    const bool store = rng() % 8 == 0;
+    h.issue(cu, {line, 1, store ? AccessKind::store : AccessKind::load, 0});
+    if (!store) {
+      l1_stream[cu].push_back(line);
+      if ((cu ? shadow1 : shadow0).load(line, 1).missing) l2_stream.push_back(line);
+    } else {
+      l2_stream.push_back(line);
+    }
+  }
+  const MissRatioCurve c2 = h.l2_curve(), c1 = h.l1_curve();
+  for (uint64_t lines : {1ull, 16ull, 256ull, 1024ull}) {
+    EXPECT_EQ(c2.misses(lines), ref::fully_associative_misses(l2_stream, lines));
+    EXPECT_EQ(c1.misses(lines), ref::fully_associative_misses(l1_stream[0], lines) +
+                                    ref::fully_associative_misses(l1_stream[1], lines));
+  }
+}
+
+TEST(StackDistance, ShardsApproximatesLargeCaches) {
+  std::mt19937_64 rng(9);
+  std::vector<uint64_t> s;
+  // Power-law reuse over 200k lines.
+  for (int i = 0; i < 600000; ++i) {
+    const double u = double(rng() >> 11) / 9007199254740992.0;
+    s.push_back(uint64_t(200000.0 * u * u * u));
+  }
+  StackDistance exact(64), sampled(64, 0.05);
+  for (uint64_t x : s) exact.access(x), sampled.access(x);
+  EXPECT_LT(sampled.curve().accesses, s.size() / 10);  // it really sampled
+  EXPECT_GT(sampled.curve().accesses, s.size() / 40);
+  for (uint64_t lines : {4096ull, 16384ull, 65536ull}) {
+    SCOPED_TRACE(lines);
+    EXPECT_NEAR(sampled.curve().miss_ratio(lines), exact.curve().miss_ratio(lines), 0.03);
+  }
+}
+
+}  // namespace
+}  // namespace hp::cachesim

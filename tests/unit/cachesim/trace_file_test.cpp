@@ -1,0 +1,166 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "error.hpp"
+#include "trace/trace_file.hpp"
+
+namespace hp::trace {
+namespace {
+
+namespace fs = std::filesystem;
+
+Trace sample() {
+  Trace t;
+  t.header.image_width = 16;
+  t.header.image_height = 8;
+  BufferInfo nodes;
+  nodes.id = 0;
+  nodes.name = "nodes";
+  nodes.base_address = 0x1000;
+  nodes.size_bytes = 4096;
+  BufferInfo img;
+  img.id = 7;
+  img.name = "gbuffer_normal";
+  img.kind = BufferKind::image_tiled;
+  img.base_address = 0x100000;
+  img.size_bytes = 16 * 8 * 8;
+  img.texel_bytes = 8;
+  img.width = 16;
+  img.height = 8;
+  img.tile_width = 8;
+  img.tile_height = 8;
+  t.header.buffers = {nodes, img};
+  PassInfo a{"shadows", {{8, 8, 1}, {2, 1, 1}}}, b{"refl", {{64, 1, 1}, {1, 1, 1}}};
+  t.passes = {a, b};
+  t.records.resize(2);
+  for (uint32_t i = 0; i < 128; ++i) t.records[0].push_back({i, 0, HP_TRACE_INFO(0u, HP_TRACE_LOAD, 16u), i * 32});
+  t.records[0].push_back({5, 1, HP_TRACE_INFO(7u, HP_TRACE_STORE, 8u), 40});
+  t.records[1].push_back({63, 0, HP_TRACE_INFO(0u, HP_TRACE_ATOMIC, 4u), 4092});
+  return t;
+}
+
+fs::path tmp(const std::string& name) {
+  auto d = fs::temp_directory_path() / "hp_trace_test";
+  fs::create_directories(d);
+  return d / name;
+}
+
+std::string error_reading(const fs::path& p) {
+  try {
+    read_trace(p);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+std::vector<char> bytes_of(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+void write_bytes(const fs::path& p, const std::vector<char>& b) {
+  std::ofstream(p, std::ios::binary).write(b.data(), std::streamsize(b.size()));
+}
+
+bool same(const TraceRecord& a, const TraceRecord& b) {
+  return a.invocation == b.invocation && a.seq == b.seq && a.info == b.info && a.offset == b.offset;
+}
+
+TEST(TraceFile, RoundTrip) {
+  const Trace t = sample();
+  const auto p = tmp("round.hptrace");
+  write_trace(p, t);
+  EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
+  const Trace r = read_trace(p);
+  EXPECT_EQ(r.header.image_width, 16u);
+  ASSERT_EQ(r.header.buffers.size(), 2u);
+  EXPECT_EQ(r.header.buffers[1].name, "gbuffer_normal");
+  EXPECT_EQ(r.header.buffers[1].kind, BufferKind::image_tiled);
+  EXPECT_EQ(r.header.buffers[1].tile_height, 8u);
+  EXPECT_EQ(r.header.buffers[1].base_address, 0x100000u);
+  ASSERT_EQ(r.passes.size(), 2u);
+  EXPECT_EQ(r.passes[0].name, "shadows");
+  EXPECT_EQ(r.passes[0].dispatch.workgroup_count[0], 2u);
+  EXPECT_EQ(r.passes[1].dispatch.workgroup_size[0], 64u);
+  for (int p = 0; p < 2; ++p) {
+    ASSERT_EQ(r.records[p].size(), t.records[p].size());
+    for (size_t i = 0; i < t.records[p].size(); ++i) EXPECT_TRUE(same(r.records[p][i], t.records[p][i]));
+  }
+}
+
+TEST(TraceFile, StreamedSlicesAreConcatenatedPerPass) {
+  const Trace t = sample();
+  const auto p = tmp("slices.hptrace");
+  {
+    TraceWriter w(p, t.header);
+    const uint32_t a = w.begin_pass(t.passes[0]);
+    const uint32_t b = w.begin_pass(t.passes[1]);
+    std::span<const TraceRecord> r0 = t.records[0];
+    w.write_records(a, r0.subspan(0, 64), 0, 1);
+    w.write_records(b, t.records[1], 0, 1);
+    w.write_records(a, r0.subspan(64), 1, 2);
+    w.finish();
+  }
+  TraceReader r(p);
+  EXPECT_EQ(r.record_count(0), t.records[0].size());
+  const auto recs = r.read_pass(0);
+  for (size_t i = 0; i < recs.size(); ++i) EXPECT_TRUE(same(recs[i], t.records[0][i]));
+}
+
+TEST(TraceFile, UnfinishedWriterLeavesNoFile) {
+  const auto p = tmp("unfinished.hptrace");
+  fs::remove(p);
+  {
+    TraceWriter w(p, sample().header);
+    w.begin_pass(sample().passes[0]);
+  }
+  EXPECT_FALSE(fs::exists(p));
+  EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
+}
+
+TEST(TraceFile, CorruptFilesGiveOneLineErrorsNamingTheFile) {
+  const auto good = tmp("good.hptrace");
+  write_trace(good, sample());
+  const auto bytes = bytes_of(good);
+  const auto bad = tmp("bad.hptrace");
+
+  auto corrupted = bytes;
+  corrupted[0] = 'X';
+  write_bytes(bad, corrupted);
+  EXPECT_EQ(error_reading(bad), bad.string() + ": bad magic: not a hybridprof trace file");
+
+  corrupted = bytes;
+  corrupted[8] = 9;  // version
+  write_bytes(bad, corrupted);
+  EXPECT_EQ(error_reading(bad), bad.string() + ": unsupported version 9 (this build reads version 1)");
+
+  write_bytes(bad, std::vector<char>(bytes.begin(), bytes.begin() + 20));
+  EXPECT_EQ(error_reading(bad), bad.string() + ": truncated: shorter than the 32-byte header");
+
+  write_bytes(bad, std::vector<char>(bytes.begin(), bytes.end() - 100));
+  EXPECT_NE(error_reading(bad).find(bad.string() + ": truncated"), std::string::npos) << error_reading(bad);
+
+  write_bytes(bad, std::vector<char>(bytes.begin(), bytes.end() - 32));  // the END chunk exactly
+  EXPECT_EQ(error_reading(bad), bad.string() + ": truncated: no END chunk (the writer did not finish)");
+
+  // A record naming a buffer the table lacks.
+  Trace t = sample();
+  t.records[0][3].info = HP_TRACE_INFO(3u, HP_TRACE_LOAD, 4u);
+  write_trace(bad, t);
+  EXPECT_EQ(error_reading(bad), bad.string() + ": pass 'shadows': record 3: unknown buffer id 3");
+  t = sample();
+  t.records[1][0].invocation = 64;
+  write_trace(bad, t);
+  EXPECT_NE(error_reading(bad).find("record 0: invocation 64 outside the dispatch"), std::string::npos);
+  t = sample();
+  t.records[1][0].offset = 4093;  // 4-byte atomic past the 4096-byte buffer
+  write_trace(bad, t);
+  EXPECT_NE(error_reading(bad).find("past the end of buffer 'nodes'"), std::string::npos);
+
+  EXPECT_NE(error_reading(tmp("does_not_exist")).find("cannot open trace file"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace hp::trace
