@@ -1,0 +1,137 @@
+// Speed of the cache simulator, single thread, on a generated BVH-like trace (cachesim/synthetic.hpp:
+// 512x512 rays over a 2^18-node tree; no captured BVH trace exists yet).
+//   Hierarchy/*      the coalesced request stream of vega56 replayed through 56 L1s + the L2
+//                    (items = L1 requests): the "accesses/s L1+L2" figure.
+//   DineroStyle      one 16k:64:4 L1 + one 4m:64:16 L2 on the same line stream, as `--din` does.
+//   L2Fixed / L2Mrc  the L2 request stream through one fixed-size L2, vs the exact all-sizes
+//                    stack-distance curve (Olken), vs SHARDS sampling: the MRC cost ratio.
+//   EndToEnd         Simulator::run_pass: grouping, SIMT scheduling, coalescing and caches
+//                    (items = lane accesses).
+#include <benchmark/benchmark.h>
+
+#include "cachesim/hierarchy.hpp"
+#include "cachesim/preset.hpp"
+#include "cachesim/simulator.hpp"
+#include "cachesim/stack_distance.hpp"
+#include "cachesim/synthetic.hpp"
+
+namespace {
+
+using namespace hp::cachesim;
+
+struct Fixture {
+  hp::trace::Trace trace;
+  Preset preset;
+  std::vector<std::pair<uint32_t, Request>> requests;  // coalesced, in issue order
+  std::vector<uint64_t> l2_lines;                       // the L2's request stream
+  Fixture() {
+    SyntheticBvhOptions o;
+    o.width = o.height = 512;
+    o.tree_depth = 17;
+    o.incoherent_fraction = 0.25;
+    trace = make_bvh_like_trace(o);
+    preset = find_preset("vega56");
+    SimOptions so;
+    so.per_invocation = false;
+    so.observer = [&](uint32_t cu, const Request& r) { requests.emplace_back(cu, r); };
+    Simulator sim(preset, trace.header, so);
+    sim.run_pass(trace.passes[0], trace.records[0]);
+    // The L2 stream: what misses the L1s (plus stores, atomics), recomputed with plain caches.
+    std::vector<Cache> l1(preset.compute_units, Cache(preset.l1));
+    for (const auto& [cu, r] : requests)
+      if (r.kind != AccessKind::load || l1[cu].load(r.line, r.sectors).missing) l2_lines.push_back(r.line);
+  }
+};
+
+const Fixture& fixture() {
+  static const Fixture f;
+  return f;
+}
+
+void Hierarchy_L1L2(benchmark::State& state) {
+  const Fixture& f = fixture();
+  for (auto _ : state) {
+    Hierarchy h(f.preset.l1, f.preset.compute_units, f.preset.l2);
+    const size_t n = f.requests.size();
+    for (size_t i = 0; i < n; ++i) {
+      if (state.range(0) && i + 16 < n) h.prefetch(f.requests[i + 16].first, f.requests[i + 16].second.line);
+      h.issue(f.requests[i].first, f.requests[i].second);
+    }
+    benchmark::DoNotOptimize(h.stats().l2.misses);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * f.requests.size()));
+  state.counters["requests"] = double(f.requests.size());
+  state.SetLabel(state.range(0) ? "prefetch 16 ahead" : "no prefetch");
+}
+BENCHMARK(Hierarchy_L1L2)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+void Hierarchy_L1L2_withL2Mrc(benchmark::State& state) {
+  const Fixture& f = fixture();
+  for (auto _ : state) {
+    Hierarchy h(f.preset.l1, f.preset.compute_units, f.preset.l2);
+    h.enable_mrc(false, true);
+    for (const auto& [cu, r] : f.requests) h.issue(cu, r);
+    benchmark::DoNotOptimize(h.stats().l2.misses);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * f.requests.size()));
+}
+BENCHMARK(Hierarchy_L1L2_withL2Mrc)->Unit(benchmark::kMillisecond);
+
+void DineroStyle_L1L2(benchmark::State& state) {
+  const Fixture& f = fixture();
+  CacheConfig l1{16 << 10, 64, 64, 4}, l2{4 << 20, 64, 64, 16};
+  for (auto _ : state) {
+    Cache c1(l1), c2(l2);
+    uint64_t misses = 0;
+    for (const auto& [cu, r] : f.requests)
+      if (c1.load(r.line, 1).missing) misses += c2.load(r.line, 1).missing != 0;
+    benchmark::DoNotOptimize(misses);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * f.requests.size()));
+}
+BENCHMARK(DineroStyle_L1L2)->Unit(benchmark::kMillisecond);
+
+void L2Fixed(benchmark::State& state) {
+  const Fixture& f = fixture();
+  for (auto _ : state) {
+    Cache l2(f.preset.l2);
+    uint64_t misses = 0;
+    for (uint64_t line : f.l2_lines) misses += l2.load(line, 1).missing != 0;
+    benchmark::DoNotOptimize(misses);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * f.l2_lines.size()));
+  state.counters["l2_requests"] = double(f.l2_lines.size());
+}
+BENCHMARK(L2Fixed)->Unit(benchmark::kMillisecond);
+
+void L2Mrc(benchmark::State& state) {
+  const Fixture& f = fixture();
+  const double rate = state.range(0) == 0 ? 1.0 : 1.0 / double(state.range(0));
+  for (auto _ : state) {
+    StackDistance sd(64, rate);
+    for (uint64_t line : f.l2_lines) sd.access(line);
+    benchmark::DoNotOptimize(sd.curve().cold);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * f.l2_lines.size()));
+  state.SetLabel(state.range(0) == 0 ? "exact" : "SHARDS 1/" + std::to_string(state.range(0)));
+}
+BENCHMARK(L2Mrc)->Arg(0)->Arg(100)->Unit(benchmark::kMillisecond);
+
+void EndToEnd(benchmark::State& state) {
+  const Fixture& f = fixture();
+  SimOptions so;
+  so.per_invocation = state.range(0) != 0;
+  for (auto _ : state) {
+    Simulator sim(f.preset, f.trace.header, so);
+    auto r = sim.run_pass(f.trace.passes[0], f.trace.records[0]);
+    benchmark::DoNotOptimize(r.stats.l2.misses);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * f.trace.records[0].size()));
+  state.counters["lane_accesses"] = double(f.trace.records[0].size());
+  state.SetLabel(so.per_invocation ? "with per-invocation counts" : "totals only");
+}
+BENCHMARK(EndToEnd)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();
