@@ -90,7 +90,11 @@ void main() {
           }
         }
         vec3 light = frame.light_color.rgb * frame.light_dir.w;
-        color = vis * shade_direct(hn, -d, l, m.base_color_metallic.rgb, m.base_color_metallic.a, m.roughness.x, light) +
+        // The hit's specular lobe is widened to roughness >= 0.25: a one-sample reflection ray that lands on a
+        // near-mirror's highlight would otherwise return radiance ~1e6 (GGX D peaks at 1 / (pi a^2)), and
+        // such fireflies need thousands of frames to average out.
+        float hit_rough = max(m.roughness.x, 0.25);
+        color = vis * shade_direct(hn, -d, l, m.base_color_metallic.rgb, m.base_color_metallic.a, hit_rough, light) +
                 shade_ambient(hn, -d, m.base_color_metallic.rgb, m.base_color_metallic.a, frame.sky_color.rgb);
       }
     }

@@ -1,0 +1,233 @@
+// The GPU ray-tracing passes against the C++ reference traversal, on the very rays the shaders cast (the
+// shaders dump them), and the properties the study's experiments rely on.
+#include "vulkan_env.hpp"
+
+#include "bvh/traverse.hpp"
+#include "frame.hpp"
+#include "scene/load.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+
+namespace hp {
+namespace {
+
+FrameSettings rt_settings(uint32_t w, uint32_t h) {
+  FrameSettings s;
+  s.width = w;
+  s.height = h;
+  s.rt.shadows = true;
+  s.rt.reflections = true;
+  s.rt.dump_rays = true;
+  return s;
+}
+
+bvh::Ray to_ray(const gpu::RayDump& d) {
+  bvh::Ray r;
+  r.origin = glm::vec3(d.origin_tmin);
+  r.tmin = d.origin_tmin.w;
+  r.dir = glm::vec3(d.dir_tmax);
+  r.tmax = d.dir_tmax.w;
+  return r;
+}
+
+struct Agreement {
+  size_t rays = 0, equal = 0;
+};
+
+// Compares every dumped ray's GPU answer with the reference traversal's; prints the disagreements.
+Agreement compare(const Frame& frame, const std::vector<gpu::RayDump>& dump, bool any_hit, const char* what) {
+  const RtGeometry& g = *frame.rt_geometry();
+  Agreement a;
+  int printed = 0;
+  for (size_t i = 0; i < dump.size(); ++i) {
+    if (dump[i].hit.z == 0) continue;  // no ray cast for this pixel
+    ++a.rays;
+    const bvh::Ray ray = to_ray(dump[i]);
+    const bvh::Hit ref = any_hit ? bvh::intersect_any(g.bvh, g.leaf, ray) : bvh::intersect_closest(g.bvh, g.leaf, ray);
+    const int gpu_prim = dump[i].hit.x;
+    const bool same = any_hit ? ((gpu_prim >= 0) == ref.hit()) : (gpu_prim == ref.prim);
+    if (same) {
+      ++a.equal;
+    } else if (printed++ < 10) {
+      std::printf("  %s differs at #%zu: o=(%.9g, %.9g, %.9g) d=(%.9g, %.9g, %.9g) gpu prim %d, cpu prim %d (t %.9g)\n",
+                  what, i, ray.origin.x, ray.origin.y, ray.origin.z, ray.dir.x, ray.dir.y, ray.dir.z, gpu_prim,
+                  ref.prim, ref.t);
+    }
+  }
+  std::printf("%s: %zu rays, %zu equal, %zu differ\n", what, a.rays, a.equal, a.rays - a.equal);
+  return a;
+}
+
+void check_against_cpu(const std::string& spec, FrameSettings s) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene(spec);
+  const Camera cam = scene.has_camera ? scene.camera : auto_frame(scene, float(s.width) / float(s.height));
+  Frame frame(*ctx, scene, cam, s);
+  frame.render();
+  const auto shadows = frame.rt_passes()->read_shadow_dump(*ctx);
+  const Agreement sa = compare(frame, shadows, true, (spec + " shadows").c_str());
+  EXPECT_GT(sa.rays, size_t(s.width) * s.height / 10) << "too few shadow rays to prove anything";
+  EXPECT_GE(double(sa.equal), 0.999 * double(sa.rays));
+  if (s.rt.reflections) {
+    const auto refl = frame.rt_passes()->read_reflection_dump(*ctx);
+    const Agreement ra = compare(frame, refl, false, (spec + " reflections").c_str());
+    EXPECT_GT(ra.rays, 0u) << "no reflective pixel";
+    EXPECT_GE(double(ra.equal), 0.999 * double(ra.rays));
+  }
+}
+
+TEST(RayTrace, PicaMatchesCpuReference) { check_against_cpu("builtin:pica", rt_settings(320, 180)); }
+
+TEST(RayTrace, CornellRobustOffsetMatchesCpuReference) {
+  FrameSettings s = rt_settings(200, 150);
+  s.rt.offset = ShadowOffset::robust;
+  s.rt.roughness_threshold = 1.01f;  // every pixel reflects: more closest-hit rays
+  check_against_cpu("builtin:cornell", s);
+}
+
+TEST(RayTrace, SoupAndObjectBvhMatchCpuReference) {
+  FrameSettings s = rt_settings(240, 136);
+  s.geometry = GeometryLayout::soup;
+  s.bvh.granularity = bvh::Granularity::object;
+  check_against_cpu("builtin:pica", s);
+}
+
+TEST(RayTrace, SharedSceneMatchesCpuReference) {
+  const auto path = std::filesystem::path(HP_SHARED_DIR) / "scenes/DamagedHelmet/DamagedHelmet.gltf";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << path << " is absent";
+  FrameSettings s = rt_settings(200, 200);
+  s.rt.offset = ShadowOffset::robust;
+  s.rt.roughness_threshold = 1.01f;
+  check_against_cpu(path.string(), s);
+}
+
+Image4f render_color(vk::Context& ctx, const Scene& scene, FrameSettings s, uint32_t frames) {
+  Frame frame(ctx, scene, scene.camera, s);
+  for (uint32_t i = 0; i < frames; ++i) frame.render();
+  return frame.read_color();
+}
+
+TEST(RayTrace, IndexedAndSoupGiveBitIdenticalImages) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = rt_settings(192, 108);
+  s.rt.dump_rays = false;
+  s.geometry = GeometryLayout::indexed;
+  const Image4f a = render_color(*ctx, scene, s, 3);
+  s.geometry = GeometryLayout::soup;
+  const Image4f b = render_color(*ctx, scene, s, 3);
+  ASSERT_EQ(a.rgba.size(), b.rgba.size());
+  size_t differing = 0;
+  for (size_t i = 0; i < a.rgba.size(); ++i) differing += std::memcmp(&a.rgba[i], &b.rgba[i], 4) != 0;
+  EXPECT_EQ(differing, 0u) << "indexed vs soup: channels that differ";
+}
+
+double rel_mse(const Image4f& x, const Image4f& ref, double eps) {
+  double sum = 0.0;
+  size_t n = 0;
+  for (size_t i = 0; i < x.rgba.size(); ++i) {
+    if (i % 4 == 3) continue;
+    const double d = double(x.rgba[i]) - ref.rgba[i];
+    sum += d * d / (double(ref.rgba[i]) * ref.rgba[i] + eps);
+    ++n;
+  }
+  return sum / double(n);
+}
+
+TEST(RayTrace, SharedAndPerThreadJitterConverge) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = rt_settings(160, 90);
+  s.rt.dump_rays = false;
+  s.rt.shadows = false;
+  s.rt.roughness_threshold = 0.6f;  // include rough reflectors, where the jitter matters
+  s.rt.jitter = JitterMode::shared;
+  const Image4f shared1 = render_color(*ctx, scene, s, 1);
+  const Image4f shared64 = render_color(*ctx, scene, s, 64);
+  s.rt.jitter = JitterMode::per_thread;
+  const Image4f thread1 = render_color(*ctx, scene, s, 1);
+  const Image4f thread64 = render_color(*ctx, scene, s, 64);
+  const double early = rel_mse(shared1, thread1, 0.01);
+  const double late = rel_mse(shared64, thread64, 0.01);
+  std::printf("relMSE(shared, per-thread), eps 0.01: 1 frame %.3g, 64 frames %.3g\n", early, late);
+  EXPECT_LT(late, 2e-3) << "the two jitter modes must estimate the same image";
+  EXPECT_LT(late, 0.25 * early) << "accumulation must bring them together";
+}
+
+TEST(RayTrace, CountersAreDeterministicAndCountTheRays) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = rt_settings(128, 72);
+  s.rt.counters = true;
+  RayCounters c[2];
+  size_t dumped_shadow_rays = 0;
+  for (int run = 0; run < 2; ++run) {
+    Frame frame(*ctx, scene, scene.camera, s);
+    frame.render();
+    c[run] = frame.read_counters();
+    if (run == 0) {
+      for (const auto& d : frame.rt_passes()->read_shadow_dump(*ctx)) dumped_shadow_rays += d.hit.z;
+    }
+  }
+  EXPECT_TRUE(c[0] == c[1]) << "counters differ between two identical runs";
+  EXPECT_EQ(c[0].shadow_rays, dumped_shadow_rays);
+  EXPECT_GT(c[0].shadow_nodes, c[0].shadow_rays) << "every ray visits at least the root";
+  EXPECT_GT(c[0].reflection_rays, 0u);
+  EXPECT_GT(c[0].reflection_tris, 0u);
+}
+
+TEST(RayTrace, ReflectionGridFollowsTheScale) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:cornell");
+  for (uint32_t div : {1u, 2u, 4u}) {
+    FrameSettings s = rt_settings(101, 67);  // ragged: not a multiple of 8 nor of the divisor
+    s.rt.reflection_divisor = div;
+    s.rt.roughness_threshold = 1.01f;
+    Camera inside = scene.camera;
+    inside.position = {0.0f, 1.0f, 0.9f};  // inside the box: walls fill the whole frame
+    Frame frame(*ctx, scene, inside, s);
+    frame.render();
+    const Image4f r = frame.read_aov(Aov::reflection);
+    EXPECT_EQ(r.width, (101 + div - 1) / div);
+    EXPECT_EQ(r.height, (67 + div - 1) / div);
+    // The last column and row (the ragged edge) are traced, not left empty.
+    EXPECT_EQ(r.at(r.width - 1, r.height / 2)[3], 1.0f) << "divisor " << div;
+    EXPECT_EQ(r.at(r.width / 2, r.height - 1)[3], 1.0f) << "divisor " << div;
+  }
+}
+
+TEST(RayTrace, NoRaysNoBvh) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:cornell");
+  FrameSettings s;
+  s.width = 64;
+  s.height = 48;
+  Frame frame(*ctx, scene, scene.camera, s);
+  const FrameTiming t = frame.render();
+  EXPECT_EQ(frame.rt_geometry(), nullptr) << "a frame without traced rays must not build a BVH";
+  ASSERT_EQ(t.passes.size(), 2u);
+  EXPECT_EQ(t.passes[0].name, "gbuffer");
+  EXPECT_EQ(t.passes[1].name, "composite");
+}
+
+TEST(RayTrace, TimestampsAreOrderedPerPass) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = rt_settings(96, 54);
+  s.rt.dump_rays = false;
+  Frame frame(*ctx, scene, scene.camera, s);
+  const FrameTiming t = frame.render();
+  ASSERT_EQ(t.passes.size(), 5u);
+  EXPECT_EQ(t.source, frame.timestamps_supported() ? "gpu-timestamps" : "cpu-wall");
+  for (size_t i = 0; i < t.passes.size(); ++i) {
+    EXPECT_GT(t.passes[i].begin_ns, 0u);
+    EXPECT_GT(t.passes[i].end_ns, t.passes[i].begin_ns) << t.passes[i].name;
+    if (i) EXPECT_GE(t.passes[i].begin_ns, t.passes[i - 1].end_ns) << t.passes[i].name;
+  }
+}
+
+}  // namespace
+}  // namespace hp
