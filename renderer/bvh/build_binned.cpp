@@ -1,216 +1,315 @@
-// Top-down binned SAH (Wald 2007, "On fast construction of SAH-based bounding volume hierarchies"; pbrt's
-// BVHAggregate): primitives are binned by centroid along the axis of largest centroid extent, the best bin
-// boundary is chosen by t_trav + (N_A*S_A + N_B*S_B)/S against the leaf cost N, and the range is
-// partitioned in place. Each node costs one binning pass and one partition pass over its primitives: the
-// children's bounds and centroid bounds come out of the bins, so no extra pass recomputes them.
+// Top-down binned SAH (Wald 2007, "On fast construction of SAH-based bounding volume hierarchies"; the
+// scheme of pbrt's BVHAggregate): primitives are binned by centroid, the best bin boundary is chosen by
+// t_trav + (N_A*S_A + N_B*S_B)/S against the leaf cost N, and the range is partitioned in place.
+//
+// Axes: `all_axes` bins the three axes at once and takes the cheapest split; otherwise only the axis of
+// largest centroid extent is binned (the study's and pbrt's rule). Each node costs one binning pass and one
+// partition pass; the partition pass also collects the children's centroid bounds and the bins give their
+// boxes, so no third pass is needed. Bounds are kept in 4-wide SSE registers (x, y, z, unused).
 #include "bvh/build_common.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
+
+#include <emmintrin.h>
 
 namespace hp::bvh::detail {
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
-/// Bounds of a primitive range and of its (doubled) centroids.
-struct RangeInfo {
-  glm::vec3 lo{kInf}, hi{-kInf};
-  glm::vec3 clo{kInf}, chi{-kInf};
-  uint32_t begin = 0, end = 0;
+/// Lane 3 of a loaded PrimRef holds the id or padding bits; they are masked to 0 so that no NaN or
+/// denormal ever enters the arithmetic.
+inline __m128 load3(const glm::vec3& v) {
+  const __m128 mask = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
+  return _mm_and_ps(_mm_loadu_ps(&v.x), mask);
+}
+/// Half area of a box whose lane 3 is 0 in both corners, without leaving the SSE registers (the bin
+/// sweeps evaluate it 4 * buckets times per node, which dominates small nodes).
+inline float half_area4(__m128 lo, __m128 hi) {
+  const __m128 e = _mm_sub_ps(hi, lo);
+  const __m128 p = _mm_mul_ps(e, _mm_shuffle_ps(e, e, _MM_SHUFFLE(3, 0, 2, 1)));  // xy, yz, zx, 0
+  const __m128 s = _mm_add_ps(p, _mm_movehl_ps(p, p));                            // xy + zx, yz + 0
+  return _mm_cvtss_f32(_mm_add_ss(s, _mm_shuffle_ps(s, s, _MM_SHUFFLE(1, 1, 1, 1))));
+}
 
-  void grow(const PrimRef& p) {
-    lo = glm::min(lo, p.lo);
-    hi = glm::max(hi, p.hi);
-    const glm::vec3 c = p.lo + p.hi;
-    clo = glm::min(clo, c);
-    chi = glm::max(chi, c);
+struct Box4 {
+  __m128 lo = _mm_set1_ps(kInf);
+  __m128 hi = _mm_set1_ps(-kInf);
+  void grow(__m128 l, __m128 h) {
+    lo = _mm_min_ps(lo, l);
+    hi = _mm_max_ps(hi, h);
   }
-  void grow(const RangeInfo& o) {
-    lo = glm::min(lo, o.lo);
-    hi = glm::max(hi, o.hi);
-    clo = glm::min(clo, o.clo);
-    chi = glm::max(chi, o.chi);
-  }
+  void grow(const Box4& b) { grow(b.lo, b.hi); }
+  void grow_point(__m128 p) { grow(p, p); }
 };
 
-struct Bin {
-  RangeInfo info;  // begin/end unused; info.end counts the primitives
+/// A primitive range with its bounds and the bounds of its doubled centroids (lo + hi).
+struct Range {
+  Box4 box, cbox;
+  uint32_t begin = 0, end = 0;
 };
 
 /// Per-thread scratch, allocated once per worker so that nodes allocate nothing.
 struct Scratch {
-  std::vector<RangeInfo> bins;
+  explicit Scratch(int buckets) : bins(6 * buckets), counts(6 * buckets), right_cost(buckets) {}
+  std::vector<Box4> bins;  // [set * 3 * buckets + axis * buckets + bin], two sets (see the binning loop)
   std::vector<uint32_t> counts;
-  std::vector<float> right_cost;  // N_B * S_B for the split after bin i
+  std::vector<float> right_cost;
 };
 
-RangeInfo range_info(std::span<const PrimRef> prims, uint32_t begin, uint32_t end) {
-  RangeInfo r;
-  for (uint32_t i = begin; i < end; ++i) r.grow(prims[i]);
-  r.begin = begin;
-  r.end = end;
-  return r;
+/// Bin index per axis for doubled centroid c: floor((c - cmin) * scale), clamped to the last bin. The same
+/// function serves binning and partitioning, so both always agree on a primitive's bin.
+inline __m128i bin_index(__m128 c, __m128 cmin, __m128 scale, __m128 last) {
+  return _mm_cvttps_epi32(_mm_min_ps(_mm_mul_ps(_mm_sub_ps(c, cmin), scale), last));
 }
 
 class BinnedBuilder {
 public:
-  BinnedBuilder(std::span<PrimRef> prims, const BuildParams& p)
-      : prims_(prims), p_(p), forker_(p.threads) {
-    tree_.nodes.resize(std::max<std::size_t>(1, 2 * prims.size()));
+  BinnedBuilder(std::span<PrimRef> prims, const BuildParams& p) : prims_(prims), p_(p), forker_(p.threads) {
+    // Uninitialised on purpose: every node slot handed out is written before it is read.
+    capacity_ = std::max<std::size_t>(1, 2 * prims.size());
+    nodes_.reset(new gpu::BvhNode[capacity_]);
   }
 
   PairTree run() {
-    RangeInfo root;
-    // The root pass is the only serial full pass; split it across the workers.
-    std::vector<RangeInfo> parts(std::max(1, p_.threads));
+    Range root;
+    std::vector<Range> parts(std::max(1, p_.threads));
     Forker::parallel_chunks(prims_.size(), p_.threads, [&](std::size_t b, std::size_t e, std::size_t c) {
-      parts[c] = range_info(prims_, static_cast<uint32_t>(b), static_cast<uint32_t>(e));
+      for (std::size_t i = b; i < e; ++i) {
+        const __m128 lo = load3(prims_[i].lo), hi = load3(prims_[i].hi);
+        parts[c].box.grow(lo, hi);
+        parts[c].cbox.grow_point(_mm_add_ps(lo, hi));
+      }
     });
-    for (const auto& part : parts) root.grow(part);
+    for (const auto& part : parts) {
+      root.box.grow(part.box);
+      root.cbox.grow(part.cbox);
+    }
     root.begin = 0;
     root.end = static_cast<uint32_t>(prims_.size());
-    Scratch scratch = make_scratch();
+    Scratch scratch(p_.buckets);
     build(0, root, 0, scratch);
-    tree_.nodes.resize(next_node_.load());
-    tree_.order.resize(prims_.size());
-    for (std::size_t i = 0; i < prims_.size(); ++i) tree_.order[i] = prims_[i].id;
-    tree_.depth_limited_splits = depth_limited_.load();
-    return std::move(tree_);
+    PairTree tree;
+    tree.nodes.assign(nodes_.get(), nodes_.get() + next_node_.load());
+    tree.order.resize(prims_.size());
+    for (std::size_t i = 0; i < prims_.size(); ++i) tree.order[i] = prims_[i].id;
+    tree.depth_limited_splits = depth_limited_.load();
+    return tree;
   }
 
 private:
-  Scratch make_scratch() const {
-    Scratch s;
-    s.bins.resize(p_.buckets);
-    s.counts.resize(p_.buckets);
-    s.right_cost.resize(p_.buckets);
-    return s;
+  static glm::vec3 to_vec3(__m128 v) {
+    alignas(16) float f[4];
+    _mm_store_ps(f, v);
+    return glm::vec3(f[0], f[1], f[2]);
+  }
+  void leaf(uint32_t index, const Range& r) {
+    nodes_[index] = make_leaf(to_vec3(r.box.lo), to_vec3(r.box.hi), r.begin, r.end - r.begin);
   }
 
-  void make_leaf_node(uint32_t index, const RangeInfo& r) {
-    tree_.nodes[index] = make_leaf(r.lo, r.hi, r.begin, r.end - r.begin);
+  Range range_of(uint32_t begin, uint32_t end) const {
+    Range r;
+    for (uint32_t i = begin; i < end; ++i) {
+      const __m128 lo = load3(prims_[i].lo), hi = load3(prims_[i].hi);
+      r.box.grow(lo, hi);
+      r.cbox.grow_point(_mm_add_ps(lo, hi));
+    }
+    r.begin = begin;
+    r.end = end;
+    return r;
   }
 
-  /// Splits [begin, end) at its middle after ordering by centroid along `axis` (a median split); when all
-  /// centroids coincide the order is arbitrary and this is a plain count split. Either way each child has
-  /// at most ceil(N/2) primitives, which is what the depth bound relies on.
-  void median_split(const RangeInfo& r, int axis, RangeInfo& left, RangeInfo& right) {
+  /// Splits at the middle after ordering by centroid along `axis`: each child gets at most ceil(N/2)
+  /// primitives, which is what the depth bound relies on. With coincident centroids the order is arbitrary
+  /// and this is a plain count split.
+  void median_split(const Range& r, int axis, Range& left, Range& right) {
     const uint32_t mid = r.begin + (r.end - r.begin) / 2;
     std::nth_element(prims_.begin() + r.begin, prims_.begin() + mid, prims_.begin() + r.end,
                      [axis](const PrimRef& a, const PrimRef& b) {
                        return a.lo[axis] + a.hi[axis] < b.lo[axis] + b.hi[axis];
                      });
-    left = range_info(prims_, r.begin, mid);
-    right = range_info(prims_, mid, r.end);
+    left = range_of(r.begin, mid);
+    right = range_of(mid, r.end);
   }
 
-  void build(uint32_t index, const RangeInfo& r, int depth, Scratch& s) {
+  void build(uint32_t index, const Range& r, int depth, Scratch& s) {
     const uint32_t n = r.end - r.begin;
-    if (n <= 1) return make_leaf_node(index, r);
-
+    if (n <= 1) return leaf(index, r);
     // A split puts its children at depth + 1; with n <= max_leaf a leaf is always allowed instead.
-    const bool may_split_small = depth + 1 <= p_.max_depth;
-    if (n <= p_.max_leaf && !may_split_small) return make_leaf_node(index, r);
+    if (n <= p_.max_leaf && depth + 1 > p_.max_depth) return leaf(index, r);
 
-    const glm::vec3 cext = r.chi - r.clo;
-    int axis = 0;
-    if (cext.y > cext[axis]) axis = 1;
-    if (cext.z > cext[axis]) axis = 2;
+    alignas(16) float cmin[4], cext[4];
+    _mm_store_ps(cmin, r.cbox.lo);
+    _mm_store_ps(cext, _mm_sub_ps(r.cbox.hi, r.cbox.lo));
+    int widest = 0;
+    if (cext[1] > cext[widest]) widest = 1;
+    if (cext[2] > cext[widest]) widest = 2;
 
-    RangeInfo left, right;
-    const float extent = cext[axis];
-    const float scale = static_cast<float>(p_.buckets) / extent;
-    if (!(extent > 0.0f) || !std::isfinite(scale)) {
-      // All centroids coincide (or their spread underflows the bin scale): no spatial split exists.
-      if (n <= p_.max_leaf) return make_leaf_node(index, r);
-      median_split(r, axis, left, right);
-      return finish_interior(index, r, axis, left, right, depth, s);
+    // Never more bins than primitives: a node of n primitives has at most n non-empty bins anyway, and the
+    // per-node sweeps over empty bins would otherwise dominate the many small nodes near the leaves.
+    const int nb = std::min<int>(p_.buckets, static_cast<int>(n));
+    alignas(16) float scale[4] = {0, 0, 0, 0};
+    bool any_axis = false;
+    for (int a = 0; a < 3; ++a) {
+      if (!p_.all_axes && a != widest) continue;
+      const float sc = static_cast<float>(nb) / cext[a];
+      // A zero (or underflowing) spread cannot be binned: that axis offers no split.
+      if (cext[a] > 0.0f && std::isfinite(sc)) {
+        scale[a] = sc;
+        any_axis = true;
+      }
+    }
+    Range left, right;
+    if (!any_axis) {
+      if (n <= p_.max_leaf) return leaf(index, r);
+      median_split(r, widest, left, right);
+      return finish_interior(index, r, widest, left, right, depth, s);
     }
 
     // Binning.
-    const int nb = p_.buckets;
-    for (int b = 0; b < nb; ++b) {
-      s.bins[b] = RangeInfo{};
-      s.counts[b] = 0;
-    }
-    const float cmin = r.clo[axis];
-    const auto bin_of = [&](const PrimRef& pr) {
-      const int b = static_cast<int>((pr.lo[axis] + pr.hi[axis] - cmin) * scale);
-      return std::min(b, nb - 1);
-    };
-    for (uint32_t i = r.begin; i < r.end; ++i) {
-      const PrimRef& pr = prims_[i];
-      const int b = bin_of(pr);
-      s.bins[b].grow(pr);
-      ++s.counts[b];
-    }
-
-    // Sweep from the right for N_B * S_B, then from the left for the total.
-    {
-      RangeInfo acc;
-      uint32_t count = 0;
-      for (int b = nb - 1; b > 0; --b) {
-        acc.grow(s.bins[b]);
-        count += s.counts[b];
-        s.right_cost[b - 1] = count ? static_cast<float>(count) * half_area(acc.lo, acc.hi) : 0.0f;
+    const __m128 vmin = r.cbox.lo, vscale = _mm_load_ps(scale), vlast = _mm_set1_ps(static_cast<float>(nb - 1));
+    const std::size_t used = (p_.all_axes && n >= 64 ? 6 : 3) * static_cast<std::size_t>(nb);
+    std::fill(s.bins.begin(), s.bins.begin() + used, Box4{});
+    std::fill(s.counts.begin(), s.counts.begin() + used, 0u);
+    Box4* bins = s.bins.data();
+    uint32_t* counts = s.counts.data();
+    if (p_.all_axes) {
+      // Two bin sets, even and odd primitives: neighbouring primitives usually land in the same bin, and
+      // alternating sets halves the chain of dependent loads and stores through that bin.
+      Box4* bins2 = bins + 3 * nb;
+      uint32_t* counts2 = counts + 3 * nb;
+      const auto bin_one = [&](const PrimRef& pr, Box4* bs, uint32_t* cs) {
+        const __m128 lo = load3(pr.lo), hi = load3(pr.hi);
+        alignas(16) int32_t b[4];
+        _mm_store_si128(reinterpret_cast<__m128i*>(b), bin_index(_mm_add_ps(lo, hi), vmin, vscale, vlast));
+        bs[b[0]].grow(lo, hi);
+        bs[nb + b[1]].grow(lo, hi);
+        bs[2 * nb + b[2]].grow(lo, hi);
+        ++cs[b[0]];
+        ++cs[nb + b[1]];
+        ++cs[2 * nb + b[2]];
+      };
+      uint32_t i = r.begin;
+      if (n >= 64) {
+        for (; i + 1 < r.end; i += 2) {
+          bin_one(prims_[i], bins, counts);
+          bin_one(prims_[i + 1], bins2, counts2);
+        }
+        for (int b = 0; b < 3 * nb; ++b) {
+          bins[b].grow(bins2[b]);
+          counts[b] += counts2[b];
+        }
+      }
+      for (; i < r.end; ++i) bin_one(prims_[i], bins, counts);
+    } else {
+      Box4* abins = bins + widest * nb;
+      uint32_t* acounts = counts + widest * nb;
+      for (uint32_t i = r.begin; i < r.end; ++i) {
+        const __m128 lo = load3(prims_[i].lo), hi = load3(prims_[i].hi);
+        alignas(16) int32_t b[4];
+        _mm_store_si128(reinterpret_cast<__m128i*>(b), bin_index(_mm_add_ps(lo, hi), vmin, vscale, vlast));
+        abins[b[widest]].grow(lo, hi);
+        ++acounts[b[widest]];
       }
     }
-    int best = -1;
+
+    // Per axis: sweep from the right for N_B * S_B, then from the left for the total.
+    int best_axis = -1, best_bin = -1;
     float best_cost = kInf;
     uint32_t best_left_count = 0;
-    {
-      RangeInfo acc;
+    for (int a = 0; a < 3; ++a) {
+      if (scale[a] == 0.0f) continue;
+      const Box4* ab = bins + a * nb;
+      const uint32_t* ac = counts + a * nb;
+      Box4 acc;
       uint32_t count = 0;
+      for (int b = nb - 1; b > 0; --b) {
+        acc.grow(ab[b]);
+        count += ac[b];
+        s.right_cost[b - 1] = count ? static_cast<float>(count) * half_area4(acc.lo, acc.hi) : 0.0f;
+      }
+      acc = Box4{};
+      count = 0;
       for (int b = 0; b < nb - 1; ++b) {
-        acc.grow(s.bins[b]);
-        count += s.counts[b];
+        acc.grow(ab[b]);
+        count += ac[b];
         if (count == 0 || count == n) continue;
-        const float cost = static_cast<float>(count) * half_area(acc.lo, acc.hi) + s.right_cost[b];
+        const float cost = static_cast<float>(count) * half_area4(acc.lo, acc.hi) + s.right_cost[b];
         if (cost < best_cost) {
           best_cost = cost;
-          best = b;
+          best_axis = a;
+          best_bin = b;
           best_left_count = count;
         }
       }
     }
 
-    // Compare in units of the node's area times cost (no division, so a zero-area node stays finite).
-    const float node_area = half_area(r.lo, r.hi);
+    // Compared in units of area times cost (no division, so a zero-area node stays finite).
+    const float node_area = half_area4(r.box.lo, r.box.hi);
     const float split_cost = p_.traversal_cost * node_area + best_cost;
     const float leaf_cost = static_cast<float>(n) * node_area;
-    if (n <= p_.max_leaf && (best < 0 || leaf_cost <= split_cost)) return make_leaf_node(index, r);
+    if (n <= p_.max_leaf && (best_axis < 0 || leaf_cost <= split_cost)) return leaf(index, r);
 
-    const uint32_t larger_child = best < 0 ? n : std::max(best_left_count, n - best_left_count);
-    if (best < 0 || depth + 1 + levels_needed(larger_child, p_.max_leaf) > p_.max_depth) {
+    const uint32_t larger_child = best_axis < 0 ? n : std::max(best_left_count, n - best_left_count);
+    if (best_axis < 0 || depth + 1 + levels_needed(larger_child, p_.max_leaf) > p_.max_depth) {
       // The SAH split could not be finished within the depth left (or there is none): a median split
       // halves the count, which always fits because this node's own range did.
-      if (n <= p_.max_leaf) return make_leaf_node(index, r);
-      depth_limited_.fetch_add(best >= 0 ? 1 : 0, std::memory_order_relaxed);
-      median_split(r, axis, left, right);
-      return finish_interior(index, r, axis, left, right, depth, s);
+      if (n <= p_.max_leaf) return leaf(index, r);
+      if (best_axis >= 0) depth_limited_.fetch_add(1, std::memory_order_relaxed);
+      median_split(r, widest, left, right);
+      return finish_interior(index, r, widest, left, right, depth, s);
     }
 
-    PrimRef* mid = std::partition(prims_.data() + r.begin, prims_.data() + r.end,
-                                  [&](const PrimRef& pr) { return bin_of(pr) <= best; });
-    for (int b = 0; b < nb; ++b) (b <= best ? left : right).grow(s.bins[b]);
+    // Partition in place (Hoare), collecting the children's centroid bounds on the way. A primitive goes
+    // left when its bin index on best_axis is <= best_bin, i.e. when the unclamped bin coordinate is below
+    // best_bin + 1 (the clamp to the last bin never matters since best_bin + 1 <= buckets - 1): the same
+    // float arithmetic as bin_index, so binning and partitioning agree exactly.
+    const float part_min = cmin[best_axis], part_scale = scale[best_axis];
+    const float part_limit = static_cast<float>(best_bin + 1);
+    const auto goes_left = [&](__m128 c) {
+      alignas(16) float cf[4];
+      _mm_store_ps(cf, c);
+      return (cf[best_axis] - part_min) * part_scale < part_limit;
+    };
+    PrimRef* lp = prims_.data() + r.begin;
+    PrimRef* rp = prims_.data() + r.end;
+    for (;;) {
+      while (lp < rp) {
+        const __m128 c = _mm_add_ps(load3(lp->lo), load3(lp->hi));
+        if (!goes_left(c)) break;
+        left.cbox.grow_point(c);
+        ++lp;
+      }
+      while (lp < rp) {
+        const __m128 c = _mm_add_ps(load3((rp - 1)->lo), load3((rp - 1)->hi));
+        if (goes_left(c)) break;
+        right.cbox.grow_point(c);
+        --rp;
+      }
+      if (lp >= rp) break;
+      std::swap(*lp, *(rp - 1));  // now *lp goes left and *(rp - 1) right; the loops above take them
+    }
+    const Box4* ab = bins + best_axis * nb;
+    for (int b = 0; b < nb; ++b) (b <= best_bin ? left : right).box.grow(ab[b]);
     left.begin = r.begin;
-    left.end = static_cast<uint32_t>(mid - prims_.data());
+    left.end = static_cast<uint32_t>(lp - prims_.data());
     right.begin = left.end;
     right.end = r.end;
-    finish_interior(index, r, axis, left, right, depth, s);
+    finish_interior(index, r, best_axis, left, right, depth, s);
   }
 
-  void finish_interior(uint32_t index, const RangeInfo& r, int axis, const RangeInfo& left,
-                       const RangeInfo& right, int depth, Scratch& s) {
+  void finish_interior(uint32_t index, const Range& r, int axis, const Range& left, const Range& right, int depth,
+                       Scratch& s) {
     const uint32_t child = next_node_.fetch_add(2, std::memory_order_relaxed);
-    tree_.nodes[index] = make_interior(r.lo, r.hi, child, static_cast<uint32_t>(axis));
+    nodes_[index] = make_interior(to_vec3(r.box.lo), to_vec3(r.box.hi), child, static_cast<uint32_t>(axis));
     forker_.fork_join(
         left.end - left.begin,
         [&, child](bool on_new_thread) {
           if (on_new_thread) {
-            Scratch own = make_scratch();
+            Scratch own(p_.buckets);
             build(child, left, depth + 1, own);
           } else {
             build(child, left, depth + 1, s);
@@ -222,7 +321,8 @@ private:
   std::span<PrimRef> prims_;
   BuildParams p_;
   Forker forker_;
-  PairTree tree_;
+  std::unique_ptr<gpu::BvhNode[]> nodes_;
+  std::size_t capacity_ = 0;
   std::atomic<uint32_t> next_node_{1};
   std::atomic<std::size_t> depth_limited_{0};
 };

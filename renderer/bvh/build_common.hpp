@@ -131,6 +131,7 @@ private:
 /// Knobs both builders read, already validated.
 struct BuildParams {
   int buckets;
+  bool all_axes;
   float traversal_cost;
   uint32_t max_leaf;
   int max_depth;

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <memory>
 #include <numeric>
 
 namespace hp::bvh::detail {
@@ -18,7 +19,8 @@ public:
   SweepBuilder(std::span<const PrimRef> prims, const BuildParams& p)
       : prims_(prims), p_(p), forker_(p.threads) {
     const std::size_t n = prims.size();
-    tree_.nodes.resize(std::max<std::size_t>(1, 2 * n));
+    // Uninitialised on purpose: every node slot handed out is written before it is read.
+    nodes_.reset(new gpu::BvhNode[std::max<std::size_t>(1, 2 * n)]);
     right_area_.resize(n);
     tmp_.resize(n);
     side_.resize(n);
@@ -51,7 +53,7 @@ public:
       hi = glm::max(hi, pr.hi);
     }
     build(0, 0, n, lo, hi, 0);
-    tree_.nodes.resize(next_node_.load());
+    tree_.nodes.assign(nodes_.get(), nodes_.get() + next_node_.load());
     tree_.order.resize(n);
     for (uint32_t i = 0; i < n; ++i) tree_.order[i] = prims_[lists_[0][i]].id;
     tree_.depth_limited_splits = depth_limited_.load();
@@ -63,7 +65,7 @@ private:
 
   void build(uint32_t index, uint32_t begin, uint32_t end, const glm::vec3& lo, const glm::vec3& hi, int depth) {
     const uint32_t n = end - begin;
-    const auto leaf = [&] { tree_.nodes[index] = make_leaf(lo, hi, begin, n); };
+    const auto leaf = [&] { nodes_[index] = make_leaf(lo, hi, begin, n); };
     if (n <= 1) return leaf();
     if (n <= p_.max_leaf && depth + 1 > p_.max_depth) return leaf();
 
@@ -145,7 +147,7 @@ private:
     }
 
     const uint32_t child = next_node_.fetch_add(2, std::memory_order_relaxed);
-    tree_.nodes[index] = make_interior(lo, hi, child, static_cast<uint32_t>(best_axis));
+    nodes_[index] = make_interior(lo, hi, child, static_cast<uint32_t>(best_axis));
     forker_.fork_join(
         best_split - begin, [&, child](bool) { build(child, begin, best_split, llo, lhi, depth + 1); },
         [&, child] { build(child + 1, best_split, end, rlo, rhi, depth + 1); });
@@ -155,6 +157,7 @@ private:
   BuildParams p_;
   Forker forker_;
   PairTree tree_;
+  std::unique_ptr<gpu::BvhNode[]> nodes_;
   std::vector<uint32_t> lists_[3];
   std::vector<float> right_area_;  // indexed by list position: disjoint per subtree, so thread-safe
   std::vector<uint32_t> tmp_;      // same

@@ -45,6 +45,7 @@ detail::BuildParams validate(const BuildOptions& o, std::size_t primitives) {
   }
   detail::BuildParams p;
   p.buckets = o.buckets;
+  p.all_axes = o.all_axes;
   p.traversal_cost = o.traversal_cost;
   p.max_leaf = static_cast<uint32_t>(o.max_leaf_size);
   p.max_depth = o.max_depth;
