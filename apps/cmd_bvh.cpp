@@ -1,0 +1,152 @@
+// `hybridprof bvh`: builds the BVH of a scene and reports its shape and quality; optionally exports the
+// scene's triangles and casts rays from a file with the reference traversal, for cross-checking against
+// another ray tracer (formats in renderer/bvh/ray_io.hpp).
+//   hybridprof bvh --scene S [--buckets N | --full-sweep] [--largest-axis-only] [--granularity triangle|object]
+//                  [--leaf-size K] [--threads T] [--export-triangles FILE] [--rays FILE --hits FILE [--any-hit]]
+#include "apps/commands.hpp"
+#include "bvh/bvh.hpp"
+#include "bvh/ray_io.hpp"
+#include "bvh/traverse.hpp"
+#include "error.hpp"
+#include "scene/load.hpp"
+#include "scene/scene.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
+
+namespace hp::cli {
+namespace {
+
+struct BvhArgs {
+  std::string scene;
+  int buckets = 12;
+  bool full_sweep = false;
+  bool largest_axis_only = false;
+  std::string granularity = "triangle";
+  int leaf_size = 4;
+  int threads = 0;
+  std::string export_triangles;
+  std::string rays;
+  std::string hits;
+  bool any_hit = false;
+};
+
+double ms_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+void run_bvh(const BvhArgs& a) {
+  if (a.rays.empty() != a.hits.empty()) throw InputError("bvh: --rays and --hits go together");
+
+  const auto load_start = std::chrono::steady_clock::now();
+  const Scene scene = load_scene(a.scene);
+  const WorldGeometry world = world_geometry(scene);
+  const std::vector<bvh::Triangle> tris = bvh::make_triangles(world.positions, world.indices);
+  std::printf("scene: %s, %zu triangles, %zu instances (loaded in %.1f ms)\n", a.scene.c_str(), tris.size(),
+              scene.instances.size(), ms_since(load_start));
+
+  if (!a.export_triangles.empty()) {
+    bvh::write_triangles(a.export_triangles, tris);
+    std::printf("exported %zu triangles (scene order) to %s\n", tris.size(), a.export_triangles.c_str());
+  }
+
+  bvh::BuildOptions o;
+  o.buckets = a.buckets;
+  o.full_sweep = a.full_sweep;
+  o.all_axes = !a.largest_axis_only;
+  o.max_leaf_size = a.leaf_size;
+  o.threads = a.threads;
+  o.granularity = a.granularity == "object" ? bvh::Granularity::object : bvh::Granularity::triangle;
+  const std::span<const uint32_t> objects =
+      o.granularity == bvh::Granularity::object ? std::span<const uint32_t>(world.instance_first_triangle)
+                                                : std::span<const uint32_t>();
+
+  const auto build_start = std::chrono::steady_clock::now();
+  const bvh::Bvh tree = bvh::build_bvh(tris, o, objects);
+  const double build_ms = ms_since(build_start);
+  const bvh::BvhStats s = bvh::bvh_stats(tree);
+
+  std::string method = a.full_sweep ? std::string("full-sweep SAH (3 axes)")
+                                    : "binned SAH, " + std::to_string(a.buckets) + " buckets, " +
+                                          (a.largest_axis_only ? "largest centroid axis" : "3 axes");
+  std::printf("build: %.2f ms (%.2f M triangles/s), %s, %s granularity, leaf size <= %d, %s threads\n", build_ms,
+              build_ms > 0 ? static_cast<double>(tris.size()) / build_ms / 1e3 : 0.0, method.c_str(),
+              a.granularity.c_str(), a.leaf_size, a.threads > 0 ? std::to_string(a.threads).c_str() : "all");
+  std::printf("nodes: %zu, leaves: %zu, primitives: %zu (%zu triangles), max depth: %d (stack %d)\n", s.nodes, s.leaves,
+              s.primitives, s.triangles, s.max_depth, HP_BVH_STACK_SIZE);
+  if (tree.depth_limited_splits > 0) {
+    std::printf("depth bound: %zu SAH splits replaced by median splits to fit the stack\n", tree.depth_limited_splits);
+  }
+  if (o.granularity == bvh::Granularity::object) {
+    std::printf("SAH cost: %.4f (leaf = objects), %.4f (leaf = triangles), traversal cost %.2f\n", s.sah_cost,
+                s.sah_cost_triangles, o.traversal_cost);
+  } else {
+    std::printf("SAH cost: %.4f (traversal cost %.2f, triangle cost 1, relative to the root's area)\n", s.sah_cost,
+                o.traversal_cost);
+  }
+  std::printf("leaf sizes:");
+  for (std::size_t k = 1; k < s.leaf_size_histogram.size(); ++k) {
+    if (s.leaf_size_histogram[k] == 0) continue;
+    std::printf(" %zu:%zu (%.1f%%)", k, s.leaf_size_histogram[k],
+                100.0 * static_cast<double>(s.leaf_size_histogram[k]) / static_cast<double>(s.leaves));
+  }
+  std::printf("\n");
+
+  if (a.rays.empty()) return;
+  const std::vector<bvh::Ray> rays = bvh::read_rays(a.rays);
+  const bvh::LeafOrderTriangles lt = bvh::leaf_order(tree, tris);
+  bvh::TraversalStats ts;
+  const auto cast_start = std::chrono::steady_clock::now();
+  const std::vector<bvh::Hit> hits =
+      bvh::cast_rays(tree, lt, rays, a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest, a.threads, &ts);
+  const double cast_ms = ms_since(cast_start);
+  bvh::write_hits(a.hits, hits);
+  std::size_t hit_count = 0;
+  for (const auto& h : hits) hit_count += h.hit();
+  const double n = rays.empty() ? 1.0 : static_cast<double>(rays.size());
+  std::printf("rays: %zu (%s), %zu hits (%.2f%%), %.2f ms (%.2f M rays/s), %.1f nodes and %.1f triangles per ray\n",
+              rays.size(), a.any_hit ? "any hit" : "closest hit", hit_count, 100.0 * static_cast<double>(hit_count) / n,
+              cast_ms, cast_ms > 0 ? static_cast<double>(rays.size()) / cast_ms / 1e3 : 0.0,
+              static_cast<double>(ts.nodes_visited) / n, static_cast<double>(ts.triangles_tested) / n);
+  std::printf("hits written to %s\n", a.hits.c_str());
+}
+
+}  // namespace
+
+void add_bvh_command(CLI::App& app) {
+  auto args = std::make_shared<BvhArgs>();
+  CLI::App* cmd = app.add_subcommand("bvh", "build a scene's BVH, print its statistics, cast rays from a file");
+  cmd->add_option("--scene", args->scene, "scene: builtin:NAME or a .gltf/.glb file")->required();
+  auto* buckets = cmd->add_option("--buckets", args->buckets, "SAH buckets per axis (binned build)")
+                      ->check(CLI::Range(2, 1024))
+                      ->capture_default_str();
+  auto* sweep = cmd->add_flag("--full-sweep", args->full_sweep, "exact full-sweep SAH instead of binning");
+  buckets->excludes(sweep);
+  cmd->add_flag("--largest-axis-only", args->largest_axis_only,
+                "bin only the axis of largest centroid extent (the study's rule) instead of all three")
+      ->excludes(sweep);
+  cmd->add_option("--granularity", args->granularity, "triangle: one primitive per triangle; object: per instance")
+      ->check(CLI::IsMember({"triangle", "object"}))
+      ->capture_default_str();
+  cmd->add_option("--leaf-size", args->leaf_size, "largest leaf, in primitives")
+      ->check(CLI::Range(1, (1 << 30) - 1))
+      ->capture_default_str();
+  cmd->add_option("--threads", args->threads, "build and cast threads (0 = all cores)")
+      ->check(CLI::Range(0, 1024))
+      ->capture_default_str();
+  cmd->add_option("--export-triangles", args->export_triangles,
+                  "write world-space triangles in scene order (float32 x 9 each, little-endian, no header)");
+  auto* rays = cmd->add_option("--rays", args->rays,
+                               "cast rays from this file (float32 x 8 each: ox oy oz tmin dx dy dz tmax)");
+  auto* hits = cmd->add_option("--hits", args->hits,
+                               "write one hit per ray (int32 prim or -1, float32 t u v) in scene triangle order");
+  rays->needs(hits);
+  hits->needs(rays);
+  cmd->add_flag("--any-hit", args->any_hit, "occlusion query: any hit in [tmin, tmax], not the closest")->needs(rays);
+  cmd->callback([args] { run_bvh(*args); });
+}
+
+}  // namespace hp::cli
