@@ -3,6 +3,9 @@
 #include "apps/commands.hpp"
 #include "error.hpp"
 #include "frame.hpp"
+#include "frame_profiler.hpp"
+#include "timing/result_json.hpp"
+#include "timing/timeline.hpp"
 #include "scene/load.hpp"
 #include "vk/context.hpp"
 
@@ -23,6 +26,9 @@ struct RenderArgs {
   bool validate = false;
   bool reversed_z = false;
   uint32_t frames = 1;
+  uint32_t warmup = 0;
+  std::string timings_path, timeline_path;
+  bool counters = false;
   ViewOptions view;
   std::string geometry = "indexed";
   std::string jitter = "per-thread";
@@ -74,18 +80,22 @@ void run_render(const RenderArgs& a) {
   settings.bvh.granularity = parse_granularity(a.granularity);
   settings.bvh.buckets = a.buckets;
   settings.bvh.max_leaf_size = a.leaf_size;
+  settings.rt.counters = a.counters;
   Frame frame(ctx, scene, camera, settings);
   const auto t0 = std::chrono::steady_clock::now();
-  FrameTiming last;
-  for (uint32_t i = 0; i < a.frames; ++i) last = frame.render();
+  ProfileOptions po;
+  po.warmup = a.warmup;
+  po.frames = a.frames;
+  // The overhead of the queries is measured only when a timing result is asked for (it doubles the frames).
+  po.measure_query_overhead = !a.timings_path.empty();
+  const FrameTimings timings = profile_frames(frame, po);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   write_image(a.out, frame.read_aov(aov));
-  std::string passes;
-  for (const auto& p : last.passes) {
-    char buf[96];
-    std::snprintf(buf, sizeof(buf), "%s%s %.2f ms", passes.empty() ? "" : ", ", p.name.c_str(), p.duration_ns() * 1e-6);
-    passes += buf;
+  const TimingSummary summary = timings.summarize();
+  if (!a.timings_path.empty()) {
+    write_timing_result(a.timings_path, capture_environment(describe_device(ctx)), timings);
   }
+  if (!a.timeline_path.empty()) write_timeline(a.timeline_path, timings);
   if (ctx.validation_enabled() && ctx.validation_message_count() > 0) {
     throw std::runtime_error(std::to_string(ctx.validation_message_count()) +
                              " validation message(s); last: " + ctx.last_validation_message());
@@ -93,7 +103,25 @@ void run_render(const RenderArgs& a) {
   std::printf("%s: %zu triangles, %ux%u on %s (%s), %u frame(s) in %.1f ms (CPU wall) -> %s\n",
               scene.name.c_str(), triangle_count(scene), a.width, a.height, ctx.info().name.c_str(),
               ctx.info().driver_info.c_str(), a.frames, ms, a.out.c_str());
-  std::printf("last frame (%s): %s\n", last.source.c_str(), passes.c_str());
+  std::printf("%u warm-up + %u measured frames (%s), %u samples accumulated; per pass: median [95%% CI] ms\n",
+              a.warmup, a.frames, std::string(to_string(summary.source)).c_str(), frame.samples_accumulated());
+  for (const auto& p : summary.passes) {
+    std::printf("  %-12s %8.3f [%8.3f, %8.3f]%s\n", p.pass.c_str(), p.duration_ns.median * 1e-6,
+                p.duration_ns.median_ci.low * 1e-6, p.duration_ns.median_ci.high * 1e-6,
+                p.duration_ns.median_ci.valid ? "" : " (too few frames for a 95% CI: full range)");
+  }
+  if (summary.query_overhead) {
+    std::printf("  timestamp query overhead: %.3f%% of the CPU wall time per frame\n",
+                100.0 * summary.query_overhead->overhead_fraction());
+  }
+  const Counters total = timings.total_counters();
+  for (const char* pass : {"shadows", "reflections"}) {
+    if (!a.counters) break;
+    std::printf("  %-12s rays %llu, nodes visited %llu, triangles tested %llu (over %u frames)\n", pass,
+                (unsigned long long)total.get(pass, counter::rays_cast),
+                (unsigned long long)total.get(pass, counter::nodes_visited),
+                (unsigned long long)total.get(pass, counter::triangles_tested), a.frames);
+  }
 }
 
 }  // namespace
@@ -110,9 +138,15 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--aov", args->aov,
                   "what to write: color, depth, normal, albedo, roughness, metallic, shadow, reflection")
       ->capture_default_str();
-  cmd->add_option("--frames", args->frames, "frames to render (the last one is written)")
+  cmd->add_option("--frames", args->frames, "measured frames (accumulated; the last one is written)")
       ->check(CLI::Range(1u, 100000u))
       ->capture_default_str();
+  cmd->add_option("--warmup", args->warmup, "frames rendered and discarded before the measured ones")
+      ->check(CLI::Range(0u, 100000u))
+      ->capture_default_str();
+  cmd->add_option("--timings", args->timings_path, "write the timing result (JSON: environment, statistics, raw samples)");
+  cmd->add_option("--timeline", args->timeline_path, "write a Chrome Trace Event timeline (opens in ui.perfetto.dev)");
+  cmd->add_flag("--counters", args->counters, "count rays, BVH nodes visited and triangles tested (deterministic)");
   cmd->add_flag("--reversed-z", args->reversed_z, "reversed-Z depth buffer (near = 1, far = 0)");
   cmd->add_option("--device", args->device, "Vulkan device: index or name substring (default: discrete GPU, else lavapipe)");
   cmd->add_flag("--validate", args->validate, "enable the Khronos validation layer; any message fails the run");

@@ -132,12 +132,15 @@ void Frame::record_passes(VkCommandBuffer cmd, bool ts) {
   pass("composite", [&] { composite_pass_->record(cmd, color_); });
 }
 
-FrameTiming Frame::render() {
+FrameTiming Frame::render(bool with_timestamps) {
   upload_uniforms();
   if (rt_passes_) rt_passes_->begin_frame(sample_index_);
   FrameTiming timing;
   const auto t0 = std::chrono::steady_clock::now();
-  if (timestamps_.supported()) {
+  if (!with_timestamps) {
+    timing.source = "none";
+    ctx_.submit_and_wait([&](VkCommandBuffer cmd) { record_passes(cmd, false); });
+  } else if (timestamps_.supported()) {
     timing.source = "gpu-timestamps";
     ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
       timestamps_.reset(cmd);

@@ -57,8 +57,10 @@ class Frame {
  public:
   Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const FrameSettings& settings);
 
-  /// Records, submits and waits for one frame; accumulation advances by one sample.
-  FrameTiming render();
+  /// Records, submits and waits for one frame; accumulation advances by one sample. With
+  /// `timestamps == false` no query is recorded (passes empty, cpu_wall_ns only): frames with and without
+  /// queries measure the queries' own overhead.
+  FrameTiming render(bool timestamps = true);
   /// Restarts temporal accumulation (call after changing the camera or the light).
   void reset_accumulation() { sample_index_ = 0; }
   void set_camera(const Camera& camera);

@@ -1,0 +1,55 @@
+#include "frame_profiler.hpp"
+
+#include "timing/stats.hpp"
+
+#include <algorithm>
+
+namespace hp {
+
+DeviceDescription describe_device(const vk::Context& ctx) {
+  const vk::DeviceInfo& i = ctx.info();
+  return {i.name, i.type, i.driver_name, i.driver_info, i.api_version};
+}
+
+FrameSample to_frame_sample(const FrameTiming& timing, const RayCounters* c) {
+  FrameSample s;
+  for (const auto& p : timing.passes) s.passes.push_back({p.name, p.begin_ns, p.end_ns, "graphics"});
+  s.cpu_wall_ns = timing.cpu_wall_ns;
+  if (c) {
+    s.counters.set("shadows", counter::rays_cast, c->shadow_rays);
+    s.counters.set("shadows", counter::nodes_visited, c->shadow_nodes);
+    s.counters.set("shadows", counter::triangles_tested, c->shadow_tris);
+    s.counters.set("reflections", counter::rays_cast, c->reflection_rays + c->reflection_shadow_rays);
+    s.counters.set("reflections", "reflection_rays", c->reflection_rays);
+    s.counters.set("reflections", "shadow_rays_at_hits", c->reflection_shadow_rays);
+    s.counters.set("reflections", counter::nodes_visited, c->reflection_nodes);
+    s.counters.set("reflections", counter::triangles_tested, c->reflection_tris);
+  }
+  return s;
+}
+
+FrameTimings profile_frames(Frame& frame, const ProfileOptions& o) {
+  const bool gpu = frame.timestamps_supported();
+  FrameTimings timings(o.warmup, o.frames, gpu ? TimingSource::GpuTimestamps : TimingSource::CpuWall);
+  const bool counters = frame.settings().rt.counters && (frame.settings().rt.shadows || frame.settings().rt.reflections);
+  std::vector<double> with_queries, without_queries;
+  for (uint32_t i = 0; i < o.warmup; ++i) timings.add(to_frame_sample(frame.render(), nullptr));
+  for (uint32_t i = 0; i < o.frames; ++i) {
+    const FrameTiming t = frame.render();
+    with_queries.push_back(double(t.cpu_wall_ns));
+    RayCounters c;
+    if (counters) c = frame.read_counters();
+    timings.add(to_frame_sample(t, counters ? &c : nullptr));
+    if (o.measure_query_overhead && gpu) without_queries.push_back(double(frame.render(false).cpu_wall_ns));
+  }
+  if (!without_queries.empty()) {
+    QueryOverhead q;
+    q.frame_ns_with_queries = quantile(with_queries, 0.5);
+    q.frame_ns_without_queries = quantile(without_queries, 0.5);
+    q.frames = uint32_t(without_queries.size());
+    timings.set_query_overhead(q);
+  }
+  return timings;
+}
+
+}  // namespace hp

@@ -1,0 +1,32 @@
+// Runs a Frame W + F times and turns what it reports into the profiler's timing model: per-pass GPU
+// intervals, CPU wall time, deterministic counters, the environment, and the overhead of the timestamp
+// queries themselves (frames with and without them, interleaved).
+#pragma once
+
+#include "frame.hpp"
+#include "timing/environment.hpp"
+#include "timing/frame_timings.hpp"
+#include "vk/context.hpp"
+
+namespace hp {
+
+struct ProfileOptions {
+  uint32_t warmup = 3;    ///< frames run and discarded first (lavapipe's first frames are 5-60% slower)
+  uint32_t frames = 10;   ///< measured frames
+  /// Also run `frames` frames without queries, interleaved with the measured ones, and record the
+  /// difference of the median CPU wall times as the query overhead.
+  bool measure_query_overhead = true;
+};
+
+/// The device part of the environment.
+DeviceDescription describe_device(const vk::Context& ctx);
+
+/// One Frame::render() result as a FrameSample; `counters` (may be null) become per-pass counters
+/// (rays_cast, nodes_visited, triangles_tested under "shadows" and "reflections").
+FrameSample to_frame_sample(const FrameTiming& timing, const RayCounters* counters);
+
+/// Profiles `frame`: W warm-up frames, then F measured ones. Counters are read after each measured frame
+/// when the frame's settings ask for them (outside the timed interval).
+FrameTimings profile_frames(Frame& frame, const ProfileOptions& options);
+
+}  // namespace hp

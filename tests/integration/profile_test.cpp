@@ -1,0 +1,68 @@
+// A real profiled run: warm-up discarded, statistics over the measured frames, counters identical frame to
+// frame (the scene and camera do not change), a timeline that nests per track, a result that round-trips.
+#include "vulkan_env.hpp"
+
+#include "frame_profiler.hpp"
+#include "scene/load.hpp"
+#include "timing/result_json.hpp"
+#include "timing/timeline.hpp"
+
+#include <filesystem>
+
+namespace hp {
+namespace {
+
+TEST(Profile, RealRunGivesNestedTimelineAndStableCounters) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s;
+  s.width = 96;
+  s.height = 54;
+  s.rt.shadows = true;
+  s.rt.reflections = true;
+  s.rt.counters = true;
+  s.rt.jitter = JitterMode::shared;
+  Frame frame(*ctx, scene, scene.camera, s);
+  ProfileOptions o;
+  o.warmup = 2;
+  o.frames = 6;
+  const FrameTimings t = profile_frames(frame, o);
+  ASSERT_TRUE(t.complete());
+  ASSERT_EQ(t.measured().size(), 6u);
+  const TimingSummary sum = t.summarize();
+  ASSERT_EQ(sum.passes.size(), 5u);
+  for (const auto& p : sum.passes) {
+    EXPECT_EQ(p.duration_ns.count, 6u) << p.pass;
+    EXPECT_GT(p.duration_ns.min, 0.0) << p.pass;
+    EXPECT_LE(p.duration_ns.median_ci.low, p.duration_ns.median) << p.pass;
+    EXPECT_GE(p.duration_ns.median_ci.high, p.duration_ns.median) << p.pass;
+  }
+  ASSERT_TRUE(sum.query_overhead.has_value());
+  EXPECT_EQ(sum.query_overhead->frames, 6u);
+  // Shadow work does not depend on the frame (no jitter): identical counters in every measured frame.
+  // Reflection work varies with the per-frame jitter offset, so only its presence is checked.
+  const auto& frames = t.measured();
+  for (const auto& f : frames) {
+    EXPECT_EQ(f.counters.get("shadows", counter::nodes_visited), frames[0].counters.get("shadows", counter::nodes_visited));
+    EXPECT_EQ(f.counters.get("shadows", counter::rays_cast), frames[0].counters.get("shadows", counter::rays_cast));
+    EXPECT_GT(f.counters.get("reflections", counter::rays_cast), 0u);
+  }
+  EXPECT_GT(frames[0].counters.get("shadows", counter::rays_cast), 0u);
+
+  TimelineFixes fixes;
+  const nlohmann::json timeline = build_timeline(t, &fixes);
+  const std::vector<std::string> problems = check_timeline(timeline);
+  EXPECT_TRUE(problems.empty()) << problems.front();
+  EXPECT_EQ(fixes.passes_trimmed + fixes.passes_clamped + fixes.frames_trimmed, 0u)
+      << "GPU timestamps of one queue must already nest";
+
+  const auto path = std::filesystem::temp_directory_path() / ("hp_profile_" + std::to_string(::getpid()) + ".json");
+  write_timing_result(path, capture_environment(describe_device(*ctx)), t);
+  const TimingResult back = read_timing_result(path);
+  EXPECT_EQ(back.environment.device.name, ctx->info().name);
+  EXPECT_EQ(back.summary, sum);
+  std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace hp
