@@ -46,6 +46,30 @@ struct Box4 {
   void grow_point(__m128 p) { grow(p, p); }
 };
 
+/// A bin: a box whose hi lane 3 holds the primitive count as integer bits. Counting inside the box saves
+/// a separate load-increment-store per axis and primitive in the binning loop, the builder's hottest code.
+/// The count lane is positive (a denormal or small normal as a float), so max_ps keeps it; it is masked
+/// off before any arithmetic on the box.
+struct Bin {
+  __m128 lo = _mm_set1_ps(kInf);
+  __m128 hi = _mm_castsi128_ps(_mm_set_epi32(0, static_cast<int>(0xff800000u), static_cast<int>(0xff800000u),
+                                             static_cast<int>(0xff800000u)));  // -inf x3, count 0
+  /// Adds a primitive whose lane 3 is 0 in both corners.
+  void add(__m128 l, __m128 h) {
+    lo = _mm_min_ps(lo, l);
+    hi = _mm_castsi128_ps(_mm_add_epi32(_mm_castps_si128(_mm_max_ps(hi, h)), _mm_set_epi32(1, 0, 0, 0)));
+  }
+  uint32_t count() const { return static_cast<uint32_t>(_mm_cvtsi128_si32(_mm_shuffle_epi32(_mm_castps_si128(hi), 0xff))); }
+  __m128 box_hi() const { return _mm_and_ps(hi, _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1))); }
+  void merge(const Bin& o) {
+    const __m128i c = _mm_add_epi32(_mm_castps_si128(hi), _mm_shuffle_epi32(_mm_castps_si128(o.hi), 0xff));
+    lo = _mm_min_ps(lo, o.lo);
+    const __m128 m = _mm_max_ps(box_hi(), o.box_hi());
+    // Lanes 0-2 from the max, lane 3 the summed count.
+    hi = _mm_or_ps(m, _mm_and_ps(_mm_castsi128_ps(c), _mm_castsi128_ps(_mm_set_epi32(-1, 0, 0, 0))));
+  }
+};
+
 /// A primitive range with its bounds and the bounds of its doubled centroids (lo + hi).
 struct Range {
   Box4 box, cbox;
@@ -54,9 +78,8 @@ struct Range {
 
 /// Per-thread scratch, allocated once per worker so that nodes allocate nothing.
 struct Scratch {
-  explicit Scratch(int buckets) : bins(6 * buckets), counts(6 * buckets), right_cost(buckets) {}
-  std::vector<Box4> bins;  // [set * 3 * buckets + axis * buckets + bin], two sets (see the binning loop)
-  std::vector<uint32_t> counts;
+  explicit Scratch(int buckets) : bins(6 * buckets), right_cost(buckets) {}
+  std::vector<Bin> bins;  // [set * 3 * buckets + axis * buckets + bin], two sets (see the binning loop)
   std::vector<float> right_cost;
 };
 
@@ -93,7 +116,8 @@ public:
     Scratch scratch(p_.buckets);
     build(0, root, 0, scratch);
     PairTree tree;
-    tree.nodes.assign(nodes_.get(), nodes_.get() + next_node_.load());
+    tree.nodes = std::move(nodes_);
+    tree.node_count = next_node_.load();
     tree.order.resize(prims_.size());
     for (std::size_t i = 0; i < prims_.size(); ++i) tree.order[i] = prims_[i].id;
     tree.depth_limited_splits = depth_limited_.load();
@@ -172,47 +196,36 @@ private:
     // Binning.
     const __m128 vmin = r.cbox.lo, vscale = _mm_load_ps(scale), vlast = _mm_set1_ps(static_cast<float>(nb - 1));
     const std::size_t used = (p_.all_axes && n >= 64 ? 6 : 3) * static_cast<std::size_t>(nb);
-    std::fill(s.bins.begin(), s.bins.begin() + used, Box4{});
-    std::fill(s.counts.begin(), s.counts.begin() + used, 0u);
-    Box4* bins = s.bins.data();
-    uint32_t* counts = s.counts.data();
+    std::fill(s.bins.begin(), s.bins.begin() + used, Bin{});
+    Bin* bins = s.bins.data();
     if (p_.all_axes) {
       // Two bin sets, even and odd primitives: neighbouring primitives usually land in the same bin, and
       // alternating sets halves the chain of dependent loads and stores through that bin.
-      Box4* bins2 = bins + 3 * nb;
-      uint32_t* counts2 = counts + 3 * nb;
-      const auto bin_one = [&](const PrimRef& pr, Box4* bs, uint32_t* cs) {
+      Bin* bins2 = bins + 3 * nb;
+      const auto bin_one = [&](const PrimRef& pr, Bin* bs) {
         const __m128 lo = load3(pr.lo), hi = load3(pr.hi);
         alignas(16) int32_t b[4];
         _mm_store_si128(reinterpret_cast<__m128i*>(b), bin_index(_mm_add_ps(lo, hi), vmin, vscale, vlast));
-        bs[b[0]].grow(lo, hi);
-        bs[nb + b[1]].grow(lo, hi);
-        bs[2 * nb + b[2]].grow(lo, hi);
-        ++cs[b[0]];
-        ++cs[nb + b[1]];
-        ++cs[2 * nb + b[2]];
+        bs[b[0]].add(lo, hi);
+        bs[nb + b[1]].add(lo, hi);
+        bs[2 * nb + b[2]].add(lo, hi);
       };
       uint32_t i = r.begin;
       if (n >= 64) {
         for (; i + 1 < r.end; i += 2) {
-          bin_one(prims_[i], bins, counts);
-          bin_one(prims_[i + 1], bins2, counts2);
+          bin_one(prims_[i], bins);
+          bin_one(prims_[i + 1], bins2);
         }
-        for (int b = 0; b < 3 * nb; ++b) {
-          bins[b].grow(bins2[b]);
-          counts[b] += counts2[b];
-        }
+        for (int b = 0; b < 3 * nb; ++b) bins[b].merge(bins2[b]);
       }
-      for (; i < r.end; ++i) bin_one(prims_[i], bins, counts);
+      for (; i < r.end; ++i) bin_one(prims_[i], bins);
     } else {
-      Box4* abins = bins + widest * nb;
-      uint32_t* acounts = counts + widest * nb;
+      Bin* abins = bins + widest * nb;
       for (uint32_t i = r.begin; i < r.end; ++i) {
         const __m128 lo = load3(prims_[i].lo), hi = load3(prims_[i].hi);
         alignas(16) int32_t b[4];
         _mm_store_si128(reinterpret_cast<__m128i*>(b), bin_index(_mm_add_ps(lo, hi), vmin, vscale, vlast));
-        abins[b[widest]].grow(lo, hi);
-        ++acounts[b[widest]];
+        abins[b[widest]].add(lo, hi);
       }
     }
 
@@ -222,20 +235,19 @@ private:
     uint32_t best_left_count = 0;
     for (int a = 0; a < 3; ++a) {
       if (scale[a] == 0.0f) continue;
-      const Box4* ab = bins + a * nb;
-      const uint32_t* ac = counts + a * nb;
+      const Bin* ab = bins + a * nb;
       Box4 acc;
       uint32_t count = 0;
       for (int b = nb - 1; b > 0; --b) {
-        acc.grow(ab[b]);
-        count += ac[b];
+        acc.grow(ab[b].lo, ab[b].box_hi());
+        count += ab[b].count();
         s.right_cost[b - 1] = count ? static_cast<float>(count) * half_area4(acc.lo, acc.hi) : 0.0f;
       }
       acc = Box4{};
       count = 0;
       for (int b = 0; b < nb - 1; ++b) {
-        acc.grow(ab[b]);
-        count += ac[b];
+        acc.grow(ab[b].lo, ab[b].box_hi());
+        count += ab[b].count();
         if (count == 0 || count == n) continue;
         const float cost = static_cast<float>(count) * half_area4(acc.lo, acc.hi) + s.right_cost[b];
         if (cost < best_cost) {
@@ -292,8 +304,8 @@ private:
       if (lp >= rp) break;
       std::swap(*lp, *(rp - 1));  // now *lp goes left and *(rp - 1) right; the loops above take them
     }
-    const Box4* ab = bins + best_axis * nb;
-    for (int b = 0; b < nb; ++b) (b <= best_bin ? left : right).box.grow(ab[b]);
+    const Bin* ab = bins + best_axis * nb;
+    for (int b = 0; b < nb; ++b) (b <= best_bin ? left : right).box.grow(ab[b].lo, ab[b].box_hi());
     left.begin = r.begin;
     left.end = static_cast<uint32_t>(lp - prims_.data());
     right.begin = left.end;

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cstdint>
 #include <exception>
+#include <memory>
 #include <mutex>
 #include <span>
 #include <thread>
@@ -44,7 +45,8 @@ inline int levels_needed(uint64_t n, uint64_t leaf) {
 /// Output of a builder before flattening: nodes where an interior node's children are the pair
 /// (offset, offset + 1), the root at 0; leaves index `order`.
 struct PairTree {
-  std::vector<gpu::BvhNode> nodes;
+  std::unique_ptr<gpu::BvhNode[]> nodes;  ///< uninitialised beyond node_count
+  std::size_t node_count = 0;
   std::vector<uint32_t> order;  ///< leaf order -> scene index
   std::size_t depth_limited_splits = 0;
 };

@@ -53,7 +53,8 @@ public:
       hi = glm::max(hi, pr.hi);
     }
     build(0, 0, n, lo, hi, 0);
-    tree_.nodes.assign(nodes_.get(), nodes_.get() + next_node_.load());
+    tree_.nodes = std::move(nodes_);
+    tree_.node_count = next_node_.load();
     tree_.order.resize(n);
     for (uint32_t i = 0; i < n; ++i) tree_.order[i] = prims_[lists_[0][i]].id;
     tree_.depth_limited_splits = depth_limited_.load();

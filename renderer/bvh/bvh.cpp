@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <memory>
 #include <stdexcept>
 #include <limits>
 #include <string>
@@ -63,17 +65,21 @@ PrimRef triangle_ref(const Triangle& t, uint32_t id) {
 }
 
 /// Primitive references for the valid primitives, in scene order, built in parallel chunks.
-std::vector<PrimRef> make_refs(std::span<const Triangle> tris, std::span<const uint32_t> object_first, int threads) {
+struct Refs {
+  std::unique_ptr<PrimRef[]> data;  // uninitialised beyond size: 32 MB per million need no zero fill
+  std::size_t size = 0;
+};
+Refs make_refs(std::span<const Triangle> tris, std::span<const uint32_t> object_first, int threads) {
   const bool objects = !object_first.empty();
   const std::size_t n = objects ? object_first.size() - 1 : tris.size();
-  // Pass 1: each chunk fills its own slice and counts its valid primitives; pass 2 compacts.
-  std::vector<PrimRef> refs(n);
-  std::vector<uint8_t> valid(n);
-  detail::Forker::parallel_chunks(n, threads, [&](std::size_t b, std::size_t e, std::size_t) {
+  Refs refs{std::unique_ptr<PrimRef[]>(new PrimRef[std::max<std::size_t>(n, 1)]), 0};
+  // Each chunk compacts its valid primitives to the front of its own slice; the slices are then joined.
+  std::vector<std::size_t> chunk_begin(std::max(threads, 1)), chunk_count(std::max(threads, 1));
+  detail::Forker::parallel_chunks(n, threads, [&](std::size_t b, std::size_t e, std::size_t c) {
+    std::size_t k = b;
     for (std::size_t i = b; i < e; ++i) {
       if (!objects) {
-        valid[i] = !is_degenerate(tris[i]);
-        if (valid[i]) refs[i] = triangle_ref(tris[i], static_cast<uint32_t>(i));
+        if (!is_degenerate(tris[i])) refs.data[k++] = triangle_ref(tris[i], static_cast<uint32_t>(i));
         continue;
       }
       PrimRef r{glm::vec3(kInf), static_cast<uint32_t>(i), glm::vec3(-kInf), 0};
@@ -85,22 +91,25 @@ std::vector<PrimRef> make_refs(std::span<const Triangle> tris, std::span<const u
         r.hi = glm::max(r.hi, tr.hi);
         any = true;
       }
-      valid[i] = any;
-      refs[i] = r;
+      if (any) refs.data[k++] = r;
     }
+    chunk_begin[c] = b;
+    chunk_count[c] = k - b;
   });
-  std::size_t k = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (valid[i]) refs[k++] = refs[i];
+  for (std::size_t c = 0; c < chunk_begin.size(); ++c) {
+    if (chunk_count[c] == 0) continue;
+    if (chunk_begin[c] != refs.size) {
+      std::memmove(&refs.data[refs.size], &refs.data[chunk_begin[c]], chunk_count[c] * sizeof(PrimRef));
+    }
+    refs.size += chunk_count[c];
   }
-  refs.resize(k);
   return refs;
 }
 
 /// Rewrites the builders' pair layout (children at offset, offset + 1) depth-first, the first child right
 /// after its parent, and measures the depth.
 struct Flattener {
-  const std::vector<gpu::BvhNode>& in;
+  const gpu::BvhNode* in;
   std::vector<gpu::BvhNode>& out;
   int max_depth = 0;
 
@@ -146,16 +155,17 @@ Bvh build_bvh(std::span<const Triangle> triangles, const BuildOptions& options, 
   bvh.traversal_cost = options.traversal_cost;
   if (objects) bvh.object_first.assign(object_first.begin(), object_first.end());
 
-  std::vector<PrimRef> refs = make_refs(triangles, objects ? object_first : std::span<const uint32_t>{}, params.threads);
-  if (refs.empty()) {
+  Refs refs = make_refs(triangles, objects ? object_first : std::span<const uint32_t>{}, params.threads);
+  if (refs.size == 0) {
     // An inverted box fails every slab test, so a traversal that tests the root's box ends at once.
     bvh.nodes.push_back(gpu::BvhNode{glm::vec3(kInf), 0, glm::vec3(-kInf), 0});
     return bvh;
   }
 
-  detail::PairTree tree = options.full_sweep ? detail::build_full_sweep(refs, params) : detail::build_binned(refs, params);
-  bvh.nodes.reserve(tree.nodes.size());
-  Flattener f{tree.nodes, bvh.nodes};
+  const std::span<PrimRef> prims(refs.data.get(), refs.size);
+  detail::PairTree tree = options.full_sweep ? detail::build_full_sweep(prims, params) : detail::build_binned(prims, params);
+  bvh.nodes.reserve(tree.node_count);
+  Flattener f{tree.nodes.get(), bvh.nodes};
   f.emit(0, 0);
   bvh.max_depth = f.max_depth;
   bvh.prim_ids = std::move(tree.order);

@@ -1,0 +1,237 @@
+// BVH benchmarks: build speed (single thread and all threads) and SAH quality against the exact full sweep
+// on the ~1M-triangle built-in meshes and the shared glTF scenes; single-thread traversal throughput for
+// coherent primary rays and random rays, closest and any hit.
+//
+// Counters: Mtri/s (build), sah (cost relative to the root's area), sah_vs_sweep_% (binned cost over the
+// full sweep's, minus 1), sah_largest_axis_vs_sweep_% (the same for the study's largest-axis-only rule);
+// Mrays/s, nodes/ray, tris/ray, hit_% (traversal).
+//
+// Scenes come from hp_scene (builtin:sphere-1m, builtin:terrain-1m, HP_SHARED_DIR/scenes/*) when it is built;
+// without it, a procedural 1M-triangle sphere and terrain stand in and the shared scenes are skipped.
+#include "bvh/bvh.hpp"
+#include "bvh/traverse.hpp"
+#include "../unit/bvh/bvh_test_scenes.hpp"
+
+#include <benchmark/benchmark.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#if HP_BENCH_HAVE_SCENE
+#include "scene/load.hpp"
+#include "scene/scene.hpp"
+#endif
+
+namespace {
+
+using namespace hp::bvh;
+
+struct View {
+  glm::vec3 eye, target, up;
+  float vfov_deg;
+};
+
+/// One benchmark scene, with everything derived from it computed once.
+struct BenchScene {
+  std::string name;
+  std::vector<Triangle> tris;
+  View view;
+  Bvh bvh;  // default build, for traversal
+  LeafOrderTriangles lt;
+  double sah_sweep = 0.0, sah_binned = 0.0, sah_largest_axis = 0.0;
+  std::vector<Ray> primary, random;
+};
+
+glm::vec3 bounds_lo(const std::vector<Triangle>& tris) {
+  glm::vec3 lo(std::numeric_limits<float>::infinity());
+  for (const auto& t : tris) lo = glm::min(lo, glm::min(t.v0, glm::min(t.v1, t.v2)));
+  return lo;
+}
+glm::vec3 bounds_hi(const std::vector<Triangle>& tris) {
+  glm::vec3 hi(-std::numeric_limits<float>::infinity());
+  for (const auto& t : tris) hi = glm::max(hi, glm::max(t.v0, glm::max(t.v1, t.v2)));
+  return hi;
+}
+
+/// Coherent primary rays: one per pixel of a 512 x 512 pinhole image.
+std::vector<Ray> primary_rays(const View& v) {
+  constexpr int kSize = 512;
+  const glm::vec3 fwd = glm::normalize(v.target - v.eye);
+  const glm::vec3 right = glm::normalize(glm::cross(fwd, v.up));
+  const glm::vec3 up = glm::cross(right, fwd);
+  const float h = std::tan(glm::radians(v.vfov_deg) * 0.5f);
+  std::vector<Ray> rays;
+  rays.reserve(kSize * kSize);
+  for (int y = 0; y < kSize; ++y) {
+    for (int x = 0; x < kSize; ++x) {
+      const float sx = (2.0f * (static_cast<float>(x) + 0.5f) / kSize - 1.0f) * h;
+      const float sy = (1.0f - 2.0f * (static_cast<float>(y) + 0.5f) / kSize) * h;
+      Ray r;
+      r.origin = v.eye;
+      r.dir = glm::normalize(fwd + sx * right + sy * up);
+      rays.push_back(r);
+    }
+  }
+  return rays;
+}
+
+/// Incoherent rays: origins uniform in the scene's box, directions uniform on the sphere.
+std::vector<Ray> random_rays(const std::vector<Triangle>& tris) {
+  const glm::vec3 lo = bounds_lo(tris), hi = bounds_hi(tris);
+  std::mt19937 rng(1234);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  std::vector<Ray> rays(1 << 18);
+  for (auto& r : rays) {
+    r.origin = lo + glm::vec3(u(rng), u(rng), u(rng)) * (hi - lo);
+    r.dir = hp::bvh::testing::random_dir(rng);
+  }
+  return rays;
+}
+
+std::unique_ptr<BenchScene> prepare(std::string name, std::vector<Triangle> tris, View view) {
+  auto s = std::make_unique<BenchScene>();
+  s->name = std::move(name);
+  s->tris = std::move(tris);
+  s->view = view;
+  BuildOptions sweep;
+  sweep.full_sweep = true;
+  s->sah_sweep = bvh_stats(build_bvh(s->tris, sweep)).sah_cost;
+  BuildOptions largest;
+  largest.all_axes = false;
+  s->sah_largest_axis = bvh_stats(build_bvh(s->tris, largest)).sah_cost;
+  s->bvh = build_bvh(s->tris, BuildOptions{});
+  s->sah_binned = bvh_stats(s->bvh).sah_cost;
+  s->lt = leaf_order(s->bvh, s->tris);
+  s->primary = primary_rays(view);
+  s->random = random_rays(s->tris);
+  return s;
+}
+
+#if HP_BENCH_HAVE_SCENE
+std::unique_ptr<BenchScene> from_spec(const std::string& name, const std::string& spec) {
+  const hp::Scene scene = hp::load_scene(spec);
+  const hp::WorldGeometry world = hp::world_geometry(scene);
+  const hp::Camera cam = scene.has_camera ? scene.camera : hp::auto_frame(scene, 1.0f);
+  return prepare(name, make_triangles(world.positions, world.indices),
+                 View{cam.position, cam.target, cam.up, cam.vfov_deg});
+}
+#endif
+
+std::vector<std::unique_ptr<BenchScene>> load_scenes() {
+  std::vector<std::unique_ptr<BenchScene>> scenes;
+#if HP_BENCH_HAVE_SCENE
+  scenes.push_back(from_spec("sphere-1m", "builtin:sphere-1m"));
+  scenes.push_back(from_spec("terrain-1m", "builtin:terrain-1m"));
+  const std::filesystem::path shared = std::filesystem::path(HP_SHARED_DIR) / "scenes";
+  if (std::filesystem::is_directory(shared)) {
+    std::map<std::string, std::string> found;  // sorted, so the order is stable
+    for (const auto& dir : std::filesystem::directory_iterator(shared)) {
+      if (!dir.is_directory()) continue;
+      for (const auto& f : std::filesystem::directory_iterator(dir.path())) {
+        const auto ext = f.path().extension();
+        if (ext == ".gltf" || ext == ".glb") found[dir.path().filename().string()] = f.path().string();
+      }
+    }
+    for (const auto& [name, path] : found) scenes.push_back(from_spec(name, path));
+  } else {
+    std::fprintf(stderr, "bench_bvh: %s not found, shared scenes skipped\n", shared.string().c_str());
+  }
+#else
+  const auto frame_bounds = [](const std::vector<Triangle>& tris) {
+    const glm::vec3 lo = bounds_lo(tris), hi = bounds_hi(tris);
+    const glm::vec3 c = 0.5f * (lo + hi);
+    const float r = 0.5f * glm::length(hi - lo);
+    return View{c + r * glm::normalize(glm::vec3(0.6f, 0.5f, 1.0f)) * 2.2f, c, glm::vec3(0, 1, 0), 45.0f};
+  };
+  std::fprintf(stderr, "bench_bvh: built without hp_scene: procedural meshes only, shared scenes skipped\n");
+  {
+    auto tris = hp::bvh::testing::uv_sphere(708, 708).triangles();
+    View v = frame_bounds(tris);
+    scenes.push_back(prepare("sphere-1m", std::move(tris), v));
+  }
+  {
+    auto tris = hp::bvh::testing::terrain(708).triangles();
+    View v = frame_bounds(tris);
+    scenes.push_back(prepare("terrain-1m", std::move(tris), v));
+  }
+#endif
+  return scenes;
+}
+
+void build_bench(benchmark::State& state, const BenchScene* s, int threads, bool full_sweep) {
+  BuildOptions o;
+  o.threads = threads;
+  o.full_sweep = full_sweep;
+  double sah = 0.0;
+  for (auto _ : state) {
+    Bvh b = build_bvh(s->tris, o);
+    benchmark::DoNotOptimize(b.nodes.data());
+    state.PauseTiming();
+    sah = bvh_stats(b).sah_cost;
+    state.ResumeTiming();
+  }
+  const double iters = static_cast<double>(state.iterations());
+  state.counters["Mtri/s"] = benchmark::Counter(static_cast<double>(s->tris.size()) * iters / 1e6, benchmark::Counter::kIsRate);
+  state.counters["triangles"] = static_cast<double>(s->tris.size());
+  state.counters["sah"] = sah;
+  state.counters["sah_vs_sweep_%"] = 100.0 * (sah / s->sah_sweep - 1.0);
+  if (!full_sweep) state.counters["sah_largest_axis_vs_sweep_%"] = 100.0 * (s->sah_largest_axis / s->sah_sweep - 1.0);
+}
+
+void trace_bench(benchmark::State& state, const BenchScene* s, bool primary, bool any) {
+  const std::vector<Ray>& rays = primary ? s->primary : s->random;
+  TraversalStats ts;
+  std::size_t hits = 0;
+  for (auto _ : state) {
+    ts = TraversalStats{};
+    hits = 0;
+    for (const Ray& r : rays) {
+      const Hit h = any ? intersect_any(s->bvh, s->lt, r, &ts) : intersect_closest(s->bvh, s->lt, r, &ts);
+      hits += h.hit();
+    }
+    benchmark::DoNotOptimize(hits);
+  }
+  const double n = static_cast<double>(rays.size());
+  state.counters["Mrays/s"] = benchmark::Counter(n * static_cast<double>(state.iterations()) / 1e6, benchmark::Counter::kIsRate);
+  state.counters["nodes/ray"] = static_cast<double>(ts.nodes_visited) / n;
+  state.counters["tris/ray"] = static_cast<double>(ts.triangles_tested) / n;
+  state.counters["hit_%"] = 100.0 * static_cast<double>(hits) / n;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  const auto scenes = load_scenes();
+  const int all = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  for (const auto& sp : scenes) {
+    const BenchScene* s = sp.get();
+    // Single-thread builds report CPU time (robust to other load on the machine); threaded ones wall time.
+    benchmark::RegisterBenchmark(("build/" + s->name + "/threads:1").c_str(), build_bench, s, 1, false)
+        ->Unit(benchmark::kMillisecond);
+    benchmark::RegisterBenchmark(("build/" + s->name + "/threads:" + std::to_string(all)).c_str(), build_bench, s, all, false)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
+    benchmark::RegisterBenchmark(("build_full_sweep/" + s->name + "/threads:" + std::to_string(all)).c_str(), build_bench, s,
+                                 all, true)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime()
+        ->Iterations(1);
+    for (const bool primary : {true, false}) {
+      for (const bool any : {false, true}) {
+        const std::string name = std::string("trace/") + s->name + (primary ? "/primary" : "/random") + (any ? "/any" : "/closest");
+        benchmark::RegisterBenchmark(name.c_str(), trace_bench, s, primary, any)->Unit(benchmark::kMillisecond);
+      }
+    }
+  }
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
