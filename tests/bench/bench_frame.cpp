@@ -1,0 +1,150 @@
+// The hybrid frame's ray-tracing passes on the Vulkan device (lavapipe by default), and the C++ reference
+// traversal on the very same rays with the same number of threads.
+//
+//   Gpu/<pass>/<scene>: manual time = the pass's GPU timestamp interval; "rays" is a rate (rays/s).
+//   Cpu/<pass>/<scene>: the reference traversal casting the rays the GPU cast in that pass (dumped once),
+//                       on T threads, T = LP_NUM_THREADS if set, else the core count (lavapipe's default).
+// Shadows: one any-hit ray per lit-facing pixel. Reflections: closest-hit rays of reflective pixels,
+// shaded without a shadow ray at the hit (so both sides cast exactly the same rays).
+// Run: build/tests/bench/hp_bench_frame [--benchmark_filter=...] ; HP_BENCH_WIDTH/HEIGHT override 1280x720.
+#include "bvh/traverse.hpp"
+#include "frame.hpp"
+#include "scene/load.hpp"
+#include "vk/context.hpp"
+
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <thread>
+
+namespace {
+
+using namespace hp;
+
+uint32_t env_or(const char* name, uint32_t fallback) {
+  const char* v = std::getenv(name);
+  return v && *v ? uint32_t(std::strtoul(v, nullptr, 10)) : fallback;
+}
+
+int reference_threads() {
+  const uint32_t lp = env_or("LP_NUM_THREADS", 0);
+  return lp > 0 ? int(lp) : int(std::thread::hardware_concurrency());
+}
+
+vk::Context& context() {
+  static vk::Context ctx{vk::ContextOptions{}};
+  return ctx;
+}
+
+enum class Pass { shadows, reflections };
+
+struct Setup {
+  Scene scene;
+  Camera camera;
+  std::unique_ptr<Frame> frame;
+  std::vector<bvh::Ray> rays;  // the rays the GPU cast in this pass (from a dumped frame)
+};
+
+FrameSettings settings_for(Pass pass, bool dump) {
+  FrameSettings s;
+  s.width = env_or("HP_BENCH_WIDTH", 1280);
+  s.height = env_or("HP_BENCH_HEIGHT", 720);
+  s.rt.shadows = pass == Pass::shadows;
+  s.rt.reflections = pass == Pass::reflections;
+  s.rt.reflection_shadows = false;
+  s.rt.counters = false;
+  s.rt.dump_rays = dump;
+  s.rt.offset = ShadowOffset::robust;
+  return s;
+}
+
+// One setup per (scene, pass), built on first use and kept: building a frame compiles pipelines.
+Setup& setup(const std::string& spec, Pass pass) {
+  static std::map<std::pair<std::string, int>, std::unique_ptr<Setup>> cache;
+  auto& slot = cache[{spec, int(pass)}];
+  if (!slot) {
+    slot = std::make_unique<Setup>();
+    Setup& s = *slot;
+    s.scene = load_scene(spec);
+    const FrameSettings fs = settings_for(pass, false);
+    s.camera = s.scene.has_camera ? s.scene.camera : auto_frame(s.scene, float(fs.width) / float(fs.height));
+    s.frame = std::make_unique<Frame>(context(), s.scene, s.camera, fs);
+    // The rays: one frame with dumps on (the dump writes cost GPU time, so timed frames run without them).
+    Frame dumper(context(), s.scene, s.camera, settings_for(pass, true));
+    dumper.render();
+    const auto dump = pass == Pass::shadows ? dumper.rt_passes()->read_shadow_dump(context())
+                                            : dumper.rt_passes()->read_reflection_dump(context());
+    for (const auto& d : dump) {
+      if (d.hit.z == 0) continue;
+      s.rays.push_back({glm::vec3(d.origin_tmin), d.origin_tmin.w, glm::vec3(d.dir_tmax), d.dir_tmax.w});
+    }
+  }
+  return *slot;
+}
+
+void gpu_pass(benchmark::State& state, const std::string& spec, Pass pass) {
+  Setup& s = setup(spec, pass);
+  const char* name = pass == Pass::shadows ? "shadows" : "reflections";
+  for (int i = 0; i < 2; ++i) s.frame->render();  // warm-up (first frames on lavapipe are slower)
+  for (auto _ : state) {
+    const FrameTiming t = s.frame->render();
+    for (const auto& p : t.passes) {
+      if (p.name == name) state.SetIterationTime(double(p.duration_ns()) * 1e-9);
+    }
+  }
+  state.counters["rays"] = benchmark::Counter(double(s.rays.size()), benchmark::Counter::kIsIterationInvariantRate);
+  state.SetLabel(context().info().name);
+}
+
+void cpu_pass(benchmark::State& state, const std::string& spec, Pass pass) {
+  Setup& s = setup(spec, pass);
+  const RtGeometry& g = *s.frame->rt_geometry();
+  const int threads = reference_threads();
+  const auto mode = pass == Pass::shadows ? bvh::HitMode::any : bvh::HitMode::closest;
+  for (auto _ : state) {
+    auto hits = bvh::cast_rays(g.bvh, g.leaf, s.rays, mode, threads);
+    benchmark::DoNotOptimize(hits.data());
+  }
+  state.counters["rays"] = benchmark::Counter(double(s.rays.size()), benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["threads"] = threads;
+}
+
+std::vector<std::string> scenes() {
+  std::vector<std::string> out = {"builtin:pica"};
+  const std::filesystem::path root = std::filesystem::path(HP_SHARED_DIR) / "scenes";
+  for (const char* f : {"DamagedHelmet/DamagedHelmet.gltf", "WaterBottle/WaterBottle.gltf", "Balloon/scene.gltf",
+                        "Pine/scene.gltf"}) {
+    if (std::filesystem::exists(root / f)) out.push_back((root / f).string());
+  }
+  return out;
+}
+
+std::string short_name(const std::string& spec) {
+  if (spec.rfind("builtin:", 0) == 0) return spec.substr(8);
+  return std::filesystem::path(spec).parent_path().filename().string();
+}
+
+const bool registered = [] {
+  for (const std::string& spec : scenes()) {
+    for (Pass pass : {Pass::shadows, Pass::reflections}) {
+      const std::string p = pass == Pass::shadows ? "shadows" : "reflections";
+      benchmark::RegisterBenchmark(("Gpu/" + p + "/" + short_name(spec)).c_str(), gpu_pass, spec, pass)
+          ->UseManualTime()
+          ->Unit(benchmark::kMillisecond)
+          ->Iterations(6);
+      benchmark::RegisterBenchmark(("Cpu/" + p + "/" + short_name(spec)).c_str(), cpu_pass, spec, pass)
+          ->UseRealTime()
+          ->Unit(benchmark::kMillisecond)
+          ->Iterations(6);
+    }
+  }
+  return true;
+}();
+
+}  // namespace
+
+BENCHMARK_MAIN();
