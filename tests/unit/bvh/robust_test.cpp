@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <random>
+#include <stdexcept>
 
 namespace hp::bvh {
 namespace {
@@ -495,6 +496,29 @@ TEST(BvhRobust, MillionTrianglesAlongALineStayWithinTheStack) {
               bvh.depth_limited_splits);
   EXPECT_GT(bvh.depth_limited_splits, 0u);
   check_deep(tris, o, rays);
+}
+
+TEST(BvhRobust, TraversalRefusesATreeDeeperThanTheStack) {
+  // A hand-made chain of 70 interior nodes (build_bvh never makes one): the traversal must stop with an
+  // error instead of writing past its fixed stack.
+  Bvh bvh;
+  const int chain = HP_BVH_STACK_SIZE + 6;
+  for (int i = 0; i < chain; ++i) bvh.nodes.push_back(gpu::BvhNode{glm::vec3(-1), chain, glm::vec3(1), 0u});
+  bvh.nodes.push_back(gpu::BvhNode{glm::vec3(-1), 0, glm::vec3(1), 1u << HP_BVH_AXIS_BITS});
+  bvh.prim_ids = {0};
+  const std::vector<Triangle> tri{{{-1, -1, 0}, {1, -1, 0}, {0, 1, 0}}};
+  const LeafOrderTriangles lt = leaf_order(bvh, tri);
+  Ray r;
+  r.origin = glm::vec3(0, 0, -5);
+  r.dir = glm::vec3(0, 0, 1);
+  EXPECT_THROW(intersect_closest(bvh, lt, r), std::logic_error);
+  EXPECT_THROW(cast_rays(bvh, lt, std::vector<Ray>(3000, r), HitMode::any, 2), std::logic_error);
+  // The same chain within the stack works.
+  bvh.nodes.erase(bvh.nodes.begin(), bvh.nodes.begin() + 10);
+  for (auto& n : bvh.nodes) {
+    if (!node_is_leaf(n)) n.offset = static_cast<int>(bvh.nodes.size() - 1);
+  }
+  EXPECT_TRUE(intersect_closest(bvh, lt, r).hit());
 }
 
 }  // namespace
