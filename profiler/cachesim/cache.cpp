@@ -1,6 +1,7 @@
 #include "cachesim/cache.hpp"
 
 #include <algorithm>
+#include <cstring>
 
 namespace hp::cachesim {
 
@@ -58,6 +59,8 @@ Cache::Cache(const CacheConfig& config) : config_(config) {
   channels_ = config.channels;
   sets_per_channel_ = config.size_bytes / (uint64_t(config.line_bytes) * config.ways * config.channels);
   set_mask_ = sets_per_channel_ - 1;
+  set_bits_ = uint32_t(std::countr_zero(sets_per_channel_));
+  sets_ = uint32_t(sets_per_channel_ * channels_);
   channel_pow2_ = std::has_single_bit(channels_);
   channel_shift_ = channel_pow2_ ? uint32_t(std::countr_zero(channels_)) : 0;
   const uint32_t interleave = config.channel_interleave_bytes ? config.channel_interleave_bytes : config.line_bytes;
@@ -67,25 +70,134 @@ Cache::Cache(const CacheConfig& config) : config_(config) {
   sector_shift_ = uint32_t(std::countr_zero(config.sector_bytes));
   const uint32_t sectors = config.line_bytes / config.sector_bytes;
   full_mask_ = sectors == 32 ? ~0u : (1u << sectors) - 1;
+  sectored_ = sectors > 1;
   replacement_ = config.replacement;
+  lru_ = replacement_ == Replacement::lru;
   rng_ = config.seed ? config.seed : 0x9E3779B97F4A7C15ull;  // xorshift must not start at 0
-  const size_t ways = size_t(sets_per_channel_ * channels_) * ways_per_set_;
+  compact_ = replacement_ != Replacement::random && ways_per_set_ <= 16;
+  if (compact_) {
+    stride_ = ways_per_set_ <= 4 ? 4 : ways_per_set_ <= 8 ? 8 : 16;
+    tag32_ = aligned_array<uint32_t>(size_t(sets_) * stride_);
+    state_ = aligned_array<SetState>(sets_);
+    if (sectored_) meta_.assign(size_t(sets_) * stride_, Meta{0, 0});
+    init_compact();
+  } else {
+    init_general();
+  }
+}
+
+Cache::Cache(const Cache& o)
+    : config_(o.config_), compact_(o.compact_), sectored_(o.sectored_), lru_(o.lru_),
+      ways_per_set_(o.ways_per_set_), stride_(o.stride_), sets_(o.sets_), set_mask_(o.set_mask_),
+      set_bits_(o.set_bits_), channels_(o.channels_), channel_pow2_(o.channel_pow2_),
+      channel_shift_(o.channel_shift_), interleave_shift_(o.interleave_shift_),
+      interleave_mask_(o.interleave_mask_), sets_per_channel_(o.sets_per_channel_),
+      line_shift_(o.line_shift_), sector_shift_(o.sector_shift_), full_mask_(o.full_mask_),
+      replacement_(o.replacement_), rng_(o.rng_), meta_(o.meta_), tags_(o.tags_), gmeta_(o.gmeta_),
+      stamp_(o.stamp_), clock_(o.clock_) {
+  if (o.tag32_) {
+    tag32_ = aligned_array<uint32_t>(size_t(sets_) * stride_);
+    std::memcpy(tag32_.get(), o.tag32_.get(), size_t(sets_) * stride_ * sizeof(uint32_t));
+  }
+  if (o.state_) {
+    state_ = aligned_array<SetState>(sets_);
+    std::memcpy(static_cast<void*>(state_.get()), o.state_.get(), size_t(sets_) * sizeof(SetState));
+  }
+}
+
+Cache& Cache::operator=(const Cache& o) {
+  if (this != &o) *this = Cache(o);
+  return *this;
+}
+
+void Cache::init_compact() {
+  std::fill(tag32_.get(), tag32_.get() + size_t(sets_) * stride_, kEmpty32);
+  // Way 0 at the back (the first victim), then way 1, ...; unused positions 0xF.
+  uint64_t order = ~uint64_t(0);
+  for (uint32_t p = 0; p < ways_per_set_; ++p) {
+    const uint64_t way = ways_per_set_ - 1 - p;
+    order = (order & ~(uint64_t(0xF) << (4 * p))) | (way << (4 * p));
+  }
+  for (uint32_t s = 0; s < sets_; ++s) state_[s] = SetState{order, 0, 0};
+  std::fill(meta_.begin(), meta_.end(), Meta{0, 0});
+}
+
+void Cache::init_general() {
+  const size_t ways = size_t(sets_) * ways_per_set_;
   tags_.assign(ways, kEmpty);
-  meta_.assign(ways, Meta{0, 0});
+  gmeta_.assign(ways, Meta{0, 0});
   stamp_.assign(ways, 0);
+  clock_ = 0;
+}
+
+uint64_t Cache::line_of(uint32_t set, uint64_t tag) const {
+  if (channels_ == 1) return (tag << set_bits_) | set;
+  const uint64_t channel = set / sets_per_channel_;
+  const uint64_t in_channel = set % sets_per_channel_;
+  const uint64_t within = in_channel & interleave_mask_;
+  const uint64_t rest = (tag << (set_bits_ - interleave_shift_)) | (in_channel >> interleave_shift_);
+  const uint64_t chunk = rest * channels_ + channel;
+  return (chunk << interleave_shift_) | within;
+}
+
+void Cache::to_general() {
+  // Full lines, the same sector state, and stamps that order each set as its permutation did:
+  // the most recent position gets the highest stamp, empty ways stamp 0; the clock starts above
+  // them all, so every later access is newer than any converted one, as it would have been.
+  init_general();
+  for (uint32_t s = 0; s < sets_; ++s) {
+    const uint32_t* tags = tag32_.get() + size_t(s) * stride_;
+    const SetState& st = state_[s];
+    for (uint32_t p = 0; p < ways_per_set_; ++p) {
+      const uint32_t w = uint32_t(st.order >> (4 * p)) & 0xF;
+      if (tags[w] == kEmpty32) continue;
+      const size_t g = size_t(s) * ways_per_set_ + w;
+      tags_[g] = line_of(s, tags[w]);
+      stamp_[g] = ways_per_set_ - p;
+      gmeta_[g] = sectored_ ? meta_[size_t(s) * stride_ + w] : Meta{1u, (st.dirty >> w) & 1u};
+    }
+  }
+  clock_ = ways_per_set_;
+  compact_ = false;
+  tag32_.reset();
+  state_.reset();
+  meta_ = {};
 }
 
 bool Cache::contains(uint64_t line, uint32_t sectors) const {
+  if (compact_) {
+    uint64_t tag;
+    const uint32_t set = locate(line, tag);
+    if (tag >= kEmpty32) return false;  // never stored: the compact engine holds only narrow tags
+    const uint32_t match = match_ways(tag32_.get() + size_t(set) * stride_, uint32_t(tag));
+    if (!match) return false;
+    if (!sectored_) return true;
+    return (sectors & ~meta_[size_t(set) * stride_ + uint32_t(std::countr_zero(match))].valid) == 0;
+  }
   const size_t base = size_t(set_index(line)) * ways_per_set_;
   for (uint32_t i = 0; i < ways_per_set_; ++i)
-    if (tags_[base + i] == line) return (sectors & ~meta_[base + i].valid) == 0;
+    if (tags_[base + i] == line) return (sectors & ~gmeta_[base + i].valid) == 0;
   return false;
 }
 
 uint64_t Cache::flush_dirty_sectors() {
   uint64_t n = 0;
-  for (Meta& m : meta_) {
-    n += uint64_t(std::popcount(m.dirty));
+  if (compact_) {
+    if (sectored_) {
+      for (Meta& m : meta_) {
+        n += count_bits(m.dirty);
+        m.dirty = 0;
+      }
+    } else {
+      for (uint32_t s = 0; s < sets_; ++s) {
+        n += count_bits(state_[s].dirty);
+        state_[s].dirty = 0;
+      }
+    }
+    return n;
+  }
+  for (Meta& m : gmeta_) {
+    n += count_bits(m.dirty);
     m.dirty = 0;
   }
   return n;
@@ -103,8 +215,12 @@ void Cache::renumber_stamps() {
 }
 
 void Cache::invalidate() {
+  if (compact_) {
+    init_compact();
+    return;
+  }
   std::fill(tags_.begin(), tags_.end(), kEmpty);
-  std::fill(meta_.begin(), meta_.end(), Meta{0, 0});
+  std::fill(gmeta_.begin(), gmeta_.end(), Meta{0, 0});
   std::fill(stamp_.begin(), stamp_.end(), 0u);
 }
 

@@ -25,7 +25,7 @@ void HierarchyStats::add(const HierarchyStats& o) {
 }
 
 Hierarchy::Hierarchy(const CacheConfig& l1, uint32_t compute_units, const CacheConfig& l2)
-    : l2_(l2), sector_bytes_(l2.sector_bytes) {
+    : l2_(l2), sector_bytes_(l2.sector_bytes), sectored_(l2.sector_bytes != l2.line_bytes) {
   if (l1.line_bytes != l2.line_bytes || l1.sector_bytes != l2.sector_bytes)
     throw std::invalid_argument("L1 and L2 must share line and sector sizes");
   l1_.reserve(compute_units);

@@ -79,7 +79,7 @@ class Hierarchy {
     uint32_t to_l2 = r.sectors;
     if (r.kind == AccessKind::load) {
       BufferStats& b = buffers_[r.buffer];
-      const uint32_t n = uint32_t(std::popcount(r.sectors));
+      const uint32_t n = sectors(r.sectors);
       ++stats_.l1.requests;
       ++b.l1_requests;
       stats_.l1.sectors += n;
@@ -87,7 +87,7 @@ class Hierarchy {
       const Outcome o = l1_[cu].load(r.line, r.sectors);
       stats_.l1.line_hits += o.line_hit;
       stats_.l1.line_misses += !o.line_hit;
-      const uint32_t m = uint32_t(std::popcount(o.missing));
+      const uint32_t m = sectors(o.missing);
       stats_.l1.sector_misses += m;
       stats_.l1.sector_hits += n - m;
       if (!o.missing) {
@@ -122,9 +122,12 @@ class Hierarchy {
   const Cache& l2() const { return l2_; }
 
  private:
+  // Sectors in a mask; without sectors a mask is 0 or 1 and needs no counting.
+  uint32_t sectors(uint32_t mask) const { return sectored_ ? count_bits(mask) : mask; }
+
   bool issue_l2(uint64_t line, uint32_t sectors, AccessKind kind, uint8_t buffer) {
     BufferStats& b = buffers_[buffer];
-    const uint32_t n = uint32_t(std::popcount(sectors));
+    const uint32_t n = this->sectors(sectors);
     ++stats_.l2.requests;
     ++b.l2_requests;
     stats_.l2.sectors += n;
@@ -134,7 +137,7 @@ class Hierarchy {
                                             : l2_.update(line, sectors);
     stats_.l2.line_hits += o.line_hit;
     stats_.l2.line_misses += !o.line_hit;
-    const uint32_t m = uint32_t(std::popcount(o.missing));
+    const uint32_t m = this->sectors(o.missing);
     stats_.l2.sector_misses += m;
     stats_.l2.sector_hits += n - m;
     stats_.dram_write_bytes += uint64_t(o.written_back_sectors) * sector_bytes_;
@@ -155,6 +158,7 @@ class Hierarchy {
   std::vector<Cache> l1_;
   Cache l2_;
   uint32_t sector_bytes_;
+  bool sectored_;
   HierarchyStats stats_;
   std::array<BufferStats, 256> buffers_{};
   std::vector<std::unique_ptr<StackDistance>> l1_mrc_;

@@ -89,6 +89,53 @@ TEST(Cache, MatchesReferenceOnAdversarialTraces) {
   compare(f, s);
 }
 
+// The compact engine (32-bit partial tags, recency permutation) serves LRU/FIFO caches of up to 16
+// ways; every associativity it pads (to 4, 8 or 16 ways) must behave exactly like the reference.
+TEST(Cache, CompactEngineMatchesReferenceAtEveryAssociativity) {
+  uint64_t seed = 100;
+  for (uint32_t ways = 1; ways <= 16; ++ways) {
+    for (Replacement r : {Replacement::lru, Replacement::fifo}) {
+      for (uint32_t sector : {64u, 16u}) {
+        const CacheConfig c = make(uint64_t(64) * ways * 8, 64, sector, ways, r);  // 8 sets
+        SCOPED_TRACE(describe(c));
+        Cache probe(c);
+        ASSERT_TRUE(probe.compact());
+        compare(c, random_stream(seed++, 6000, c.lines() * 4, probe.full_mask(), true));
+      }
+    }
+  }
+  // More than 16 ways and random replacement use the general engine.
+  EXPECT_FALSE(Cache(make(64 * 32, 64, 64, 32)).compact());
+  EXPECT_FALSE(Cache(make(16 << 10, 64, 64, 4, Replacement::random)).compact());
+}
+
+// A line whose tag does not fit 32 bits switches a compact cache to the general engine mid-stream;
+// the state carried over (contents, recency order, valid and dirty sectors) must be exact.
+TEST(Cache, WideTagConvertsCompactStateExactly) {
+  const std::vector<CacheConfig> configs = {
+      make(4 << 20, 64, 64, 16, Replacement::lru, 16),          // vega56 L2
+      make(16 << 10, 64, 64, 4),                                // vega56 L1
+      make(128 << 10, 128, 32, 8, Replacement::fifo),           // sectored
+      make(48 << 10, 64, 64, 4, Replacement::lru, 3, 256),      // non-power-of-two channels
+      make(6 << 20, 128, 32, 16, Replacement::lru, 12, 1024),  // ga102-like L2
+  };
+  uint64_t seed = 300;
+  for (const CacheConfig& c : configs) {
+    SCOPED_TRACE(describe(c));
+    Cache probe(c);
+    auto s = random_stream(seed++, 30000, c.lines() * 3, probe.full_mask(), true);
+    // Warm up on ordinary lines, then one line with a tag above 32 bits, then ordinary lines again
+    // (which must find exactly the lines, order and dirt the compact engine left).
+    s.insert(s.begin() + 20000, {(uint64_t(1) << 62) + 5, 1u, 1});
+    compare(c, s);
+    Cache x(c);
+    for (size_t i = 0; i < 20000; ++i) x.load(std::get<0>(s[i]), std::get<1>(s[i]));
+    EXPECT_TRUE(x.compact());
+    x.load(uint64_t(1) << 62, 1);
+    EXPECT_FALSE(x.compact());
+  }
+}
+
 TEST(Cache, LruEvictsLeastRecentlyUsed) {
   Cache c(make(128, 64, 64, 2));  // one set, two ways
   EXPECT_TRUE(c.load(1, 1).missing);
