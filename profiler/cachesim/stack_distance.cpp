@@ -5,6 +5,8 @@
 #include <cmath>
 #include <ostream>
 
+#include "cachesim/cache.hpp"  // count_bits
+
 namespace hp::cachesim {
 
 namespace {
@@ -41,106 +43,129 @@ StackDistance::StackDistance(uint32_t line_bytes, double sampling_rate) {
   sampled_ = sampling_rate < 1.0;
   sample_threshold_ = uint64_t(std::max(0.0, sampling_rate) * double(1 << 24));
   scale_ = sampled_ ? 1.0 / sampling_rate : 1.0;
-  keys_.assign(1 << 12, kEmptyKey);
-  times_.assign(1 << 12, 0);
-  table_mask_ = (1 << 12) - 1;
+  page_table_.assign(1 << 8, PageSlot{kEmptyKey, 0});
+  page_mask_ = (1 << 8) - 1;
   capacity_ = 1 << 12;
-  tree_.assign(capacity_ + 1, 0);
-  owner_.assign(capacity_, 0);
+  bits_.assign(capacity_ / 64, 0);
+  tree_.assign((capacity_ >> kBlockBits) + 1, 0);
 }
 
-uint32_t StackDistance::find_or_insert(uint64_t line, bool& inserted) {
-  uint64_t h = mix(line) & table_mask_;
+void StackDistance::grow_pages() {
+  std::vector<PageSlot> old = std::move(page_table_);
+  page_table_.assign(old.size() * 2, PageSlot{kEmptyKey, 0});
+  page_mask_ = page_table_.size() - 1;
+  for (const PageSlot& s : old) {
+    if (s.key == kEmptyKey) continue;
+    uint64_t h = mix(s.key) & page_mask_;
+    while (page_table_[h].key != kEmptyKey) h = (h + 1) & page_mask_;
+    page_table_[h] = s;
+  }
+}
+
+uint32_t* StackDistance::page_of(uint64_t line) {
+  const uint64_t key = line >> kPageBits;
+  if (key == last_key_) return times_.data() + last_page_;
+  if ((pages_ + 1) * 2 > page_table_.size()) grow_pages();
+  uint64_t h = mix(key) & page_mask_;
   while (true) {
-    if (keys_[h] == line) {
-      inserted = false;
-      return uint32_t(h);
+    PageSlot& s = page_table_[h];
+    if (s.key == key) break;
+    if (s.key == kEmptyKey) {
+      s.key = key;
+      s.page = times_.size();
+      times_.resize(times_.size() + (size_t(1) << kPageBits), 0);
+      ++pages_;
+      break;
     }
-    if (keys_[h] == kEmptyKey) {
-      keys_[h] = line;
-      inserted = true;
-      ++table_used_;
-      return uint32_t(h);
-    }
-    h = (h + 1) & table_mask_;
+    h = (h + 1) & page_mask_;
   }
+  last_key_ = key;
+  last_page_ = page_table_[h].page;
+  return times_.data() + last_page_;
 }
 
-void StackDistance::grow_table() {
-  // Rehash into a table twice as large; owner_ (time -> slot) follows the moved slots.
-  std::vector<uint64_t> old_keys = std::move(keys_);
-  std::vector<uint32_t> old_times = std::move(times_);
-  const uint64_t size = old_keys.size() * 2;
-  keys_.assign(size, kEmptyKey);
-  times_.assign(size, 0);
-  table_mask_ = size - 1;
-  for (size_t i = 0; i < old_keys.size(); ++i) {
-    if (old_keys[i] == kEmptyKey) continue;
-    uint64_t h = mix(old_keys[i]) & table_mask_;
-    while (keys_[h] != kEmptyKey) h = (h + 1) & table_mask_;
-    keys_[h] = old_keys[i];
-    times_[h] = old_times[i];
-    owner_[old_times[i]] = uint32_t(h);
-  }
-}
-
-uint64_t StackDistance::prefix(uint32_t t) const {
+uint64_t StackDistance::tree_prefix(uint32_t block) const {
   uint64_t s = 0;
-  for (uint32_t i = t + 1; i > 0; i &= i - 1) s += tree_[i];
+  for (uint32_t i = block + 1; i > 0; i &= i - 1) s += tree_[i];
   return s;
 }
 
-void StackDistance::add(uint32_t t, int32_t delta) {
-  for (uint32_t i = t + 1; i <= capacity_; i += i & (0u - i)) tree_[i] += uint32_t(delta);
+void StackDistance::tree_add(uint32_t block, int32_t delta) {
+  const uint32_t n = uint32_t(tree_.size() - 1);
+  for (uint32_t i = block + 1; i <= n; i += i & (0u - i)) tree_[i] += uint32_t(delta);
+}
+
+void StackDistance::rebuild_tree() {
+  const uint32_t n = capacity_ >> kBlockBits, words = 1u << (kBlockBits - 6);
+  tree_.assign(n + 1, 0);
+  for (uint32_t b = 0; b < n; ++b)
+    for (uint32_t k = 0; k < words; ++k) tree_[b + 1] += count_bits(bits_[size_t(b) * words + k]);
+  for (uint32_t i = 1; i <= n; ++i) {  // O(n) Fenwick construction
+    const uint32_t parent = i + (i & (0u - i));
+    if (parent <= n) tree_[parent] += tree_[i];
+  }
+}
+
+uint64_t StackDistance::ones_after(uint32_t t) const {
+  const uint32_t w = t >> 6;
+  // (2 << 63) wraps to 0, and the mask to all ones: nothing after bit 63 in this word.
+  uint64_t n = count_bits(bits_[w] & ~((uint64_t(2) << (t & 63)) - 1));
+  const uint32_t last_word = (now_ - 1) >> 6;
+  constexpr uint32_t kWordsPerBlock = 1u << (kBlockBits - 6);
+  if (last_word - w <= kWordsPerBlock) {  // recent: count the words up to now directly
+    for (uint32_t k = w + 1; k <= last_word; ++k) n += count_bits(bits_[k]);
+    return n;
+  }
+  const uint32_t b = t >> kBlockBits;
+  for (uint32_t k = w + 1; k < (b + 1) * kWordsPerBlock; ++k) n += count_bits(bits_[k]);
+  return n + (live_ - tree_prefix(b));  // every live line has exactly one 1
 }
 
 void StackDistance::compact() {
-  // Every live line keeps its latest time; renumber those times 0..live-1 in order (order is all
-  // that distances depend on) and rebuild the tree. Capacity doubles when over half would be live,
-  // so each compaction is paid for by at least capacity/2 accesses.
-  uint32_t next = 0;
-  for (uint32_t t = 0; t < now_; ++t) {
-    const uint32_t slot = owner_[t];
-    if (keys_[slot] != kEmptyKey && times_[slot] == t) {
-      times_[slot] = next;
-      owner_[next++] = slot;
-    }
+  // Every seen line keeps a 1 at its latest time; its new time is the rank of that 1 (order is all
+  // that distances depend on). Capacity doubles when over half would be live, so each compaction
+  // is paid for by at least capacity/2 accesses.
+  const size_t words = bits_.size();
+  std::vector<uint32_t> before(words);
+  uint32_t ones = 0;
+  for (size_t k = 0; k < words; ++k) {
+    before[k] = ones;
+    ones += count_bits(bits_[k]);
   }
-  if (uint64_t(next) * 2 > capacity_) {
-    capacity_ *= 2;
-    owner_.resize(capacity_);
+  for (uint32_t& v : times_) {
+    if (v == 0) continue;
+    const uint32_t t = v - 1;
+    v = before[t >> 6] + count_bits(bits_[t >> 6] & ((uint64_t(1) << (t & 63)) - 1)) + 1;
   }
-  tree_.assign(capacity_ + 1, 0);
-  for (uint32_t t = 0; t < next; ++t) tree_[t + 1] = 1;
-  for (uint32_t i = 1; i <= capacity_; ++i) {  // O(n) Fenwick construction
-    const uint32_t parent = i + (i & (0u - i));
-    if (parent <= capacity_) tree_[parent] += tree_[i];
-  }
-  now_ = next;
+  if (uint64_t(ones) * 2 > capacity_) capacity_ *= 2;
+  bits_.assign(capacity_ / 64, 0);
+  for (uint32_t k = 0; k < ones / 64; ++k) bits_[k] = ~uint64_t(0);
+  if (ones % 64) bits_[ones / 64] = (uint64_t(1) << (ones % 64)) - 1;
+  rebuild_tree();
+  now_ = ones;
 }
 
 uint64_t StackDistance::access(uint64_t line) {
   if (sampled_ && (mix(line ^ 0x5851F42D4C957F2Dull) >> 40) >= sample_threshold_) return kCold;
   ++curve_.accesses;
   if (now_ == capacity_) compact();
-  if ((table_used_ + 1) * 2 > keys_.size()) grow_table();
-  bool inserted = false;
-  const uint32_t slot = find_or_insert(line, inserted);
+  uint32_t& slot = page_of(line)[line & ((uint64_t(1) << kPageBits) - 1)];
   uint64_t distance = kCold;
-  if (inserted) {
+  if (slot == 0) {
     ++live_;
     ++curve_.cold;
   } else {
-    const uint32_t last = times_[slot];
-    distance = live_ - prefix(last);  // live lines touched after `last`
-    add(last, -1);
+    const uint32_t last = slot - 1;
+    distance = ones_after(last);  // live lines touched after `last`
+    bits_[last >> 6] &= ~(uint64_t(1) << (last & 63));
+    tree_add(last >> kBlockBits, -1);
     const uint64_t bucket = sampled_ ? uint64_t(double(distance) * scale_) : distance;
     if (bucket >= curve_.histogram.size()) curve_.histogram.resize(std::max<uint64_t>(bucket + 1, curve_.histogram.size() * 2), 0);
     ++curve_.histogram[bucket];
   }
-  times_[slot] = now_;
-  owner_[now_] = slot;
-  add(now_, +1);
+  slot = now_ + 1;
+  bits_[now_ >> 6] |= uint64_t(1) << (now_ & 63);
+  tree_add(now_ >> kBlockBits, +1);
   ++now_;
   return distance;
 }

@@ -3,10 +3,18 @@
 // an access hits in a cache of C lines exactly when fewer than C distinct other lines were touched
 // since the previous access to the same line.
 //
-// StackDistance computes that distance exactly in O(log n) per access (Olken, 1981): a Fenwick tree
-// over access times holds a 1 at the latest access time of every line seen so far, so the distance
-// of a re-access is the number of 1s after the line's previous time. Times are renumbered (compacted)
-// when the tree fills, so memory stays proportional to the number of distinct lines, not accesses.
+// StackDistance computes that distance exactly (Olken, 1981: count the distinct lines touched since
+// the line's previous access), laid out for the host's caches, since a replay's time goes to host
+// cache misses:
+//  - every line's latest access time lives in a page of 16 consecutive lines (one 64-byte host
+//    line), found through a small open-addressed table of pages; GPU buffers are dense, so the
+//    pages of a trace take 4 bytes per line instead of a hash slot per line.
+//  - a bitmap over access times holds a 1 at the latest time of every line seen (a line's older
+//    times are cleared), so the distance of a re-access is the number of 1s after its previous time:
+//    a popcount of the bitmap words when that time is recent, else the 1s left in its 512-time block
+//    plus a Fenwick tree over the counts of whole blocks (a few KiB, so it stays in the host's L1).
+//  - times are renumbered (compacted) to ranks when the window fills; each line's new time is its
+//    rank, read off the same bitmap, so memory stays proportional to the lines seen, not accesses.
 //
 // SHARDS (Waldspurger et al., FAST 2015) is the sampled option: only lines whose hash falls under
 // rate * 2^24 are tracked and their distances scaled by 1/rate. Cheaper for very large footprints,
@@ -51,24 +59,34 @@ class StackDistance {
   uint64_t distinct_lines() const { return live_; }
 
  private:
-  uint32_t find_or_insert(uint64_t line, bool& inserted);
-  void grow_table();
+  static constexpr uint32_t kPageBits = 4;  // 16 lines' times per page: one 64-byte host line
+  static constexpr uint32_t kBlockBits = 9;  // 512 times per Fenwick block: 8 bitmap words
+
+  uint32_t* page_of(uint64_t line);  // the line's page, created (all "never seen") when new
+  void grow_pages();
   void compact();
-  uint64_t prefix(uint32_t t) const;  // live entries with time <= t
-  void add(uint32_t t, int32_t delta);
+  uint64_t ones_after(uint32_t t) const;  // set bits of the bitmap at times > t
+  void tree_add(uint32_t block, int32_t delta);
+  uint64_t tree_prefix(uint32_t block) const;  // ones in blocks [0, block]
+  void rebuild_tree();
 
   MissRatioCurve curve_;
   uint64_t sample_threshold_;  // hash < threshold (of 2^24) is tracked
   bool sampled_ = false;
   double scale_ = 1.0;
 
-  // Open-addressed hash: line -> slot; slot holds the line's latest time.
-  std::vector<uint64_t> keys_;
-  std::vector<uint32_t> times_;
-  uint64_t table_mask_ = 0, table_used_ = 0;
+  // Pages: key (line >> kPageBits) -> index into times_, open addressing, at most half full.
+  struct PageSlot {
+    uint64_t key;
+    uint64_t page;  // offset of the page's first entry in times_
+  };
+  std::vector<PageSlot> page_table_;
+  uint64_t page_mask_ = 0, pages_ = 0;
+  uint64_t last_key_ = ~uint64_t(0), last_page_ = 0;  // consecutive accesses often share a page
+  std::vector<uint32_t> times_;  // per line: latest access time + 1, 0 = never seen
 
-  std::vector<uint32_t> tree_;    // Fenwick tree, 1-based, over times [0, capacity)
-  std::vector<uint32_t> owner_;   // time -> slot in the hash table (for compaction)
+  std::vector<uint64_t> bits_;   // bitmap over times [0, capacity)
+  std::vector<uint32_t> tree_;   // Fenwick tree, 1-based, over block counts
   uint32_t capacity_ = 0, now_ = 0;
   uint64_t live_ = 0;
 };

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 
 #include "cachesim/hierarchy.hpp"
@@ -44,6 +45,37 @@ TEST(StackDistance, OnePassCurveEqualsSeparateFullyAssociativeSimulations) {
       EXPECT_EQ(c.misses(lines), misses);
     }
   }
+}
+
+// Every single distance against a naive LRU stack, on a stream built to exercise each path of the
+// implementation: short reuse (bitmap popcount), long reuse (Fenwick over blocks), repeated window
+// compaction and growth, pages of consecutive lines and isolated lines with huge numbers.
+TEST(StackDistance, EveryDistanceEqualsANaiveStack) {
+  std::mt19937_64 rng(21);
+  std::vector<uint64_t> s;
+  for (size_t i = 0; i < 60000; ++i) {
+    const uint64_t k = rng() % 16;
+    if (k < 5)
+      s.push_back(rng() % 48);  // hot
+    else if (k < 9)
+      s.push_back(5000 + (i / 2) % 9000);  // a sweep: long distances, cold lines, compactions
+    else if (k < 12)
+      s.push_back(rng() % 12000);
+    else if (k < 14)
+      s.push_back((rng() % 300) * 1000003ull);  // one line per page
+    else
+      s.push_back((uint64_t(1) << 59) + (rng() % 200) * (uint64_t(1) << 40));  // huge line numbers
+  }
+  StackDistance sd(64);
+  std::vector<uint64_t> stack;  // most recent first
+  for (size_t i = 0; i < s.size(); ++i) {
+    const auto it = std::find(stack.begin(), stack.end(), s[i]);
+    const uint64_t expected = it == stack.end() ? StackDistance::kCold : uint64_t(it - stack.begin());
+    if (it != stack.end()) stack.erase(it);
+    stack.insert(stack.begin(), s[i]);
+    ASSERT_EQ(sd.access(s[i]), expected) << "access " << i << " line " << s[i];
+  }
+  EXPECT_EQ(sd.distinct_lines(), stack.size());
 }
 
 TEST(StackDistance, DistancesOfAHandTrace) {
