@@ -10,5 +10,7 @@ void add_render_command(CLI::App& app);
 void add_devices_command(CLI::App& app);
 void add_bvh_command(CLI::App& app);
 void add_cachesim_command(CLI::App& app);
+void add_run_command(CLI::App& app);
+void add_merge_command(CLI::App& app);
 
 }  // namespace hp::cli

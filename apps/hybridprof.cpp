@@ -12,6 +12,8 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("hybridprof ") + HP_VERSION + " (" + HP_GIT_COMMIT + ")");
   hp::cli::add_render_command(app);
   hp::cli::add_devices_command(app);
+  hp::cli::add_run_command(app);
+  hp::cli::add_merge_command(app);
 #ifdef HP_HAVE_BVH_COMMAND
   hp::cli::add_bvh_command(app);
 #endif

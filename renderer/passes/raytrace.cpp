@@ -7,6 +7,7 @@
 #include "shaders/reflections_comp.h"
 #include "shaders/shadows_comp.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -185,7 +186,13 @@ void RayTracingPasses::dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint
                          VK_ACCESS_2_TRANSFER_READ_BIT);
 }
 
-void RayTracingPasses::record_shadows(VkCommandBuffer cmd) const { dispatch(cmd, shadow_pipeline_, width_, height_); }
+void RayTracingPasses::record_shadows(VkCommandBuffer cmd) const {
+  dispatch(cmd, shadow_pipeline_, width_, height_);
+  if (options_.inject_shadow_fraction > 0.0f) {
+    const uint32_t rows = std::min(height_, uint32_t(std::ceil(height_ * options_.inject_shadow_fraction)));
+    if (rows > 0) dispatch(cmd, shadow_pipeline_, width_, rows);
+  }
+}
 
 void RayTracingPasses::record_reflections(VkCommandBuffer cmd) const {
   dispatch(cmd, reflection_pipeline_, grid_w_, grid_h_);

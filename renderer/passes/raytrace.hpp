@@ -32,6 +32,9 @@ struct RayTracingOptions {
   bool counters = false;             ///< count rays, nodes visited, triangles tested (deterministic)
   bool dump_rays = false;            ///< record every ray and its result (tests, cross-checks)
   uint32_t seed = 1;
+  /// Gate-validation knob: the shadow pass re-traces the first fraction of the image rows (same results,
+  /// more work). 0 = off.
+  float inject_shadow_fraction = 0.0f;
 };
 
 /// Deterministic work counters of one frame (HP_RT_COUNTERS).

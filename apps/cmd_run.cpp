@@ -1,0 +1,61 @@
+// `hybridprof run` (a scenario or matrix file into OUT/results.jsonl) and `hybridprof merge` (shards).
+#include "apps/commands.hpp"
+#include "error.hpp"
+#include "runner.hpp"
+
+#include <cstdio>
+#include <memory>
+
+namespace hp::cli {
+
+void add_run_command(CLI::App& app) {
+  struct Args {
+    std::string file, out, shard = "1/1", device;
+    bool validate = false, list = false;
+  };
+  auto a = std::make_shared<Args>();
+  CLI::App* cmd = app.add_subcommand("run", "run every cell of a scenario matrix; resumable, shardable");
+  cmd->add_option("file", a->file, "scenario or matrix JSON file")->required();
+  cmd->add_option("--out", a->out, "output folder (results.jsonl, cells/<id>/ images)");
+  cmd->add_option("--shard", a->shard, "run only shard K of N (cells with index % N == K-1)")->capture_default_str();
+  cmd->add_option("--device", a->device, "Vulkan device: index or name substring");
+  cmd->add_flag("--validate", a->validate, "Khronos validation layer; any message fails");
+  cmd->add_flag("--list", a->list, "print the expanded cells (id and axis values) and exit");
+  cmd->callback([a] {
+    const Matrix m = load_matrix(a->file);
+    const Shard shard = parse_shard(a->shard);
+    if (a->list) {
+      for (size_t i = 0; i < m.cells.size(); ++i) {
+        std::printf("%s%s %s\n", m.cells[i].id().c_str(), shard.contains(i) ? "" : " (other shard)",
+                    m.cell_axis_values[i].dump().c_str());
+      }
+      return;
+    }
+    if (a->out.empty()) throw InputError("run: --out is required (the output folder)");
+    RunOptions o;
+    o.out_dir = a->out;
+    o.shard = shard;
+    o.device = a->device;
+    o.validate = a->validate;
+    const RunSummary s = run_matrix(m, o);
+    std::printf("%s: %zu cells, %zu in shard %u/%u, %zu already done, %zu run -> %s/results.jsonl\n", a->file.c_str(),
+                s.cells, s.in_shard, shard.index, shard.count, s.already_done, s.ran, a->out.c_str());
+  });
+}
+
+void add_merge_command(CLI::App& app) {
+  struct Args {
+    std::string out;
+    std::vector<std::string> shards;
+  };
+  auto a = std::make_shared<Args>();
+  CLI::App* cmd = app.add_subcommand("merge", "join the output folders of shards into one");
+  cmd->add_option("--out", a->out, "merged output folder")->required();
+  cmd->add_option("shards", a->shards, "shard output folders")->required();
+  cmd->callback([a] {
+    const size_t n = merge_results(a->out, a->shards);
+    std::printf("merged %zu cell(s) into %s/results.jsonl\n", n, a->out.c_str());
+  });
+}
+
+}  // namespace hp::cli

@@ -1,0 +1,197 @@
+#include "runner.hpp"
+
+#include "error.hpp"
+#include "frame_profiler.hpp"
+#include "scene/load.hpp"
+#include "timing/result_json.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <unistd.h>
+
+namespace hp {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace {
+
+constexpr const char* kResults = "results.jsonl";
+
+Camera camera_for(const Scenario& s, const Scene& scene) {
+  const float aspect = float(s.frame.width) / float(s.frame.height);
+  Camera cam = scene.has_camera ? scene.camera : auto_frame(scene, aspect);
+  if (s.camera_position) cam.position = *s.camera_position;
+  if (s.camera_target) cam.target = *s.camera_target;
+  if (s.camera_fov_deg) cam.vfov_deg = *s.camera_fov_deg;
+  return cam;
+}
+
+std::string eta(double seconds) {
+  char buf[32];
+  if (seconds < 60) std::snprintf(buf, sizeof(buf), "%.0fs", seconds);
+  else std::snprintf(buf, sizeof(buf), "%dm%02ds", int(seconds) / 60, int(seconds) % 60);
+  return buf;
+}
+
+// Appends one line and makes it durable before the next cell starts.
+void append_line(const fs::path& path, const std::string& line) {
+  FILE* f = std::fopen(path.c_str(), "ab");
+  if (!f) throw InputError(path.string() + ": cannot open for appending");
+  const bool ok = std::fwrite(line.data(), 1, line.size(), f) == line.size() && std::fputc('\n', f) != EOF &&
+                  std::fflush(f) == 0 && ::fsync(::fileno(f)) == 0;
+  std::fclose(f);
+  if (!ok) throw InputError(path.string() + ": write failed");
+}
+
+}  // namespace
+
+std::vector<json> read_results(const std::string& out_dir) {
+  std::vector<json> out;
+  const fs::path path = fs::path(out_dir) / kResults;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return out;
+  std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  size_t start = 0, line_no = 0;
+  while (start < content.size()) {
+    const size_t end = content.find('\n', start);
+    if (end == std::string::npos) break;  // an unterminated last line: an interrupted write, ignored
+    ++line_no;
+    const std::string line = content.substr(start, end - start);
+    start = end + 1;
+    if (line.empty()) continue;
+    try {
+      out.push_back(json::parse(line));
+    } catch (const json::parse_error& e) {
+      throw InputError(path.string() + ":" + std::to_string(line_no) + ": corrupt result line (" +
+                       std::string(e.what()).substr(0, 120) + ")");
+    }
+  }
+  return out;
+}
+
+RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
+  RunSummary sum;
+  sum.cells = m.cells.size();
+  const fs::path out(o.out_dir);
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec) throw InputError(o.out_dir + ": cannot create the output folder: " + ec.message());
+  const fs::path results = out / kResults;
+
+  // Resume: cells already in the file are done. A partial last line is cut off so appends stay aligned.
+  std::set<std::string> done;
+  for (const json& r : read_results(o.out_dir)) done.insert(r.value("id", ""));
+  if (fs::exists(results)) {
+    std::ifstream in(results, std::ios::binary);
+    std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const size_t last = content.rfind('\n');
+    const size_t keep = last == std::string::npos ? 0 : last + 1;
+    if (keep != content.size()) fs::resize_file(results, keep);
+  }
+
+  std::vector<size_t> todo;
+  for (size_t i = 0; i < m.cells.size(); ++i) {
+    if (!o.shard.contains(i)) continue;
+    ++sum.in_shard;
+    if (done.count(m.cells[i].id())) {
+      ++sum.already_done;
+      continue;
+    }
+    todo.push_back(i);
+  }
+  if (todo.empty()) return sum;
+
+  vk::Context ctx({o.device, o.validate, true});
+  const Environment env = capture_environment(describe_device(ctx));
+  std::map<std::string, Scene> scenes;
+  const bool tty = o.progress && ::isatty(::fileno(stderr));
+  const auto t_start = std::chrono::steady_clock::now();
+  for (size_t k = 0; k < todo.size(); ++k) {
+    const size_t i = todo[k];
+    const Scenario& s = m.cells[i];
+    const std::string id = s.id();
+    if (tty) {
+      const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+      const std::string left = k == 0 ? "?" : eta(el / double(k) * double(todo.size() - k));
+      std::fprintf(stderr, "\r[%zu/%zu] %s %s  ETA %s   ", k + 1, todo.size(), id.c_str(), m.cell_axis_values[i].dump().c_str(),
+                   left.c_str());
+      std::fflush(stderr);
+    }
+    const auto t_cell = std::chrono::steady_clock::now();
+    auto it = scenes.find(s.scene);
+    if (it == scenes.end()) it = scenes.emplace(s.scene, load_scene(s.scene)).first;
+    Scene scene = it->second;
+    if (s.light_direction) scene.light.direction = glm::normalize(*s.light_direction);
+    if (s.light_intensity) scene.light.intensity = *s.light_intensity;
+    const Camera camera = camera_for(s, scene);
+    Frame frame(ctx, scene, camera, s.frame);
+    ProfileOptions po;
+    po.warmup = s.warmup;
+    po.frames = s.frames;
+    const FrameTimings timings = profile_frames(frame, po);
+    const fs::path cell_dir = out / "cells" / id;
+    fs::create_directories(cell_dir);
+    json images = json::object();
+    write_image((cell_dir / "color.png").string(), frame.read_color());
+    images["color"] = "cells/" + id + "/color.png";
+    if (s.frame.rt.shadows) {
+      write_image((cell_dir / "shadow.png").string(), frame.read_aov(Aov::shadow));
+      images["shadow"] = "cells/" + id + "/shadow.png";
+    }
+    if (ctx.validation_enabled() && ctx.validation_message_count() > 0) {
+      throw std::runtime_error("cell " + id + ": validation messages; last: " + ctx.last_validation_message());
+    }
+    json line;
+    line["schema"] = "hybridprof.cell";
+    line["version"] = 1;
+    line["id"] = id;
+    line["matrix"] = m.name;
+    line["name"] = s.name;
+    line["axes"] = m.cell_axis_values[i];
+    line["config"] = s.canonical();
+    line["result"] = timing_result_json(env, timings);
+    line["scene"] = {{"triangles", triangle_count(scene)}};
+    if (const RtGeometry* g = frame.rt_geometry()) {
+      const bvh::BvhStats st = bvh::bvh_stats(g->bvh);
+      line["bvh"] = {{"build_ms", g->build_ms}, {"nodes", st.nodes},        {"leaves", st.leaves},
+                     {"max_depth", st.max_depth}, {"sah_cost", st.sah_cost}};
+    }
+    line["images"] = images;
+    line["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cell).count();
+    append_line(results, line.dump());
+    ++sum.ran;
+  }
+  if (tty) std::fprintf(stderr, "\n");
+  return sum;
+}
+
+size_t merge_results(const std::string& out_dir, const std::vector<std::string>& shard_dirs) {
+  const fs::path out(out_dir);
+  fs::create_directories(out);
+  std::set<std::string> seen;
+  for (const json& r : read_results(out_dir)) seen.insert(r.value("id", ""));
+  size_t added = 0;
+  for (const std::string& d : shard_dirs) {
+    if (!fs::exists(fs::path(d) / kResults)) throw InputError(d + ": no " + std::string(kResults) + " to merge");
+    for (const json& r : read_results(d)) {
+      const std::string id = r.value("id", "");
+      if (id.empty()) throw InputError(d + "/" + kResults + ": a line without an id");
+      if (!seen.insert(id).second) continue;
+      const fs::path cell = fs::path(d) / "cells" / id;
+      if (fs::exists(cell)) {
+        fs::create_directories(out / "cells");
+        fs::copy(cell, out / "cells" / id, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+      }
+      append_line(out / kResults, r.dump());
+      ++added;
+    }
+  }
+  return added;
+}
+
+}  // namespace hp

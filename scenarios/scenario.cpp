@@ -1,0 +1,350 @@
+#include "scenario.hpp"
+
+#include "error.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace hp {
+
+namespace {
+
+using json = nlohmann::json;
+
+std::string join(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
+
+[[noreturn]] void fail(const std::string& file, const std::string& path, const std::string& why) {
+  throw InputError(file + ": " + (path.empty() ? std::string("(top level)") : path) + ": " + why);
+}
+
+void only_keys(const json& j, const std::set<std::string>& allowed, const std::string& file, const std::string& path) {
+  if (!j.is_object()) fail(file, path, std::string("expected an object, got ") + j.type_name());
+  for (const auto& [k, v] : j.items()) {
+    if (!allowed.count(k)) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      fail(file, join(path, k), "unknown key (allowed here: " + list + ")");
+    }
+  }
+}
+
+struct Reader {
+  const json& j;
+  const std::string& file;
+  const std::string& path;
+
+  const json* get(const char* key) const { return j.contains(key) ? &j.at(key) : nullptr; }
+  std::string where(const char* key) const { return join(path, key); }
+
+  bool boolean(const char* key, bool def) const {
+    const json* v = get(key);
+    if (!v) return def;
+    if (!v->is_boolean()) fail(file, where(key), std::string("expected true or false, got ") + v->type_name());
+    return v->get<bool>();
+  }
+  double number(const char* key, double def, double lo, double hi) const {
+    const json* v = get(key);
+    if (!v) return def;
+    if (!v->is_number()) fail(file, where(key), std::string("expected a number, got ") + v->type_name());
+    const double x = v->get<double>();
+    if (!std::isfinite(x) || x < lo || x > hi) {
+      std::ostringstream s;
+      s << x << " is outside [" << lo << ", " << hi << "]";
+      fail(file, where(key), s.str());
+    }
+    return x;
+  }
+  int64_t integer(const char* key, int64_t def, int64_t lo, int64_t hi) const {
+    const json* v = get(key);
+    if (!v) return def;
+    if (!v->is_number_integer()) fail(file, where(key), std::string("expected an integer, got ") + v->type_name());
+    const int64_t x = v->get<int64_t>();
+    if (x < lo || x > hi) {
+      fail(file, where(key), std::to_string(x) + " is outside [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    }
+    return x;
+  }
+  std::string string(const char* key, const std::string& def) const {
+    const json* v = get(key);
+    if (!v) return def;
+    if (!v->is_string()) fail(file, where(key), std::string("expected a string, got ") + v->type_name());
+    return v->get<std::string>();
+  }
+  std::string choice(const char* key, const std::string& def, const std::vector<std::string>& choices) const {
+    const std::string s = string(key, def);
+    for (const auto& c : choices) {
+      if (s == c) return s;
+    }
+    std::string list;
+    for (const auto& c : choices) list += (list.empty() ? "" : ", ") + c;
+    fail(file, where(key), "'" + s + "' is not one of " + list);
+  }
+  std::optional<glm::vec3> vec3(const char* key) const {
+    const json* v = get(key);
+    if (!v) return std::nullopt;
+    if (!v->is_array() || v->size() != 3) fail(file, where(key), "expected an array of three numbers");
+    glm::vec3 out;
+    for (int i = 0; i < 3; ++i) {
+      if (!(*v)[i].is_number()) fail(file, where(key) + "[" + std::to_string(i) + "]", "expected a number");
+      out[i] = (*v)[i].get<float>();
+      if (!std::isfinite(out[i])) fail(file, where(key) + "[" + std::to_string(i) + "]", "not finite");
+    }
+    return out;
+  }
+  const json* object(const char* key, const std::set<std::string>& allowed) const {
+    const json* v = get(key);
+    if (v) only_keys(*v, allowed, file, where(key));
+    return v;
+  }
+};
+
+const std::set<std::string> kTopKeys = {"name", "scene", "camera", "light", "resolution", "reversed_z", "passes",
+                                        "geometry", "jitter", "shadow_offset", "bias", "reflection_scale",
+                                        "roughness_threshold", "reflection_shadows", "bvh", "frames", "warmup",
+                                        "counters", "seed", "cache_preset", "inject"};
+
+json vec_json(const std::optional<glm::vec3>& v) {
+  if (!v) return nullptr;
+  return json::array({(*v).x, (*v).y, (*v).z});
+}
+
+uint64_t fnv1a(const std::string& s) {
+  uint64_t h = 1469598103934665603ull;
+  for (unsigned char c : s) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+void set_path(json& j, const std::string& path, const json& value) {
+  json* cur = &j;
+  std::stringstream ss(path);
+  std::string part;
+  std::vector<std::string> parts;
+  while (std::getline(ss, part, '.')) parts.push_back(part);
+  for (size_t i = 0; i + 1 < parts.size(); ++i) {
+    if (!cur->contains(parts[i]) || !(*cur)[parts[i]].is_object()) (*cur)[parts[i]] = json::object();
+    cur = &(*cur)[parts[i]];
+  }
+  (*cur)[parts.back()] = value;
+}
+
+}  // namespace
+
+Scenario parse_scenario(const json& j, const std::string& file, const std::string& path) {
+  only_keys(j, kTopKeys, file, path);
+  Reader r{j, file, path};
+  Scenario s;
+  s.name = r.string("name", "");
+  s.scene = r.string("scene", s.scene);
+  if (s.scene.empty()) fail(file, r.where("scene"), "empty scene");
+  if (const json* c = r.object("camera", {"position", "target", "fov"})) {
+    Reader cr{*c, file, r.where("camera")};
+    s.camera_position = cr.vec3("position");
+    s.camera_target = cr.vec3("target");
+    if (c->contains("fov")) s.camera_fov_deg = float(cr.number("fov", 45.0, 1.0, 179.0));
+    if (s.camera_position && s.camera_target && *s.camera_position == *s.camera_target) {
+      fail(file, cr.where("target"), "equals camera.position");
+    }
+  }
+  if (const json* l = r.object("light", {"direction", "intensity"})) {
+    Reader lr{*l, file, r.where("light")};
+    s.light_direction = lr.vec3("direction");
+    if (s.light_direction && glm::length(*s.light_direction) == 0.0f) fail(file, lr.where("direction"), "zero vector");
+    if (l->contains("intensity")) s.light_intensity = float(lr.number("intensity", 3.0, 0.0, 1e6));
+  }
+  FrameSettings& f = s.frame;
+  if (const json* res = r.get("resolution")) {
+    if (!res->is_array() || res->size() != 2 || !(*res)[0].is_number_integer() || !(*res)[1].is_number_integer()) {
+      fail(file, r.where("resolution"), "expected [width, height] integers");
+    }
+    const int64_t w = (*res)[0].get<int64_t>(), h = (*res)[1].get<int64_t>();
+    if (w < 1 || h < 1 || w > kMaxImageSide || h > kMaxImageSide) {
+      fail(file, r.where("resolution"), std::to_string(w) + "x" + std::to_string(h) + " is outside 1.." +
+                                            std::to_string(kMaxImageSide) + " per side");
+    }
+    f.width = uint32_t(w);
+    f.height = uint32_t(h);
+  }
+  f.reversed_z = r.boolean("reversed_z", false);
+  f.rt.shadows = true;
+  f.rt.reflections = true;
+  if (const json* p = r.object("passes", {"shadows", "reflections"})) {
+    Reader pr{*p, file, r.where("passes")};
+    f.rt.shadows = pr.boolean("shadows", true);
+    f.rt.reflections = pr.boolean("reflections", true);
+  }
+  f.geometry = parse_geometry_layout(r.choice("geometry", "indexed", {"indexed", "soup"}));
+  f.rt.jitter = parse_jitter_mode(r.choice("jitter", "per-thread", {"shared", "per-thread"}));
+  f.rt.offset = parse_shadow_offset(r.choice("shadow_offset", "normal-bias", {"normal-bias", "robust"}));
+  f.rt.bias = float(r.number("bias", 0.1, 0.0, 1e6));
+  const double scale = r.number("reflection_scale", 1.0, 0.25, 1.0);
+  if (scale != 1.0 && scale != 0.5 && scale != 0.25) fail(file, r.where("reflection_scale"), "must be 1, 0.5 or 0.25");
+  f.rt.reflection_divisor = uint32_t(std::lround(1.0 / scale));
+  f.rt.roughness_threshold = float(r.number("roughness_threshold", 0.35, 0.0, 1.01));
+  f.rt.reflection_shadows = r.boolean("reflection_shadows", true);
+  if (const json* b = r.object("bvh", {"buckets", "full_sweep", "leaf_size", "granularity", "traversal_cost"})) {
+    Reader br{*b, file, r.where("bvh")};
+    f.bvh.buckets = int(br.integer("buckets", 12, 2, 1024));
+    f.bvh.full_sweep = br.boolean("full_sweep", false);
+    f.bvh.max_leaf_size = int(br.integer("leaf_size", 4, 1, 1 << 20));
+    f.bvh.granularity = br.choice("granularity", "triangle", {"triangle", "object"}) == "object"
+                            ? bvh::Granularity::object
+                            : bvh::Granularity::triangle;
+    f.bvh.traversal_cost = float(br.number("traversal_cost", 0.5, 1e-6, 1e6));
+  }
+  s.frames = uint32_t(r.integer("frames", 10, 1, 100000));
+  s.warmup = uint32_t(r.integer("warmup", 3, 0, 100000));
+  f.rt.counters = r.boolean("counters", true);
+  f.rt.seed = uint32_t(r.integer("seed", 1, 0, 0xFFFFFFFFll));
+  s.cache_preset = r.string("cache_preset", s.cache_preset);
+  if (const json* in = r.object("inject", {"pass", "fraction"})) {
+    Reader ir{*in, file, r.where("inject")};
+    s.inject_pass = ir.choice("pass", "shadows", {"shadows"});
+    s.inject_fraction = float(ir.number("fraction", 0.0, 0.0, 1.0));
+  }
+  if (s.inject_fraction > 0.0f && !f.rt.shadows) fail(file, r.where("inject"), "injects work into shadows, which are off");
+  f.rt.inject_shadow_fraction = s.inject_fraction;
+  return s;
+}
+
+json Scenario::canonical() const {
+  const FrameSettings& f = frame;
+  json j;
+  j["scene"] = scene;
+  j["camera"] = {{"position", vec_json(camera_position)}, {"target", vec_json(camera_target)},
+                 {"fov", camera_fov_deg ? json(*camera_fov_deg) : json(nullptr)}};
+  j["light"] = {{"direction", vec_json(light_direction)},
+                {"intensity", light_intensity ? json(*light_intensity) : json(nullptr)}};
+  j["resolution"] = {f.width, f.height};
+  j["reversed_z"] = f.reversed_z;
+  j["passes"] = {{"shadows", f.rt.shadows}, {"reflections", f.rt.reflections}};
+  j["geometry"] = to_string(f.geometry);
+  j["jitter"] = to_string(f.rt.jitter);
+  j["shadow_offset"] = to_string(f.rt.offset);
+  j["bias"] = f.rt.bias;
+  j["reflection_scale"] = 1.0 / f.rt.reflection_divisor;
+  j["roughness_threshold"] = f.rt.roughness_threshold;
+  j["reflection_shadows"] = f.rt.reflection_shadows;
+  j["bvh"] = {{"buckets", f.bvh.buckets},
+              {"full_sweep", f.bvh.full_sweep},
+              {"leaf_size", f.bvh.max_leaf_size},
+              {"granularity", f.bvh.granularity == bvh::Granularity::object ? "object" : "triangle"},
+              {"traversal_cost", f.bvh.traversal_cost}};
+  j["frames"] = frames;
+  j["warmup"] = warmup;
+  j["counters"] = f.rt.counters;
+  j["seed"] = f.rt.seed;
+  j["cache_preset"] = cache_preset;
+  j["inject"] = {{"pass", inject_pass}, {"fraction", inject_fraction}};
+  return j;  // nlohmann::json objects are key-sorted: dump() is canonical
+}
+
+std::string Scenario::id() const {
+  char buf[17];
+  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(fnv1a(canonical().dump())));
+  return buf;
+}
+
+Matrix parse_matrix(const json& doc, const std::string& file) {
+  Matrix m;
+  m.file = file;
+  if (!doc.is_object()) fail(file, "", std::string("expected an object, got ") + doc.type_name());
+  const bool is_matrix = doc.contains("base") || doc.contains("axes");
+  if (!is_matrix) {
+    m.cells.push_back(parse_scenario(doc, file));
+    m.name = m.cells[0].name;
+    m.cell_axis_values.push_back(json::object());
+    return m;
+  }
+  only_keys(doc, {"name", "base", "axes", "exclude"}, file, "");
+  m.name = doc.value("name", "");
+  const json base = doc.value("base", json::object());
+  parse_scenario(base, file, "base");  // validate the base alone first: clearer errors
+  const json axes = doc.value("axes", json::object());
+  if (!axes.is_object()) fail(file, "axes", "expected an object of key path -> list of values");
+  std::vector<std::pair<std::string, json>> ax;
+  for (const auto& [k, v] : axes.items()) {
+    if (!v.is_array() || v.empty()) fail(file, "axes." + k, "expected a non-empty list of values");
+    ax.emplace_back(k, v);
+    m.axes.push_back(k);
+  }
+  const json excludes = doc.value("exclude", json::array());
+  if (!excludes.is_array()) fail(file, "exclude", "expected a list of {axis: value} objects");
+  for (size_t e = 0; e < excludes.size(); ++e) {
+    if (!excludes[e].is_object() || excludes[e].empty()) fail(file, "exclude[" + std::to_string(e) + "]", "expected a non-empty object");
+    for (const auto& [k, v] : excludes[e].items()) {
+      if (!axes.contains(k)) fail(file, "exclude[" + std::to_string(e) + "]." + k, "is not an axis");
+    }
+  }
+  size_t total = 1;
+  for (const auto& a : ax) total *= a.second.size();
+  if (total > 100000) fail(file, "axes", std::to_string(total) + " cells: over the limit of 100000");
+  std::set<std::string> ids;
+  for (size_t i = 0; i < total; ++i) {
+    json cell = base;
+    json coords = json::object();
+    size_t rest = i;
+    // The first axis varies slowest.
+    std::vector<size_t> pick(ax.size());
+    for (size_t a = ax.size(); a-- > 0;) {
+      pick[a] = rest % ax[a].second.size();
+      rest /= ax[a].second.size();
+    }
+    for (size_t a = 0; a < ax.size(); ++a) {
+      const json& v = ax[a].second[pick[a]];
+      set_path(cell, ax[a].first, v);
+      coords[ax[a].first] = v;
+    }
+    bool excluded = false;
+    for (const auto& ex : excludes) {
+      bool all = true;
+      for (const auto& [k, v] : ex.items()) all = all && coords[k] == v;
+      excluded = excluded || all;
+    }
+    if (excluded) continue;
+    std::string where;
+    for (size_t a = 0; a < ax.size(); ++a) {
+      where += (where.empty() ? "" : ", ") + ax[a].first + "[" + std::to_string(pick[a]) + "]";
+    }
+    Scenario s = parse_scenario(cell, file, "axes (" + where + ")");
+    if (s.name.empty()) s.name = m.name;
+    if (!ids.insert(s.id()).second) fail(file, "axes (" + where + ")", "duplicates an earlier cell");
+    m.cells.push_back(std::move(s));
+    m.cell_axis_values.push_back(coords);
+  }
+  if (m.cells.empty()) fail(file, "exclude", "excludes every cell");
+  return m;
+}
+
+Matrix load_matrix(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open scenario file");
+  json doc;
+  try {
+    doc = json::parse(in);
+  } catch (const json::parse_error& e) {
+    std::string what = e.what();
+    for (char& c : what) c = c == '\n' ? ' ' : c;
+    throw InputError(path + ": broken JSON: " + what);
+  }
+  return parse_matrix(doc, path);
+}
+
+Shard parse_shard(const std::string& text) {
+  Shard s;
+  unsigned k = 0, n = 0;
+  char slash = 0;
+  std::istringstream in(text);
+  if (!(in >> k >> slash >> n) || slash != '/' || !in.eof() || n == 0 || k == 0 || k > n) {
+    throw InputError("--shard '" + text + "': expected K/N with 1 <= K <= N");
+  }
+  s.index = k;
+  s.count = n;
+  return s;
+}
+
+}  // namespace hp

@@ -1,0 +1,65 @@
+// Scenario files: what one matrix cell renders and measures, and matrices of them.
+//
+// A scenario is a JSON object (schema in README "Scenario files"); every key is optional and has a default,
+// an unknown key, a wrong type or an impossible value is an hp::InputError naming the file and the key path.
+// A matrix file is {"base": {scenario}, "axes": {"key.path": [values...]}, "exclude": [{"key.path": value}]},
+// expanded as the cartesian product of the axes (the first axis varies slowest), minus the excluded
+// combinations. A plain scenario file is a matrix of one cell.
+#pragma once
+
+#include "frame.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace hp {
+
+struct Scenario {
+  std::string name;              ///< label for reports (not part of the id)
+  std::string scene = "builtin:pica";
+  std::optional<glm::vec3> camera_position, camera_target;
+  std::optional<float> camera_fov_deg;
+  std::optional<glm::vec3> light_direction;
+  std::optional<float> light_intensity;
+  FrameSettings frame;           ///< resolution, passes and their options, BVH build
+  uint32_t frames = 10;          ///< measured frames
+  uint32_t warmup = 3;           ///< discarded frames before them
+  std::string cache_preset = "vega56";
+  /// A documented knob for validating the regression gate: the named pass does this much extra work
+  /// (the shadow pass re-traces the first `inject_fraction` of the image rows). 0 = off.
+  std::string inject_pass = "shadows";
+  float inject_fraction = 0.0f;
+
+  /// The canonical configuration: every field, defaults filled, keys sorted; the id hashes it.
+  nlohmann::json canonical() const;
+  /// A stable id: 16 hex digits of a 64-bit FNV-1a hash of canonical().dump().
+  std::string id() const;
+};
+
+/// Parses one scenario object. `file` and `path` prefix every error ("FILE: path.key: reason").
+Scenario parse_scenario(const nlohmann::json& j, const std::string& file, const std::string& path = "");
+
+struct Matrix {
+  std::string file;
+  std::string name;
+  std::vector<std::string> axes;   ///< axis key paths, in file order
+  std::vector<Scenario> cells;     ///< expanded, excludes removed, in deterministic order
+  std::vector<nlohmann::json> cell_axis_values;  ///< per cell: {"axis": value} of its coordinates
+};
+
+/// Expands a matrix (or single scenario) document.
+Matrix parse_matrix(const nlohmann::json& doc, const std::string& file);
+/// Reads and expands a scenario or matrix file (errors name the file; broken JSON gives line/column).
+Matrix load_matrix(const std::string& path);
+
+/// "K/N" (1 <= K <= N): this shard runs the cells whose index i has i % N == K - 1.
+struct Shard {
+  uint32_t index = 1, count = 1;
+  bool contains(size_t cell) const { return cell % count == index - 1; }
+};
+Shard parse_shard(const std::string& text);  // throws InputError naming --shard
+
+}  // namespace hp
