@@ -2,6 +2,7 @@
 
 #include "error.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -249,7 +250,7 @@ std::string Scenario::id() const {
   return buf;
 }
 
-Matrix parse_matrix(const json& doc, const std::string& file) {
+Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<std::string>& axis_order) {
   Matrix m;
   m.file = file;
   if (!doc.is_object()) fail(file, "", std::string("expected an object, got ") + doc.type_name());
@@ -267,7 +268,13 @@ Matrix parse_matrix(const json& doc, const std::string& file) {
   const json axes = doc.value("axes", json::object());
   if (!axes.is_object()) fail(file, "axes", "expected an object of key path -> list of values");
   std::vector<std::pair<std::string, json>> ax;
+  std::vector<std::string> order = axis_order;
   for (const auto& [k, v] : axes.items()) {
+    if (std::find(order.begin(), order.end(), k) == order.end()) order.push_back(k);
+  }
+  for (const std::string& k : order) {
+    if (!axes.contains(k)) continue;
+    const json& v = axes.at(k);
     if (!v.is_array() || v.empty()) fail(file, "axes." + k, "expected a non-empty list of values");
     ax.emplace_back(k, v);
     m.axes.push_back(k);
@@ -324,14 +331,21 @@ Matrix load_matrix(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open scenario file");
   json doc;
+  std::vector<std::string> axis_order;
   try {
-    doc = json::parse(in);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    // Parsed once more with insertion order kept, only to learn the order of the axes.
+    const nlohmann::ordered_json ordered = nlohmann::ordered_json::parse(text);
+    if (ordered.is_object() && ordered.contains("axes") && ordered["axes"].is_object()) {
+      for (const auto& [k, v] : ordered["axes"].items()) axis_order.push_back(k);
+    }
+    doc = json::parse(text);
   } catch (const json::parse_error& e) {
     std::string what = e.what();
     for (char& c : what) c = c == '\n' ? ' ' : c;
     throw InputError(path + ": broken JSON: " + what);
   }
-  return parse_matrix(doc, path);
+  return parse_matrix(doc, path, axis_order);
 }
 
 Shard parse_shard(const std::string& text) {

@@ -50,8 +50,10 @@ struct Matrix {
   std::vector<nlohmann::json> cell_axis_values;  ///< per cell: {"axis": value} of its coordinates
 };
 
-/// Expands a matrix (or single scenario) document.
-Matrix parse_matrix(const nlohmann::json& doc, const std::string& file);
+/// Expands a matrix (or single scenario) document. `axis_order` lists the axes in file order (nlohmann::json
+/// objects are key-sorted); without it the axes vary in key order.
+Matrix parse_matrix(const nlohmann::json& doc, const std::string& file,
+                    const std::vector<std::string>& axis_order = {});
 /// Reads and expands a scenario or matrix file (errors name the file; broken JSON gives line/column).
 Matrix load_matrix(const std::string& path);
 
