@@ -202,8 +202,15 @@ class Cache {
       uint64_t tag;
       const uint32_t set = locate(line, tag);
       if (tag < kEmpty32) [[likely]] {
-        if (sectored_) return compact_access<op, true>(set, uint32_t(tag), sectors);
-        return compact_access<op, false>(set, uint32_t(tag), sectors);
+        const uint32_t t = uint32_t(tag);
+        if (sectored_) {
+          if (stride_ == 4) return compact_access<op, true, 4>(set, t, sectors);
+          if (stride_ == 8) return compact_access<op, true, 8>(set, t, sectors);
+          return compact_access<op, true, 16>(set, t, sectors);
+        }
+        if (stride_ == 4) return compact_access<op, false, 4>(set, t, sectors);
+        if (stride_ == 8) return compact_access<op, false, 8>(set, t, sectors);
+        return compact_access<op, false, 16>(set, t, sectors);
       }
       to_general();
     }
@@ -211,33 +218,38 @@ class Cache {
   }
 
   // Bit i set when way i of the set holds `tag` (padding ways hold kEmpty32, never a real tag).
-  uint32_t match_ways(const uint32_t* tags, uint32_t tag) const {
+  // The set's width is a template argument so the comparison unrolls.
+  template <uint32_t kStride>
+  static uint32_t match_ways(const uint32_t* tags, uint32_t tag) {
 #if defined(__SSE2__)
     const __m128i key = _mm_set1_epi32(int(tag));
     uint32_t m = 0;
-    for (uint32_t c = 0; c < stride_; c += 4) {
+    for (uint32_t c = 0; c < kStride; c += 4) {
       const __m128i t = _mm_load_si128(reinterpret_cast<const __m128i*>(tags + c));
       m |= uint32_t(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(t, key)))) << c;
     }
     return m;
 #else
     uint32_t m = 0;
-    for (uint32_t i = 0; i < stride_; ++i) m |= uint32_t(tags[i] == tag) << i;
+    for (uint32_t i = 0; i < kStride; ++i) m |= uint32_t(tags[i] == tag) << i;
     return m;
 #endif
   }
+  uint32_t match_ways(const uint32_t* tags, uint32_t tag) const {
+    return stride_ == 4 ? match_ways<4>(tags, tag) : stride_ == 8 ? match_ways<8>(tags, tag) : match_ways<16>(tags, tag);
+  }
 
-  template <Op op, bool sectored>
+  template <Op op, bool sectored, uint32_t kStride>
   Outcome compact_access(uint32_t set, uint32_t tag, uint32_t sectors) {
-    uint32_t* tags = tag32_.get() + size_t(set) * stride_;
+    uint32_t* tags = tag32_.get() + size_t(set) * kStride;
     SetState& st = state_[set];
-    const uint32_t match = match_ways(tags, tag);
+    const uint32_t match = match_ways<kStride>(tags, tag);
     Outcome o;
     if (match) {
       const uint32_t w = uint32_t(std::countr_zero(match));
       o.line_hit = true;
       if constexpr (sectored) {
-        Meta& m = meta_[size_t(set) * stride_ + w];
+        Meta& m = meta_[size_t(set) * kStride + w];
         o.missing = sectors & ~m.valid;
         m.valid |= sectors;
         if constexpr (op != kLoad) m.dirty |= sectors;
@@ -253,7 +265,7 @@ class Cache {
     const uint32_t v = uint32_t(st.order >> (4 * last)) & 0xF;
     st.order = move_to_front(st.order, last, v);
     if constexpr (sectored) {
-      Meta& m = meta_[size_t(set) * stride_ + v];
+      Meta& m = meta_[size_t(set) * kStride + v];
       if (tags[v] != kEmpty32) o.written_back_sectors = count_bits(m.dirty);
       m = Meta{sectors, op == kLoad ? 0u : sectors};
     } else {

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <array>
+
 #include <random>
 
 #include "cachesim/hierarchy.hpp"
@@ -24,11 +26,16 @@ struct RefHierarchy {
   ref::RefCache l2;
   uint32_t sector_bytes;
   HierarchyStats s;
+  std::array<BufferStats, 256> b{};
+  IssueResult last;  // outcome of the latest issue
   RefHierarchy(const CacheConfig& c1, uint32_t cus, const CacheConfig& c2)
       : l1(cus, ref::RefCache(c1)), l2(c2), sector_bytes(c2.sector_bytes) {}
   void issue(uint32_t cu, const Request& r) {
     uint32_t to_l2 = r.sectors;
+    last = {};
+    BufferStats& buf = b[r.buffer];
     if (r.kind == AccessKind::load) {
+      ++buf.l1_requests;
       ++s.l1.requests;
       s.l1.sectors += std::popcount(r.sectors);
       auto o = l1[cu].access(r.line, r.sectors, 0);
@@ -40,6 +47,8 @@ struct RefHierarchy {
         return;
       }
       ++s.l1.misses;
+      ++buf.l1_misses;
+      last.l1_miss = true;
       to_l2 = o.missing;
     } else if (r.kind == AccessKind::store) {
       ++s.stores;
@@ -47,6 +56,7 @@ struct RefHierarchy {
       ++s.atomics;
     }
     ++s.l2.requests;
+    ++buf.l2_requests;
     s.l2.sectors += std::popcount(to_l2);
     auto o = l2.access(r.line, to_l2, int(r.kind));
     (o.line_hit ? s.l2.line_hits : s.l2.line_misses)++;
@@ -58,7 +68,12 @@ struct RefHierarchy {
       return;
     }
     ++s.l2.misses;
-    if (r.kind != AccessKind::store) s.dram_read_bytes += uint64_t(std::popcount(o.missing)) * sector_bytes;
+    ++buf.l2_misses;
+    last.l2_miss = true;
+    if (r.kind != AccessKind::store) {
+      s.dram_read_bytes += uint64_t(std::popcount(o.missing)) * sector_bytes;
+      buf.dram_read_bytes += uint64_t(std::popcount(o.missing)) * sector_bytes;
+    }
   }
 };
 
@@ -88,8 +103,10 @@ void run_random(const CacheConfig& c1, const CacheConfig& c2, uint32_t cus, uint
     q.kind = k < 7 ? AccessKind::load : k < 9 ? AccessKind::store : AccessKind::atomic;
     q.buffer = uint8_t(rng() % 4);
     const uint32_t cu = uint32_t(rng() % cus);
-    h.issue(cu, q);
+    const IssueResult got = h.issue(cu, q);
     r.issue(cu, q);
+    ASSERT_EQ(got.l1_miss, r.last.l1_miss) << "request " << i;
+    ASSERT_EQ(got.l2_miss, r.last.l2_miss) << "request " << i;
   }
   h.flush();
   r.s.dram_write_bytes += r.l2.dirty_sectors() * c2.sector_bytes;
@@ -99,6 +116,14 @@ void run_random(const CacheConfig& c1, const CacheConfig& c2, uint32_t cus, uint
   EXPECT_EQ(h.stats().atomics, r.s.atomics);
   EXPECT_EQ(h.stats().dram_read_bytes, r.s.dram_read_bytes);
   EXPECT_EQ(h.stats().dram_write_bytes, r.s.dram_write_bytes);
+  for (size_t k = 0; k < 256; ++k) {
+    SCOPED_TRACE(k);
+    EXPECT_EQ(h.buffers()[k].l1_requests, r.b[k].l1_requests);
+    EXPECT_EQ(h.buffers()[k].l1_misses, r.b[k].l1_misses);
+    EXPECT_EQ(h.buffers()[k].l2_requests, r.b[k].l2_requests);
+    EXPECT_EQ(h.buffers()[k].l2_misses, r.b[k].l2_misses);
+    EXPECT_EQ(h.buffers()[k].dram_read_bytes, r.b[k].dram_read_bytes);
+  }
   uint64_t l1 = 0, l2 = 0;
   for (const BufferStats& b : h.buffers()) l1 += b.l1_requests, l2 += b.l2_misses;
   EXPECT_EQ(l1, h.stats().l1.requests);
@@ -106,6 +131,14 @@ void run_random(const CacheConfig& c1, const CacheConfig& c2, uint32_t cus, uint
 }
 
 TEST(Hierarchy, MatchesReferenceAmdLike) { run_random(cfg(4 << 10, 64, 64, 4), cfg(32 << 10, 64, 64, 16, 4), 4, 11); }
+
+// vega56's shape (4-way L1s, 16-way L2 in 16 channels; the unsectored fast path), and FIFO.
+TEST(Hierarchy, MatchesReferenceVegaShapedAndFifo) {
+  run_random(cfg(16 << 10, 64, 64, 4), cfg(4 << 20, 64, 64, 16, 16), 8, 13);
+  CacheConfig l1 = cfg(2 << 10, 64, 64, 8), l2 = cfg(64 << 10, 64, 64, 16, 4);
+  l1.replacement = l2.replacement = Replacement::fifo;
+  run_random(l1, l2, 3, 14);
+}
 
 TEST(Hierarchy, MatchesReferenceSectored) {
   run_random(cfg(8 << 10, 128, 32, 8), cfg(64 << 10, 128, 32, 16, 2), 3, 12);
