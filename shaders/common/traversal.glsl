@@ -119,58 +119,81 @@ bool hp_watertight(HpRay r, vec3 p0, vec3 p1, vec3 p2, out float t, out float u,
   return true;
 }
 
+// The traversal stack lives in workgroup-shared memory, one column per invocation: a private array with a
+// per-invocation index is lowered by lavapipe into code far slower than a shared-memory access. An including
+// compute shader's workgroup must hold at most HP_TRAVERSAL_MAX_GROUP invocations (64 = 16 KiB).
+#ifndef HP_TRAVERSAL_MAX_GROUP
+#define HP_TRAVERSAL_MAX_GROUP 64u
+#endif
+shared uint hp_stack[HP_BVH_STACK_SIZE * HP_TRAVERSAL_MAX_GROUP];
+
 // any_hit: stop at the first hit in [tmin, tmax]; else the closest, ties to the smallest scene index.
+// Loop shape "while-while" (Aila & Laine 2009): an inner loop walks interior nodes until every SIMD lane has
+// found a leaf whose box it hits (or finished), then the lanes test their leaves' triangles together. The
+// order in which each ray visits nodes and triangles is the C++ reference's, node for node.
 HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
   HpHit best;
   best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
   float best_t = r.tmax;
   uint best_scene = 0xFFFFFFFFu;
-  uint stack[HP_BVH_STACK_SIZE];
+  uint lane = gl_LocalInvocationIndex;
   int sp = 0;
   uint node = 0u;
-  for (;;) {
-    BvhNode n = nodes[node];
-    stats.nodes++;
-    if (hp_slab(r, n.bmin, n.bmax, best_t)) {
+  bool done = false;
+  while (!done) {
+    uint first = 0u, last = 0u;
+    for (;;) {
+      BvhNode n = nodes[node];
+      stats.nodes++;
+      bool in_box = hp_slab(r, n.bmin, n.bmax, best_t);
       uint count = n.prim_axis >> HP_BVH_AXIS_BITS;
-      if (count == 0u) {
+      if (in_box && count != 0u) {
+        first = uint(n.offset);
+        last = first + count;
+        break;
+      }
+      if (in_box) {
         uint axis = n.prim_axis & HP_BVH_AXIS_MASK;
         uint near_child = node + 1u;
         uint far_child = uint(n.offset);
         if (r.neg[axis] != 0) { uint tmp = near_child; near_child = far_child; far_child = tmp; }
         // The builder bounds the depth by HP_BVH_STACK_SIZE, so this never drops a node.
-        if (sp < HP_BVH_STACK_SIZE) stack[sp++] = far_child;
+        if (sp < HP_BVH_STACK_SIZE) { hp_stack[uint(sp) * HP_TRAVERSAL_MAX_GROUP + lane] = far_child; sp++; }
         node = near_child;
         continue;
       }
-      uint first = uint(n.offset);
-      uint last = first + count;
-      if (HP_OBJECT_LEAVES != 0u) {
-        first = object_first[first];
-        last = object_first[last];
+      if (sp == 0) { done = true; break; }
+      --sp;
+      node = hp_stack[uint(sp) * HP_TRAVERSAL_MAX_GROUP + lane];
+    }
+    if (HP_OBJECT_LEAVES != 0u && first != last) {
+      first = object_first[first];
+      last = object_first[last];
+    }
+    for (uint k = first; k < last; ++k) {
+      stats.tris++;
+      vec3 p0, p1, p2;
+      hp_fetch_triangle(k, p0, p1, p2);
+      float t, u, v;
+      if (!hp_watertight(r, p0, p1, p2, t, u, v)) continue;
+      if (!(t >= r.tmin)) continue;
+      if (any_hit) {
+        if (!(t <= r.tmax)) continue;
+        best.slot = int(k); best.t = t; best.u = u; best.v = v;
+        return best;
       }
-      for (uint k = first; k < last; ++k) {
-        stats.tris++;
-        vec3 p0, p1, p2;
-        hp_fetch_triangle(k, p0, p1, p2);
-        float t, u, v;
-        if (!hp_watertight(r, p0, p1, p2, t, u, v)) continue;
-        if (!(t >= r.tmin)) continue;
-        if (any_hit) {
-          if (!(t <= r.tmax)) continue;
-          best.slot = int(k); best.t = t; best.u = u; best.v = v;
-          return best;
-        }
-        uint sc = slot_scene[k];
-        if (t < best_t || (t == best_t && sc < best_scene)) {
-          best_t = t;
-          best_scene = sc;
-          best.slot = int(k); best.t = t; best.u = u; best.v = v;
-        }
+      uint sc = slot_scene[k];
+      if (t < best_t || (t == best_t && sc < best_scene)) {
+        best_t = t;
+        best_scene = sc;
+        best.slot = int(k); best.t = t; best.u = u; best.v = v;
       }
     }
-    if (sp == 0) break;
-    node = stack[--sp];
+    if (!done) {
+      if (sp == 0) break;
+      --sp;
+      node = hp_stack[uint(sp) * HP_TRAVERSAL_MAX_GROUP + lane];
+    }
   }
   return best;
 }
