@@ -104,11 +104,11 @@ class Cache {
 
   // `sectors` is always a non-empty subset of full_mask() (1 without sectors).
   // Load: allocate on miss, fetch the missing requested sectors (lazy sector fill).
-  Outcome load(uint64_t line, uint32_t sectors) { return access<kLoad>(line, sectors); }
+  [[gnu::always_inline]] Outcome load(uint64_t line, uint32_t sectors) { return access<kLoad>(line, sectors); }
   // Write-back store with write-validate: allocate, mark the sectors valid and dirty, fetch nothing.
-  Outcome store(uint64_t line, uint32_t sectors) { return access<kStore>(line, sectors); }
+  [[gnu::always_inline]] Outcome store(uint64_t line, uint32_t sectors) { return access<kStore>(line, sectors); }
   // Read-modify-write (atomics at the L2, write-allocate writes): allocate, fetch missing, mark dirty.
-  Outcome update(uint64_t line, uint32_t sectors) { return access<kUpdate>(line, sectors); }
+  [[gnu::always_inline]] Outcome update(uint64_t line, uint32_t sectors) { return access<kUpdate>(line, sectors); }
   // Presence of the sectors without any state change (write-through store probing an L1).
   bool contains(uint64_t line, uint32_t sectors) const;
 
@@ -179,7 +179,7 @@ class Cache {
       rest = chunk / channels_;
     }
     tag = rest >> (set_bits_ - interleave_shift_);
-    return uint32_t(channel * sets_per_channel_ + (((rest << interleave_shift_) | within) & set_mask_));
+    return uint32_t((channel << set_bits_) | (((rest << interleave_shift_) | within) & set_mask_));
   }
   uint64_t line_of(uint32_t set, uint64_t tag) const;  // inverse of locate
 
@@ -196,24 +196,34 @@ class Cache {
     return (order & ~upto) | ((order & below) << 4) | w;
   }
 
+  // The hot path (compact, unsectored) is small enough to inline into the caller; sectored sets,
+  // the general engine and the conversion to it stay out of line.
   template <Op op>
-  Outcome access(uint64_t line, uint32_t sectors) {
+  [[gnu::always_inline]] Outcome access(uint64_t line, uint32_t sectors) {
     if (compact_) {
       uint64_t tag;
       const uint32_t set = locate(line, tag);
       if (tag < kEmpty32) [[likely]] {
         const uint32_t t = uint32_t(tag);
-        if (sectored_) {
-          if (stride_ == 4) return compact_access<op, true, 4>(set, t, sectors);
-          if (stride_ == 8) return compact_access<op, true, 8>(set, t, sectors);
-          return compact_access<op, true, 16>(set, t, sectors);
+        if (!sectored_) [[likely]] {
+          if (stride_ == 4) return compact_access<op, false, 4>(set, t, sectors);
+          if (stride_ == 8) return compact_access<op, false, 8>(set, t, sectors);
+          return compact_access<op, false, 16>(set, t, sectors);
         }
-        if (stride_ == 4) return compact_access<op, false, 4>(set, t, sectors);
-        if (stride_ == 8) return compact_access<op, false, 8>(set, t, sectors);
-        return compact_access<op, false, 16>(set, t, sectors);
+        return sectored_access<op>(set, t, sectors);
       }
-      to_general();
     }
+    return slow_access<op>(line, sectors);
+  }
+  template <Op op>
+  [[gnu::noinline]] Outcome sectored_access(uint32_t set, uint32_t t, uint32_t sectors) {
+    if (stride_ == 4) return compact_access<op, true, 4>(set, t, sectors);
+    if (stride_ == 8) return compact_access<op, true, 8>(set, t, sectors);
+    return compact_access<op, true, 16>(set, t, sectors);
+  }
+  template <Op op>
+  [[gnu::noinline]] Outcome slow_access(uint64_t line, uint32_t sectors) {
+    if (compact_) to_general();  // only reached with a tag that does not fit 32 bits
     return general_access<op>(line, sectors);
   }
 
@@ -240,7 +250,7 @@ class Cache {
   }
 
   template <Op op, bool sectored, uint32_t kStride>
-  Outcome compact_access(uint32_t set, uint32_t tag, uint32_t sectors) {
+  [[gnu::always_inline]] Outcome compact_access(uint32_t set, uint32_t tag, uint32_t sectors) {
     uint32_t* tags = tag32_.get() + size_t(set) * kStride;
     SetState& st = state_[set];
     const uint32_t match = match_ways<kStride>(tags, tag);
