@@ -1,5 +1,6 @@
 #include "frame.hpp"
 
+#include "common/trace_buffers.h"
 #include "error.hpp"
 
 #include <glm/gtc/packing.hpp>
@@ -173,6 +174,150 @@ FrameTiming Frame::render(bool with_timestamps) {
   ++frame_index_;
   ++sample_index_;
   return timing;
+}
+
+trace::TraceHeader Frame::trace_header(bool tiled) const {
+  trace::TraceHeader h;
+  h.image_width = settings_.width;
+  h.image_height = settings_.height;
+  uint64_t next = 0x10000;  // synthetic device addresses: consecutive, 4 KiB aligned, never 0
+  auto add = [&](uint32_t id, const char* name, uint64_t size) {
+    trace::BufferInfo b;
+    b.id = id;
+    b.name = name;
+    b.base_address = next;
+    b.size_bytes = std::max<uint64_t>(size, 4);
+    next += (b.size_bytes + 4095) / 4096 * 4096;
+    h.buffers.push_back(b);
+  };
+  auto add_image = [&](uint32_t id, const char* name, uint32_t w, uint32_t hh, uint32_t texel) {
+    trace::BufferInfo b;
+    b.id = id;
+    b.name = name;
+    b.base_address = next;
+    b.texel_bytes = texel;
+    b.width = w;
+    b.height = hh;
+    if (tiled) {
+      b.kind = trace::BufferKind::image_tiled;
+      b.tile_width = b.tile_height = 8;
+      const uint64_t tw = (w + 7) / 8, th = (hh + 7) / 8;
+      b.size_bytes = uint64_t(w) * hh * texel;
+      next += (tw * th * 64 * texel + 4095) / 4096 * 4096;
+    } else {
+      b.kind = trace::BufferKind::image_linear;
+      b.row_pitch_bytes = w * texel;
+      b.size_bytes = uint64_t(w) * hh * texel;
+      next += (b.size_bytes + 4095) / 4096 * 4096;
+    }
+    h.buffers.push_back(b);
+  };
+  if (rt_scene_) {
+    const RtScene& r = *rt_scene_;
+    add(HP_TBUF_NODES, "bvh_nodes", r.nodes().size());
+    add(HP_TBUF_POSITIONS, "positions", r.positions().size());
+    add(HP_TBUF_INDICES, "indices", r.indices().size());
+    add(HP_TBUF_SOUP, "soup", r.soup().size());
+    add(HP_TBUF_OBJECT_FIRST, "object_first", r.object_first().size());
+    add(HP_TBUF_SLOT_SCENE, "slot_scene", r.slot_scene().size());
+    add(HP_TBUF_NORMALS, "normals", r.normals().size());
+    add(HP_TBUF_SOUP_NORMALS, "soup_normals", r.soup_normals().size());
+    add(HP_TBUF_SLOT_MATERIAL, "slot_material", r.slot_material().size());
+    add(HP_TBUF_MATERIALS, "materials", r.materials().size());
+  }
+  add_image(HP_TBUF_GBUF_DEPTH, "gbuffer_depth", settings_.width, settings_.height, 4);
+  add_image(HP_TBUF_GBUF_NORMAL, "gbuffer_normal_roughness", settings_.width, settings_.height, 8);
+  add_image(HP_TBUF_SHADOW_MASK, "shadow_mask", settings_.width, settings_.height, 4);
+  if (rt_passes_) {
+    add_image(HP_TBUF_REFLECTION, "reflection", rt_passes_->grid_width(), rt_passes_->grid_height(), 16);
+  }
+  return h;
+}
+
+std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace::TraceWriter& writer) {
+  if (!rt_passes_) throw InputError("trace: no ray-tracing pass is enabled, nothing to trace");
+  if (o.sample_every == 0) throw InputError("trace: --sample-every must be at least 1");
+  const uint64_t limit = ctx_.properties().limits.maxStorageBufferRange;
+  const uint64_t bytes = o.buffer_bytes ? o.buffer_bytes : std::min<uint64_t>(64ull << 20, limit);
+  if (bytes > limit) {
+    throw InputError("trace: a trace buffer of " + std::to_string(bytes >> 20) + " MiB exceeds this device's " +
+                     "maxStorageBufferRange of " + std::to_string(limit >> 20) + " MiB");
+  }
+  if (bytes < sizeof(gpu::TraceBufferHeader) + 64 * sizeof(gpu::TraceRecord)) {
+    throw InputError("trace: a trace buffer of " + std::to_string(bytes) + " bytes cannot hold one record per lane");
+  }
+  if (!trace_buffer_ || trace_buffer_->size() != bytes) {
+    trace_buffer_ = std::make_unique<vk::Buffer>(ctx_, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  }
+  rt_passes_->attach_trace_buffer(ctx_, *trace_buffer_);
+  const uint32_t capacity = uint32_t((bytes - sizeof(gpu::TraceBufferHeader)) / sizeof(gpu::TraceRecord));
+  auto* head = static_cast<gpu::TraceBufferHeader*>(trace_buffer_->mapped());
+  const auto* recs = reinterpret_cast<const gpu::TraceRecord*>(head + 1);
+
+  upload_uniforms();
+  rt_passes_->begin_frame(sample_index_);
+  std::vector<CapturedPass> out;
+  ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
+    gbuffer_pass_.record(cmd, gpu_scene_, gbuffer_);
+    rt_passes_->record_prepare(cmd);
+  });
+  auto run_pass = [&](bool shadows) {
+    const char* name = shadows ? "shadows" : "reflections";
+    const bool traced = shadows ? o.shadows : o.reflections;
+    if (!traced) {
+      ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
+        shadows ? rt_passes_->record_shadows(cmd) : rt_passes_->record_reflections(cmd);
+      });
+      return;
+    }
+    const glm::uvec2 wg = rt_passes_->workgroups(shadows);
+    trace::PassInfo info;
+    info.name = name;
+    info.dispatch.workgroup_size[0] = info.dispatch.workgroup_size[1] = 8;
+    info.dispatch.workgroup_count[0] = wg.x;
+    info.dispatch.workgroup_count[1] = wg.y;
+    const uint32_t pass_index = writer.begin_pass(info);
+    CapturedPass cp;
+    cp.pass = name;
+    cp.workgroups = uint64_t(wg.x) * wg.y;
+    for (uint64_t w = 0; w < cp.workgroups; ++w) cp.sampled_workgroups += (w % o.sample_every) == 0;
+    uint32_t rows = wg.y;  // first try: the whole pass in one slice
+    for (uint32_t row = 0; row < wg.y;) {
+      const uint32_t n = std::min(rows, wg.y - row);
+      head->count = 0;
+      head->capacity = capacity;
+      head->pass_id = pass_index;
+      rt_passes_->set_slice(row, o.sample_every);
+      ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_traced_slice(cmd, shadows, row, n); });
+      const uint32_t count = head->count;
+      if (count > capacity) {
+        if (n == 1) {
+          throw InputError(std::string("trace: one workgroup row of the ") + name + " pass makes " +
+                           std::to_string(count) + " records, over the trace buffer's capacity of " +
+                           std::to_string(capacity) + " (raise the trace buffer size, or sample workgroups)");
+        }
+        rows = std::max(1u, n / 2);  // re-run this slice smaller: its image writes are idempotent
+        ++cp.reruns;
+        continue;
+      }
+      writer.write_records(pass_index, std::span<const gpu::TraceRecord>(recs, count), uint64_t(row) * wg.x,
+                           uint64_t(row + n) * wg.x);
+      cp.records += count;
+      ++cp.slices;
+      row += n;
+    }
+    rt_passes_->set_slice(0, 0);
+    out.push_back(cp);
+  };
+  if (settings_.rt.shadows) run_pass(true);
+  if (settings_.rt.reflections) run_pass(false);
+  ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
+    if (settings_.rt.reflections) rt_passes_->record_accumulate(cmd);
+    composite_pass_->record(cmd, color_);
+  });
+  ++frame_index_;
+  ++sample_index_;
+  return out;
 }
 
 RayCounters Frame::read_counters() const {

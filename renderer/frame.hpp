@@ -12,6 +12,7 @@
 #include "passes/gbuffer.hpp"
 #include "passes/raytrace.hpp"
 #include "rt_scene.hpp"
+#include "trace/trace_file.hpp"
 #include "view.hpp"
 #include "vk/timestamps.hpp"
 
@@ -53,6 +54,23 @@ struct FrameTiming {
   std::string source;
 };
 
+/// What a memory-trace capture records (Frame::render_captured).
+struct CaptureOptions {
+  bool shadows = true;          ///< trace the shadow pass (when it is enabled)
+  bool reflections = true;      ///< trace the reflection pass (when it is enabled)
+  uint32_t sample_every = 1;    ///< record every k-th workgroup (dispatch order); 1 = all
+  uint64_t buffer_bytes = 0;    ///< trace buffer size; 0 = min(64 MiB, maxStorageBufferRange)
+  bool tiled_images = true;     ///< G-buffer and outputs laid out in 8x8-texel tiles (else linear rows)
+};
+
+struct CapturedPass {
+  std::string pass;
+  uint64_t records = 0;
+  uint32_t slices = 0;          ///< dispatches that produced records
+  uint32_t reruns = 0;          ///< slices that overflowed the buffer and were re-run smaller
+  uint64_t workgroups = 0, sampled_workgroups = 0;
+};
+
 class Frame {
  public:
   Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const FrameSettings& settings);
@@ -61,6 +79,15 @@ class Frame {
   /// `timestamps == false` no query is recorded (passes empty, cpu_wall_ns only): frames with and without
   /// queries measure the queries' own overhead.
   FrameTiming render(bool timestamps = true);
+  /// Renders one frame like render(), with the chosen ray-tracing passes run as their instrumented variants
+  /// in slices that each fit the trace buffer; each slice's records go to `writer` before the next slice
+  /// runs (bounded memory). A slice that overflows is re-run with fewer workgroup rows; a single row that
+  /// does not fit is an InputError naming the limit. The image equals the untraced one.
+  std::vector<CapturedPass> render_captured(const CaptureOptions& options, trace::TraceWriter& writer);
+  /// The trace file header for this frame: image size and the buffer table (ids of trace_buffers.h,
+  /// consecutive 4 KiB-aligned synthetic base addresses, image layouts).
+  trace::TraceHeader trace_header(bool tiled_images) const;
+
   /// Restarts temporal accumulation (call after changing the camera or the light).
   void reset_accumulation() { sample_index_ = 0; }
   void set_camera(const Camera& camera);
@@ -105,6 +132,7 @@ class Frame {
   GBufferPass gbuffer_pass_;
   std::unique_ptr<CompositePass> composite_pass_;
   vk::TimestampQueries timestamps_;
+  std::unique_ptr<vk::Buffer> trace_buffer_;
   uint32_t frame_index_ = 0;
   uint32_t sample_index_ = 0;
 };

@@ -5,7 +5,9 @@
 
 #include "shaders/accumulate_comp.h"
 #include "shaders/reflections_comp.h"
+#include "shaders/reflections_traced_comp.h"
 #include "shaders/shadows_comp.h"
+#include "shaders/shadows_traced_comp.h"
 
 #include <algorithm>
 #include <cmath>
@@ -97,6 +99,7 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   for (uint32_t i = 2; i <= 14; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
   for (uint32_t i = 15; i <= 17; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCS, nullptr});
   for (uint32_t i = 18; i <= 20; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCS, nullptr});
+  b.push_back({21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // trace records (instrumented variants)
   descriptors_ = vk::DescriptorSet(ctx, b, 0, 0);
   auto& ds = descriptors_;
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
@@ -122,9 +125,13 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   ds.write_image(18, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, shadow_mask_.view(), VK_IMAGE_LAYOUT_GENERAL);
   ds.write_image(19, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, reflection_.view(), VK_IMAGE_LAYOUT_GENERAL);
   ds.write_image(20, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, accum_.view(), VK_IMAGE_LAYOUT_GENERAL);
+  dummy_trace_ = vk::Buffer(ctx, 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+  ds.write_buffer(21, SB, dummy_trace_.handle());
 
   const uint32_t soup = scene.layout() == GeometryLayout::soup ? 1u : 0u;
   const uint32_t objects = scene.object_leaves() ? 1u : 0u;
+  soup_ = soup;
+  objects_ = objects;
   // Only the pipelines the options ask for are compiled (lavapipe compiles each one with LLVM).
   if (options.shadows) shadow_pipeline_ = specialized_pipeline(ctx, shadows_comp, ds.pipeline_layout(), soup, objects);
   if (options.reflections) {
@@ -152,7 +159,43 @@ void RayTracingPasses::begin_frame(uint32_t sample_index) {
   const float rx = float((options_.seed * 2654435761u) >> 16) / 65536.0f;
   const float ry = float((options_.seed * 2246822519u) >> 16) / 65536.0f;
   p.jitter = glm::vec4(glm::fract(h + glm::vec2(rx, ry)), 0.0f, 0.0f);
+  params_cache_ = p;
   std::memcpy(params_.mapped(), &p, sizeof(p));
+}
+
+void RayTracingPasses::set_slice(uint32_t first_row, uint32_t sample_every) {
+  params_cache_.frame.z = first_row;
+  params_cache_.frame.w = sample_every;
+  std::memcpy(params_.mapped(), &params_cache_, sizeof(params_cache_));
+}
+
+glm::uvec2 RayTracingPasses::workgroups(bool shadows) const {
+  return shadows ? glm::uvec2((width_ + 7) / 8, (height_ + 7) / 8) : glm::uvec2((grid_w_ + 7) / 8, (grid_h_ + 7) / 8);
+}
+
+void RayTracingPasses::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer) {
+  descriptors_.write_buffer(21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
+  if (options_.shadows && !shadow_traced_.handle()) {
+    shadow_traced_ = specialized_pipeline(ctx, shadows_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
+  }
+  if (options_.reflections && !reflection_traced_.handle()) {
+    reflection_traced_ =
+        specialized_pipeline(ctx, reflections_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
+  }
+}
+
+void RayTracingPasses::record_traced_slice(VkCommandBuffer cmd, bool shadows, uint32_t first_row, uint32_t rows) {
+  const vk::Pipeline& p = shadows ? shadow_traced_ : reflection_traced_;
+  if (!p.handle()) throw std::logic_error("record_traced_slice: attach_trace_buffer first (pass enabled?)");
+  const glm::uvec2 wg = workgroups(shadows);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.handle());
+  VkDescriptorSet set = descriptors_.set();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
+  vkCmdDispatch(cmd, wg.x, std::min(rows, wg.y - first_row), 1);
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT | VK_PIPELINE_STAGE_2_HOST_BIT,
+                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
+                         VK_ACCESS_2_TRANSFER_READ_BIT | VK_ACCESS_2_HOST_READ_BIT);
 }
 
 void RayTracingPasses::record_prepare(VkCommandBuffer cmd) {

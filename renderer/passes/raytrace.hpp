@@ -65,6 +65,16 @@ class RayTracingPasses {
   const vk::Image& reflection() const { return reflection_; }
   const vk::Image& reflection_accum() const { return accum_; }
 
+  /// Memory-trace capture: binds `trace_buffer` (a TraceBufferHeader then TraceRecords) and builds the
+  /// instrumented pipelines of the enabled passes (compiled from the same sources with HP_TRACE).
+  void attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer);
+  /// Records one slice of a traced pass: workgroup rows [first_row, first_row + rows) of the full
+  /// dispatch; every `sample_every`-th workgroup (in dispatch order) records its accesses.
+  void record_traced_slice(VkCommandBuffer cmd, bool shadows, uint32_t first_row, uint32_t rows);
+  void set_slice(uint32_t first_row, uint32_t sample_every);
+  /// Workgroups of a pass's full dispatch, x and y (8x8 invocations each).
+  glm::uvec2 workgroups(bool shadows) const;
+
   RayCounters read_counters(vk::Context& ctx) const;
   std::vector<gpu::RayDump> read_shadow_dump(vk::Context& ctx) const;
   std::vector<gpu::RayDump> read_reflection_dump(vk::Context& ctx) const;
@@ -80,6 +90,10 @@ class RayTracingPasses {
   vk::Image shadow_mask_, reflection_, accum_;
   vk::DescriptorSet descriptors_;
   vk::Pipeline shadow_pipeline_, reflection_pipeline_, accumulate_pipeline_;
+  vk::Pipeline shadow_traced_, reflection_traced_;
+  vk::Buffer dummy_trace_;
+  uint32_t soup_ = 0, objects_ = 0;
+  gpu::RayParams params_cache_{};
   bool images_initialised_ = false;
 };
 

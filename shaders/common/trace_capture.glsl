@@ -1,0 +1,45 @@
+// Memory-access recording for the instrumented pass variants (compiled from the same sources with
+// -DHP_TRACE=1, so the traced code is the code that runs). Without HP_TRACE every hook is empty.
+#ifndef HP_TRACE_CAPTURE_GLSL
+#define HP_TRACE_CAPTURE_GLSL
+
+#include "common/trace_buffers.h"
+#include "common/trace_record.h"
+
+#ifdef HP_TRACE
+layout(std430, set = 0, binding = 21) coherent buffer TraceBuffer {
+  TraceBufferHeader trace_head;
+  TraceRecord trace_records[];
+};
+
+uint hp_trace_invocation = 0u;  // global linear invocation index in the full (unsliced) dispatch
+uint hp_trace_seq = 0u;         // this invocation's access counter
+bool hp_trace_on = false;       // this workgroup is sampled
+
+// Call once at the start of main(), with the workgroup's position in the full dispatch.
+void hp_trace_begin(uvec2 workgroup, uint workgroups_x, uint sample_every) {
+  uint wg_linear = workgroup.y * workgroups_x + workgroup.x;
+  hp_trace_invocation = wg_linear * (gl_WorkGroupSize.x * gl_WorkGroupSize.y) + gl_LocalInvocationIndex;
+  hp_trace_on = sample_every <= 1u || (wg_linear % sample_every) == 0u;
+}
+
+void hp_rec(uint buffer_id, uint kind, uint offset, uint size) {
+  if (!hp_trace_on) return;
+  uint i = atomicAdd(trace_head.count, 1u);
+  // Past capacity the record is dropped here but counted, so the host sees the overflow and re-runs the
+  // slice smaller: nothing is lost silently.
+  if (i < trace_head.capacity) {
+    trace_records[i] = TraceRecord(hp_trace_invocation, hp_trace_seq, HP_TRACE_INFO(buffer_id, kind, size), offset);
+  }
+  hp_trace_seq++;
+}
+#define HP_REC_LOAD(buf, off, size) hp_rec((buf), HP_TRACE_LOAD, uint(off), uint(size))
+#define HP_REC_STORE(buf, off, size) hp_rec((buf), HP_TRACE_STORE, uint(off), uint(size))
+#define HP_TRACE_BEGIN(wg, wgx, k) hp_trace_begin((wg), (wgx), (k))
+#else
+#define HP_REC_LOAD(buf, off, size)
+#define HP_REC_STORE(buf, off, size)
+#define HP_TRACE_BEGIN(wg, wgx, k)
+#endif
+
+#endif
