@@ -42,6 +42,21 @@ void Hierarchy::enable_mrc(bool l1, bool l2, double sampling_rate) {
   if (l1)
     for (size_t cu = 0; cu < l1_.size(); ++cu) l1_mrc_.push_back(std::make_unique<StackDistance>(line, sampling_rate));
   l2_mrc_ = l2 ? std::make_unique<StackDistance>(line, sampling_rate) : nullptr;
+  l1_mrc_queue_.assign(l1_mrc_.size(), {});
+  for (auto& q : l1_mrc_queue_) q.reserve(kMrcBatch);
+  l2_mrc_queue_.clear();
+  l2_mrc_queue_.reserve(kMrcBatch);
+}
+
+void Hierarchy::drain_mrc() const {
+  for (size_t cu = 0; cu < l1_mrc_.size(); ++cu) {
+    l1_mrc_[cu]->access(std::span<const uint64_t>(l1_mrc_queue_[cu]));
+    l1_mrc_queue_[cu].clear();
+  }
+  if (l2_mrc_) {
+    l2_mrc_->access(std::span<const uint64_t>(l2_mrc_queue_));
+    l2_mrc_queue_.clear();
+  }
 }
 
 void Hierarchy::begin_pass() {
@@ -59,6 +74,7 @@ void Hierarchy::begin_pass() {
 void Hierarchy::flush() { stats_.dram_write_bytes += l2_.flush_dirty_sectors() * sector_bytes_; }
 
 MissRatioCurve Hierarchy::l1_curve() const {
+  drain_mrc();
   MissRatioCurve c;
   c.line_bytes = l2_.config().line_bytes;
   if (!l1_mrc_.empty()) c.sampling_rate = l1_mrc_[0]->curve().sampling_rate;
@@ -67,6 +83,7 @@ MissRatioCurve Hierarchy::l1_curve() const {
 }
 
 MissRatioCurve Hierarchy::l2_curve() const {
+  drain_mrc();
   if (l2_mrc_) return l2_mrc_->curve();
   MissRatioCurve c;
   c.line_bytes = l2_.config().line_bytes;

@@ -12,6 +12,7 @@
 #include <bit>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "cachesim/cache.hpp"
@@ -84,7 +85,7 @@ class Hierarchy {
       ++stats_.l1.requests;
       ++b.l1_requests;
       stats_.l1.sectors += n;
-      if (!l1_mrc_.empty()) l1_mrc_[cu]->access(r.line);
+      if (!l1_mrc_.empty()) feed_l1_mrc(cu, r.line);
       const Outcome o = l1_[cu].load(r.line, r.sectors);
       stats_.l1.line_hits += o.line_hit;
       stats_.l1.line_misses += !o.line_hit;
@@ -138,13 +139,13 @@ class Hierarchy {
  private:
   // The same counts as the general path for one-sector lines, with fewer counters (see stats())
   // and no branch on the L2 outcome, which is close to a coin toss on ray-tracing traces.
-  IssueResult issue_unsectored(uint32_t cu, const Request& r) {
+  [[gnu::always_inline]] IssueResult issue_unsectored(uint32_t cu, const Request& r) {
     IssueResult res;
     BufferStats& b = buffers_[r.buffer];
     if (r.kind == AccessKind::load) {
       ++stats_.l1.requests;
       ++b.l1_requests;
-      if (!l1_mrc_.empty()) l1_mrc_[cu]->access(r.line);
+      if (!l1_mrc_.empty()) feed_l1_mrc(cu, r.line);
       if (l1_[cu].load(r.line, 1).line_hit) return res;
       ++stats_.l1.misses;
       ++b.l1_misses;
@@ -156,7 +157,7 @@ class Hierarchy {
     }
     ++stats_.l2.requests;
     ++b.l2_requests;
-    if (l2_mrc_) l2_mrc_->access(r.line);
+    if (l2_mrc_) feed_l2_mrc(r.line);
     const Outcome o = r.kind == AccessKind::load    ? l2_.load(r.line, 1)
                       : r.kind == AccessKind::store ? l2_.store(r.line, 1)
                                                     : l2_.update(r.line, 1);
@@ -171,6 +172,27 @@ class Hierarchy {
     return res;
   }
 
+  // Curve accesses are queued and handed to StackDistance in batches, which fetches the host memory
+  // of queued lines ahead; the order of each stream is kept, so the curves are the same. The queues
+  // are drained before a curve is read (hence mutable: draining changes no observable result).
+  static constexpr size_t kMrcBatch = 256;
+  void feed_l1_mrc(uint32_t cu, uint64_t line) {
+    std::vector<uint64_t>& q = l1_mrc_queue_[cu];
+    q.push_back(line);
+    if (q.size() == kMrcBatch) {
+      l1_mrc_[cu]->access(std::span<const uint64_t>(q));
+      q.clear();
+    }
+  }
+  void feed_l2_mrc(uint64_t line) {
+    l2_mrc_queue_.push_back(line);
+    if (l2_mrc_queue_.size() == kMrcBatch) {
+      l2_mrc_->access(std::span<const uint64_t>(l2_mrc_queue_));
+      l2_mrc_queue_.clear();
+    }
+  }
+  void drain_mrc() const;
+
   // Sectors in a mask; without sectors a mask is 0 or 1 and needs no counting.
   uint32_t sectors(uint32_t mask) const { return sectored_ ? count_bits(mask) : mask; }
 
@@ -180,7 +202,7 @@ class Hierarchy {
     ++stats_.l2.requests;
     ++b.l2_requests;
     stats_.l2.sectors += n;
-    if (l2_mrc_) l2_mrc_->access(line);
+    if (l2_mrc_) feed_l2_mrc(line);
     Outcome o = kind == AccessKind::load    ? l2_.load(line, sectors)
                 : kind == AccessKind::store ? l2_.store(line, sectors)
                                             : l2_.update(line, sectors);
@@ -212,6 +234,8 @@ class Hierarchy {
   std::array<BufferStats, 256> buffers_{};
   std::vector<std::unique_ptr<StackDistance>> l1_mrc_;
   std::unique_ptr<StackDistance> l2_mrc_;
+  mutable std::vector<std::vector<uint64_t>> l1_mrc_queue_;
+  mutable std::vector<uint64_t> l2_mrc_queue_;
 };
 
 }  // namespace hp::cachesim
