@@ -84,6 +84,35 @@ uint32_t* StackDistance::page_of(uint64_t line) {
   return times_.data() + last_page_;
 }
 
+void StackDistance::prefetch_page(uint64_t line) const {
+  // Only finds pages that exist; a new page is made by access() itself.
+  const uint64_t key = line >> kPageBits;
+  uint64_t h = mix(key) & page_mask_;
+  for (int probe = 0; probe < 4; ++probe, h = (h + 1) & page_mask_) {
+    const PageSlot& s = page_table_[h];
+    if (s.key == key) {
+      __builtin_prefetch(times_.data() + s.page + (line & ((uint64_t(1) << kPageBits) - 1)), 1);
+      return;
+    }
+    if (s.key == kEmptyKey) return;
+  }
+}
+
+void StackDistance::access(std::span<const uint64_t> lines) {
+  // Two stages: the table slot kFar lines ahead, then (its slot now cached) the page kNear ahead.
+  constexpr size_t kFar = 16, kNear = 8;
+  const size_t n = lines.size();
+  if (sampled_) {  // most lines are skipped after one hash: nothing worth fetching ahead
+    for (uint64_t line : lines) access(line);
+    return;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    if (i + kFar < n) __builtin_prefetch(page_table_.data() + (mix(lines[i + kFar] >> kPageBits) & page_mask_));
+    if (i + kNear < n) prefetch_page(lines[i + kNear]);
+    access(lines[i]);
+  }
+}
+
 uint64_t StackDistance::tree_prefix(uint32_t block) const {
   uint64_t s = 0;
   for (uint32_t i = block + 1; i > 0; i &= i - 1) s += tree_[i];

@@ -23,6 +23,7 @@
 
 #include <cstdint>
 #include <iosfwd>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,11 @@ class StackDistance {
   // tracked lines, kCold for a first access, or kCold too for an access the sampler skipped.
   uint64_t access(uint64_t line);
 
+  // The same as access() on each line in order, with the host memory of upcoming lines fetched
+  // ahead (their page-table slot, then their page), so the random accesses of consecutive lines
+  // overlap instead of waiting one after another.
+  void access(std::span<const uint64_t> lines);
+
   const MissRatioCurve& curve() const { return curve_; }
   uint64_t distinct_lines() const { return live_; }
 
@@ -62,7 +68,8 @@ class StackDistance {
   static constexpr uint32_t kPageBits = 4;  // 16 lines' times per page: one 64-byte host line
   static constexpr uint32_t kBlockBits = 9;  // 512 times per Fenwick block: 8 bitmap words
 
-  uint32_t* page_of(uint64_t line);  // the line's page, created (all "never seen") when new
+  uint32_t* page_of(uint64_t line);
+  void prefetch_page(uint64_t line) const;  // the line's page, created (all "never seen") when new
   void grow_pages();
   void compact();
   uint64_t ones_after(uint32_t t) const;  // set bits of the bitmap at times > t

@@ -78,6 +78,23 @@ TEST(StackDistance, EveryDistanceEqualsANaiveStack) {
   EXPECT_EQ(sd.distinct_lines(), stack.size());
 }
 
+// The batched entry (which fetches host memory ahead) builds the same curve as access() per line.
+TEST(StackDistance, BatchedAccessEqualsOneByOne) {
+  const auto s = stream(3, 50000, 20000);
+  for (double rate : {1.0, 0.25}) {
+    StackDistance one(64, rate), batch(64, rate);
+    for (uint64_t x : s) one.access(x);
+    for (size_t i = 0, k = 0; i < s.size(); ++k) {  // uneven batches, short ones included
+      const size_t len = std::min<size_t>(k % 3 == 0 ? 5 : 1000 + k, s.size() - i);
+      batch.access(std::span<const uint64_t>(s.data() + i, len));
+      i += len;
+    }
+    EXPECT_EQ(batch.curve().accesses, one.curve().accesses);
+    EXPECT_EQ(batch.curve().cold, one.curve().cold);
+    EXPECT_EQ(batch.curve().histogram, one.curve().histogram);
+  }
+}
+
 TEST(StackDistance, DistancesOfAHandTrace) {
   StackDistance sd;
   EXPECT_EQ(sd.access(1), StackDistance::kCold);
