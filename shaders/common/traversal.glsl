@@ -10,6 +10,17 @@
 
 #include "common/rt_bindings.glsl"
 
+// The node buffer (binding 2) seen as 64-bit words, for fetching a node in four loads instead of eight:
+// lavapipe loads each component of a per-invocation address lane by lane, so halving the components
+// halves that cost. Only bits move (unpackDouble2x32): no arithmetic is done on these doubles.
+layout(std430, set = 0, binding = 2) readonly buffer NodeWords { double node_words[]; };
+// The same for the geometry (bindings 3, 4, 5): a 32-bit triple at index b is one 64-bit word and one
+// 32-bit load (which one depends on the parity of b), nine floats are four words and one float; a word is
+// never read past the triple, so it never straddles the end of a buffer.
+layout(std430, set = 0, binding = 3) readonly buffer PositionWords { double position_words[]; };
+layout(std430, set = 0, binding = 4) readonly buffer IndexWords { double index_words[]; };
+layout(std430, set = 0, binding = 5) readonly buffer SoupWords { double soup_words[]; };
+
 // 1 + 2 gamma(3) and 1 - 2 gamma(3), eps = 2^-24, rounded away from 1 (as the C++ constants).
 const float HP_FAR_UP = 1.0000004768371582;    // 1 + 4 ulp
 const float HP_FAR_DOWN = 0.99999958276748657;  // 1 - 7 ulp(below 1)
@@ -73,19 +84,41 @@ bool hp_slab(HpRay r, vec3 bmin, vec3 bmax, float t_hi) {
   return tn <= tf;
 }
 
+uvec3 hp_triple(uvec2 w, uint single, bool odd) {
+  return odd ? uvec3(single, w) : uvec3(w, single);
+}
+
+vec3 hp_position(uint i) {
+  uint b = i * 3u;
+  bool odd = (b & 1u) != 0u;
+  uvec2 w = unpackDouble2x32(position_words[(b + 1u) >> 1u]);
+  uint single = floatBitsToUint(positions[odd ? b : b + 2u]);
+  return uintBitsToFloat(hp_triple(w, single, odd));
+}
+
 void hp_fetch_triangle(uint slot, out vec3 p0, out vec3 p1, out vec3 p2) {
   if (HP_GEOMETRY_SOUP != 0u) {
     uint b = slot * 9u;
-    p0 = vec3(soup[b + 0u], soup[b + 1u], soup[b + 2u]);
-    p1 = vec3(soup[b + 3u], soup[b + 4u], soup[b + 5u]);
-    p2 = vec3(soup[b + 6u], soup[b + 7u], soup[b + 8u]);
+    bool odd = (b & 1u) != 0u;
+    uint wb = (b + 1u) >> 1u;
+    uvec2 w0 = unpackDouble2x32(soup_words[wb + 0u]);
+    uvec2 w1 = unpackDouble2x32(soup_words[wb + 1u]);
+    uvec2 w2 = unpackDouble2x32(soup_words[wb + 2u]);
+    uvec2 w3 = unpackDouble2x32(soup_words[wb + 3u]);
+    uint single = floatBitsToUint(soup[odd ? b : b + 8u]);
+    // Even b: w0..w3 = f0..f7, single = f8. Odd b: single = f0, w0..w3 = f1..f8.
+    p0 = uintBitsToFloat(odd ? uvec3(single, w0) : uvec3(w0, w1.x));
+    p1 = uintBitsToFloat(odd ? uvec3(w1, w2.x) : uvec3(w1.y, w2));
+    p2 = uintBitsToFloat(odd ? uvec3(w2.y, w3) : uvec3(w3, single));
   } else {
-    uint i0 = indices[slot * 3u + 0u] * 3u;
-    uint i1 = indices[slot * 3u + 1u] * 3u;
-    uint i2 = indices[slot * 3u + 2u] * 3u;
-    p0 = vec3(positions[i0], positions[i0 + 1u], positions[i0 + 2u]);
-    p1 = vec3(positions[i1], positions[i1 + 1u], positions[i1 + 2u]);
-    p2 = vec3(positions[i2], positions[i2 + 1u], positions[i2 + 2u]);
+    uint b = slot * 3u;
+    bool odd = (b & 1u) != 0u;
+    uvec2 w = unpackDouble2x32(index_words[(b + 1u) >> 1u]);
+    uint single = indices[odd ? b : b + 2u];
+    uvec3 i = hp_triple(w, single, odd);
+    p0 = hp_position(i.x);
+    p1 = hp_position(i.y);
+    p2 = hp_position(i.z);
   }
 }
 
@@ -143,7 +176,15 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
   while (!done) {
     uint first = 0u, last = 0u;
     for (;;) {
-      BvhNode n = nodes[node];
+      uvec2 w0 = unpackDouble2x32(node_words[node * 4u + 0u]);
+      uvec2 w1 = unpackDouble2x32(node_words[node * 4u + 1u]);
+      uvec2 w2 = unpackDouble2x32(node_words[node * 4u + 2u]);
+      uvec2 w3 = unpackDouble2x32(node_words[node * 4u + 3u]);
+      BvhNode n;
+      n.bmin = uintBitsToFloat(uvec3(w0, w1.x));
+      n.offset = int(w1.y);
+      n.bmax = uintBitsToFloat(uvec3(w2, w3.x));
+      n.prim_axis = w3.y;
       stats.nodes++;
       bool in_box = hp_slab(r, n.bmin, n.bmax, best_t);
       uint count = n.prim_axis >> HP_BVH_AXIS_BITS;
