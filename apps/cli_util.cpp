@@ -50,4 +50,70 @@ void ViewOptions::apply_light(Scene& scene) const {
   scene.light.direction = glm::normalize(d);
 }
 
+void FrameOptions::add_to(CLI::App* cmd) {
+  cmd->add_option("--scene", scene, "builtin:pica|cornell|sphere-1m|terrain-1m, or a .gltf/.glb path")
+      ->capture_default_str();
+  cmd->add_option("--width", width, "image width in pixels")->capture_default_str();
+  cmd->add_option("--height", height, "image height in pixels")->capture_default_str();
+  cmd->add_flag("--reversed-z", reversed_z, "reversed-Z depth buffer (near = 1, far = 0)");
+  cmd->add_option("--geometry", geometry, "triangle fetch: indexed (EBO) or soup (de-indexed, no EBO)")
+      ->capture_default_str();
+  cmd->add_option("--jitter", jitter, "reflection jitter: shared (one offset per frame) or per-thread")
+      ->capture_default_str();
+  cmd->add_option("--shadow-offset", shadow_offset, "ray origin offset: normal-bias or robust")->capture_default_str();
+  cmd->add_option("--bias", bias, "normal-bias distance in world units (the study's 0.1)")->capture_default_str();
+  cmd->add_option("--reflection-scale", reflection_scale, "reflection resolution per axis: 1, 0.5 or 0.25")
+      ->capture_default_str();
+  cmd->add_option("--roughness-threshold", roughness_threshold, "pixels with roughness below it reflect")
+      ->check(CLI::Range(0.0f, 1.01f))
+      ->capture_default_str();
+  cmd->add_flag("--no-shadows", no_shadows, "skip the shadow pass");
+  cmd->add_flag("--no-reflections", no_reflections, "skip the reflection and accumulation passes");
+  cmd->add_flag("--no-reflection-shadows", no_reflection_shadows, "shade reflection hits without a shadow ray");
+  cmd->add_option("--granularity", granularity, "BVH leaves: triangle, or object (the study's Unity BVH)")
+      ->capture_default_str();
+  cmd->add_option("--buckets", buckets, "SAH buckets of the BVH build")->check(CLI::Range(2, 1024))->capture_default_str();
+  cmd->add_option("--leaf-size", leaf_size, "largest BVH leaf")->check(CLI::Range(1, 1 << 20))->capture_default_str();
+  cmd->add_option("--seed", seed, "seed of the reflection jitter")->capture_default_str();
+  cmd->add_option("--device", device, "Vulkan device: index or name substring (default: discrete GPU, else lavapipe)");
+  cmd->add_flag("--validate", validate, "enable the Khronos validation layer; any message fails the run");
+  view.add_to(cmd);
+}
+
+FrameSettings FrameOptions::settings() const {
+  validate_extent(width, height, kMaxImageSide);
+  FrameSettings s;
+  s.width = width;
+  s.height = height;
+  s.reversed_z = reversed_z;
+  s.geometry = parse_geometry_layout(geometry);
+  s.rt.shadows = !no_shadows;
+  s.rt.reflections = !no_reflections;
+  s.rt.offset = parse_shadow_offset(shadow_offset);
+  s.rt.bias = bias;
+  s.rt.jitter = parse_jitter_mode(jitter);
+  if (reflection_scale == 1.0f) {
+    s.rt.reflection_divisor = 1;
+  } else if (reflection_scale == 0.5f) {
+    s.rt.reflection_divisor = 2;
+  } else if (reflection_scale == 0.25f) {
+    s.rt.reflection_divisor = 4;
+  } else {
+    throw InputError("--reflection-scale " + std::to_string(reflection_scale) + ": must be 1, 0.5 or 0.25");
+  }
+  s.rt.roughness_threshold = roughness_threshold;
+  s.rt.reflection_shadows = !no_reflection_shadows;
+  s.rt.seed = seed;
+  if (granularity == "triangle") {
+    s.bvh.granularity = bvh::Granularity::triangle;
+  } else if (granularity == "object") {
+    s.bvh.granularity = bvh::Granularity::object;
+  } else {
+    throw InputError("--granularity " + granularity + ": choose triangle or object");
+  }
+  s.bvh.buckets = buckets;
+  s.bvh.max_leaf_size = leaf_size;
+  return s;
+}
+
 }  // namespace hp::cli

@@ -1,6 +1,7 @@
 // Small helpers shared by the subcommands: parsing "x,y,z" vectors, camera and light options.
 #pragma once
 
+#include "frame.hpp"
 #include "scene/scene.hpp"
 
 #include <CLI/CLI.hpp>
@@ -23,6 +24,32 @@ struct ViewOptions {
   Camera camera_for(const Scene& scene, float aspect) const;
   /// Applies the light override to the scene.
   void apply_light(Scene& scene) const;
+};
+
+/// The options that describe a frame (scene, resolution, passes and their modes, BVH build, device), shared by
+/// `render` and `trace`.
+struct FrameOptions {
+  std::string scene = "builtin:pica";
+  uint32_t width = 1280, height = 720;
+  bool reversed_z = false;
+  std::string geometry = "indexed";
+  std::string jitter = "per-thread";
+  std::string shadow_offset = "normal-bias";
+  float bias = 0.1f;
+  float reflection_scale = 1.0f;
+  float roughness_threshold = 0.35f;
+  bool no_shadows = false, no_reflections = false, no_reflection_shadows = false;
+  std::string granularity = "triangle";
+  int buckets = 12;
+  int leaf_size = 4;
+  uint32_t seed = 1;
+  std::string device;
+  bool validate = false;
+  ViewOptions view;
+
+  void add_to(CLI::App* cmd);
+  /// Validated settings; throws hp::InputError naming the option.
+  FrameSettings settings() const;
 };
 
 }  // namespace hp::cli

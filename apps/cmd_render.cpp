@@ -18,69 +18,23 @@ namespace hp::cli {
 namespace {
 
 struct RenderArgs {
-  std::string scene = "builtin:pica";
-  uint32_t width = 1280, height = 720;
   std::string out = "frame.png";
   std::string aov = "color";
-  std::string device;
-  bool validate = false;
-  bool reversed_z = false;
   uint32_t frames = 1;
   uint32_t warmup = 0;
   std::string timings_path, timeline_path;
   bool counters = false;
-  ViewOptions view;
-  std::string geometry = "indexed";
-  std::string jitter = "per-thread";
-  std::string shadow_offset = "normal-bias";
-  float bias = 0.1f;
-  float reflection_scale = 1.0f;
-  float roughness_threshold = 0.35f;
-  bool no_shadows = false, no_reflections = false, no_reflection_shadows = false;
-  std::string granularity = "triangle";
-  int buckets = 12;
-  int leaf_size = 4;
-  uint32_t seed = 1;
+  FrameOptions frame;
 };
-
-uint32_t reflection_divisor(float scale) {
-  if (scale == 1.0f) return 1;
-  if (scale == 0.5f) return 2;
-  if (scale == 0.25f) return 4;
-  throw InputError("--reflection-scale " + std::to_string(scale) + ": must be 1, 0.5 or 0.25");
-}
-
-bvh::Granularity parse_granularity(const std::string& g) {
-  if (g == "triangle") return bvh::Granularity::triangle;
-  if (g == "object") return bvh::Granularity::object;
-  throw InputError("--granularity " + g + ": choose triangle or object");
-}
 
 void run_render(const RenderArgs& a) {
   const Aov aov = parse_aov(a.aov);
-  Scene scene = load_scene(a.scene);
-  a.view.apply_light(scene);
-  if (a.width == 0 || a.height == 0) validate_extent(a.width, a.height, kMaxImageSide);
-  const Camera camera = a.view.camera_for(scene, float(a.width) / float(a.height));
-  vk::Context ctx({a.device, a.validate, true});
-  FrameSettings settings;
-  settings.width = a.width;
-  settings.height = a.height;
-  settings.reversed_z = a.reversed_z;
-  settings.geometry = parse_geometry_layout(a.geometry);
-  settings.rt.shadows = !a.no_shadows;
-  settings.rt.reflections = !a.no_reflections;
-  settings.rt.offset = parse_shadow_offset(a.shadow_offset);
-  settings.rt.bias = a.bias;
-  settings.rt.jitter = parse_jitter_mode(a.jitter);
-  settings.rt.reflection_divisor = reflection_divisor(a.reflection_scale);
-  settings.rt.roughness_threshold = a.roughness_threshold;
-  settings.rt.reflection_shadows = !a.no_reflection_shadows;
-  settings.rt.seed = a.seed;
-  settings.bvh.granularity = parse_granularity(a.granularity);
-  settings.bvh.buckets = a.buckets;
-  settings.bvh.max_leaf_size = a.leaf_size;
+  FrameSettings settings = a.frame.settings();
   settings.rt.counters = a.counters;
+  Scene scene = load_scene(a.frame.scene);
+  a.frame.view.apply_light(scene);
+  const Camera camera = a.frame.view.camera_for(scene, float(settings.width) / float(settings.height));
+  vk::Context ctx({a.frame.device, a.frame.validate, true});
   Frame frame(ctx, scene, camera, settings);
   const auto t0 = std::chrono::steady_clock::now();
   ProfileOptions po;
@@ -101,7 +55,7 @@ void run_render(const RenderArgs& a) {
                              " validation message(s); last: " + ctx.last_validation_message());
   }
   std::printf("%s: %zu triangles, %ux%u on %s (%s), %u frame(s) in %.1f ms (CPU wall) -> %s\n",
-              scene.name.c_str(), triangle_count(scene), a.width, a.height, ctx.info().name.c_str(),
+              scene.name.c_str(), triangle_count(scene), settings.width, settings.height, ctx.info().name.c_str(),
               ctx.info().driver_info.c_str(), a.frames, ms, a.out.c_str());
   std::printf("%u warm-up + %u measured frames (%s), %u samples accumulated; per pass: median [95%% CI] ms\n",
               a.warmup, a.frames, std::string(to_string(summary.source)).c_str(), frame.samples_accumulated());
@@ -129,10 +83,7 @@ void run_render(const RenderArgs& a) {
 void add_render_command(CLI::App& app) {
   auto args = std::make_shared<RenderArgs>();
   CLI::App* cmd = app.add_subcommand("render", "render a scene and write the image (or a G-buffer view)");
-  cmd->add_option("--scene", args->scene, "builtin:pica|cornell|sphere-1m|terrain-1m, or a .gltf/.glb path")
-      ->capture_default_str();
-  cmd->add_option("--width", args->width, "image width in pixels")->capture_default_str();
-  cmd->add_option("--height", args->height, "image height in pixels")->capture_default_str();
+  args->frame.add_to(cmd);
   cmd->add_option("--out", args->out, "output image: .png (display-referred sRGB) or .exr (linear float)")
       ->capture_default_str();
   cmd->add_option("--aov", args->aov,
@@ -147,30 +98,6 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--timings", args->timings_path, "write the timing result (JSON: environment, statistics, raw samples)");
   cmd->add_option("--timeline", args->timeline_path, "write a Chrome Trace Event timeline (opens in ui.perfetto.dev)");
   cmd->add_flag("--counters", args->counters, "count rays, BVH nodes visited and triangles tested (deterministic)");
-  cmd->add_flag("--reversed-z", args->reversed_z, "reversed-Z depth buffer (near = 1, far = 0)");
-  cmd->add_option("--device", args->device, "Vulkan device: index or name substring (default: discrete GPU, else lavapipe)");
-  cmd->add_flag("--validate", args->validate, "enable the Khronos validation layer; any message fails the run");
-  cmd->add_option("--geometry", args->geometry, "triangle fetch: indexed (EBO) or soup (de-indexed, no EBO)")
-      ->capture_default_str();
-  cmd->add_option("--jitter", args->jitter, "reflection jitter: shared (one offset per frame) or per-thread")
-      ->capture_default_str();
-  cmd->add_option("--shadow-offset", args->shadow_offset, "ray origin offset: normal-bias or robust")
-      ->capture_default_str();
-  cmd->add_option("--bias", args->bias, "normal-bias distance in world units (the study's 0.1)")->capture_default_str();
-  cmd->add_option("--reflection-scale", args->reflection_scale, "reflection resolution per axis: 1, 0.5 or 0.25")
-      ->capture_default_str();
-  cmd->add_option("--roughness-threshold", args->roughness_threshold, "pixels with roughness below it reflect")
-      ->check(CLI::Range(0.0f, 1.01f))
-      ->capture_default_str();
-  cmd->add_flag("--no-shadows", args->no_shadows, "skip the shadow pass");
-  cmd->add_flag("--no-reflections", args->no_reflections, "skip the reflection and accumulation passes");
-  cmd->add_flag("--no-reflection-shadows", args->no_reflection_shadows, "shade reflection hits without a shadow ray");
-  cmd->add_option("--granularity", args->granularity, "BVH leaves: triangle, or object (the study's Unity BVH)")
-      ->capture_default_str();
-  cmd->add_option("--buckets", args->buckets, "SAH buckets of the BVH build")->capture_default_str();
-  cmd->add_option("--leaf-size", args->leaf_size, "largest BVH leaf")->capture_default_str();
-  cmd->add_option("--seed", args->seed, "seed of the reflection jitter")->capture_default_str();
-  args->view.add_to(cmd);
   cmd->callback([args] { run_render(*args); });
 }
 

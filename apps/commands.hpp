@@ -11,6 +11,9 @@ void add_devices_command(CLI::App& app);
 void add_bvh_command(CLI::App& app);
 void add_cachesim_command(CLI::App& app);
 void add_run_command(CLI::App& app);
+void add_trace_command(CLI::App& app);
 void add_merge_command(CLI::App& app);
+void add_report_command(CLI::App& app);
+void add_gate_command(CLI::App& app);
 
 }  // namespace hp::cli

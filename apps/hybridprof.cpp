@@ -14,11 +14,14 @@ int main(int argc, char** argv) {
   hp::cli::add_devices_command(app);
   hp::cli::add_run_command(app);
   hp::cli::add_merge_command(app);
+  hp::cli::add_report_command(app);
+  hp::cli::add_gate_command(app);
 #ifdef HP_HAVE_BVH_COMMAND
   hp::cli::add_bvh_command(app);
 #endif
 #ifdef HP_HAVE_CACHESIM_COMMAND
   hp::cli::add_cachesim_command(app);
+  hp::cli::add_trace_command(app);
 #endif
   try {
     app.parse(argc, argv);

@@ -1,10 +1,12 @@
 #include "runner.hpp"
 
+#include "cache_analysis.hpp"
 #include "error.hpp"
 #include "frame_profiler.hpp"
 #include "scene/load.hpp"
 #include "timing/result_json.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -160,6 +162,42 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       const bvh::BvhStats st = bvh::bvh_stats(g->bvh);
       line["bvh"] = {{"build_ms", g->build_ms}, {"nodes", st.nodes},        {"leaves", st.leaves},
                      {"max_depth", st.max_depth}, {"sah_cost", st.sah_cost}};
+    }
+    if (!s.trace_passes.empty()) {
+      // One more frame, traced (the timed frames ran uninstrumented), then the cache simulator.
+      CaptureOptions co;
+      co.shadows = std::find(s.trace_passes.begin(), s.trace_passes.end(), "shadows") != s.trace_passes.end();
+      co.reflections = std::find(s.trace_passes.begin(), s.trace_passes.end(), "reflections") != s.trace_passes.end();
+      co.sample_every = s.trace_sample_every;
+      co.tiled_images = s.trace_tiled_images;
+      const fs::path trace_path = cell_dir / "trace.hptrace";
+      std::vector<CapturedPass> captured;
+      {
+        trace::TraceWriter writer(trace_path, frame.trace_header(co.tiled_images));
+        captured = frame.render_captured(co, writer);
+        writer.finish();
+      }
+      CacheAnalysisOptions ao;
+      ao.preset = s.cache_preset;
+      ao.heatmap_dir = cell_dir.string();
+      json cache = analyse_trace(trace_path.string(), ao);
+      for (auto& p : cache["passes"]) {
+        for (auto& [k, v] : p["heatmaps"].items()) {
+          v = fs::relative(fs::path(v.get<std::string>()), out).string();
+        }
+        for (const CapturedPass& c : captured) {
+          if (c.pass == p["pass"]) {
+            p["capture"] = {{"workgroups", c.workgroups}, {"sampled_workgroups", c.sampled_workgroups},
+                            {"sample_every", s.trace_sample_every}, {"slices", c.slices}, {"reruns", c.reruns}};
+          }
+        }
+      }
+      if (s.trace_keep) {
+        cache["trace_file"] = fs::relative(trace_path, out).string();
+      } else {
+        fs::remove(trace_path);
+      }
+      line["cache"] = cache;
     }
     line["images"] = images;
     line["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cell).count();

@@ -104,7 +104,7 @@ struct Reader {
 const std::set<std::string> kTopKeys = {"name", "scene", "camera", "light", "resolution", "reversed_z", "passes",
                                         "geometry", "jitter", "shadow_offset", "bias", "reflection_scale",
                                         "roughness_threshold", "reflection_shadows", "bvh", "frames", "warmup",
-                                        "counters", "seed", "cache_preset", "inject"};
+                                        "counters", "seed", "cache_preset", "inject", "trace"};
 
 json vec_json(const std::optional<glm::vec3>& v) {
   if (!v) return nullptr;
@@ -202,6 +202,21 @@ Scenario parse_scenario(const json& j, const std::string& file, const std::strin
   f.rt.counters = r.boolean("counters", true);
   f.rt.seed = uint32_t(r.integer("seed", 1, 0, 0xFFFFFFFFll));
   s.cache_preset = r.string("cache_preset", s.cache_preset);
+  if (const json* t = r.object("trace", {"passes", "sample_every", "keep", "image_layout"})) {
+    Reader tr{*t, file, r.where("trace")};
+    if (const json* ps = tr.get("passes")) {
+      if (!ps->is_array()) fail(file, tr.where("passes"), "expected a list of pass names");
+      for (size_t i = 0; i < ps->size(); ++i) {
+        const json& v = (*ps)[i];
+        const std::string where = tr.where("passes") + "[" + std::to_string(i) + "]";
+        if (!v.is_string() || (v != "shadows" && v != "reflections")) fail(file, where, "expected \"shadows\" or \"reflections\"");
+        s.trace_passes.push_back(v.get<std::string>());
+      }
+    }
+    s.trace_sample_every = uint32_t(tr.integer("sample_every", 1, 1, 1 << 30));
+    s.trace_keep = tr.boolean("keep", false);
+    s.trace_tiled_images = tr.choice("image_layout", "tiled", {"tiled", "linear"}) == "tiled";
+  }
   if (const json* in = r.object("inject", {"pass", "fraction"})) {
     Reader ir{*in, file, r.where("inject")};
     s.inject_pass = ir.choice("pass", "shadows", {"shadows"});
@@ -209,6 +224,11 @@ Scenario parse_scenario(const json& j, const std::string& file, const std::strin
   }
   if (s.inject_fraction > 0.0f && !f.rt.shadows) fail(file, r.where("inject"), "injects work into shadows, which are off");
   f.rt.inject_shadow_fraction = s.inject_fraction;
+  for (const std::string& p : s.trace_passes) {
+    if ((p == "shadows" && !f.rt.shadows) || (p == "reflections" && !f.rt.reflections)) {
+      fail(file, r.where("trace.passes"), "traces the " + p + " pass, which is off");
+    }
+  }
   return s;
 }
 
@@ -241,6 +261,9 @@ json Scenario::canonical() const {
   j["seed"] = f.rt.seed;
   j["cache_preset"] = cache_preset;
   j["inject"] = {{"pass", inject_pass}, {"fraction", inject_fraction}};
+  j["trace"] = {{"passes", trace_passes},
+                {"sample_every", trace_sample_every},
+                {"image_layout", trace_tiled_images ? "tiled" : "linear"}};  // keep: where files go, not what runs
   return j;  // nlohmann::json objects are key-sorted: dump() is canonical
 }
 

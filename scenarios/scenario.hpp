@@ -28,6 +28,12 @@ struct Scenario {
   uint32_t frames = 10;          ///< measured frames
   uint32_t warmup = 3;           ///< discarded frames before them
   std::string cache_preset = "vega56";
+  /// Memory-trace capture for the cache simulator: the passes to trace (empty = none), every k-th
+  /// workgroup, whether the trace file is kept beside the results, the image address layout.
+  std::vector<std::string> trace_passes;
+  uint32_t trace_sample_every = 1;
+  bool trace_keep = false;
+  bool trace_tiled_images = true;
   /// A documented knob for validating the regression gate: the named pass does this much extra work
   /// (the shadow pass re-traces the first `inject_fraction` of the image rows). 0 = off.
   std::string inject_pass = "shadows";

@@ -1,0 +1,138 @@
+// `hybridprof trace`: renders a frame with the chosen ray-tracing passes instrumented and writes every
+// memory access they make to a trace file (streamed slice by slice), optionally exporting one compute
+// unit's coalesced request stream in Dinero IV format.
+#include "apps/cli_util.hpp"
+#include "apps/commands.hpp"
+#include "cachesim/preset.hpp"
+#include "cachesim/simulator.hpp"
+#include "error.hpp"
+#include "frame.hpp"
+#include "scene/load.hpp"
+#include "vk/context.hpp"
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+namespace hp::cli {
+
+namespace {
+
+struct TraceArgs {
+  FrameOptions frame;
+  std::string out;
+  std::string passes = "shadows,reflections";
+  uint32_t sample_every = 1;
+  uint32_t buffer_mib = 64;
+  uint32_t frames_before = 0;
+  std::string image_layout = "tiled";
+  std::string image_out;
+  std::string din_out, din_pass, preset = "vega56";
+  uint32_t din_cu = 0;
+};
+
+void run_trace(const TraceArgs& a) {
+  if (a.out.empty()) throw InputError("trace: --out is required (the trace file)");
+  FrameSettings settings = a.frame.settings();
+  CaptureOptions co;
+  co.shadows = co.reflections = false;
+  std::stringstream ss(a.passes);
+  std::string p;
+  while (std::getline(ss, p, ',')) {
+    if (p == "shadows") co.shadows = true;
+    else if (p == "reflections") co.reflections = true;
+    else throw InputError("--passes: unknown pass '" + p + "' (choose shadows, reflections)");
+  }
+  if (co.shadows && !settings.rt.shadows) throw InputError("--passes shadows: the shadow pass is off (--no-shadows)");
+  if (co.reflections && !settings.rt.reflections) {
+    throw InputError("--passes reflections: the reflection pass is off (--no-reflections)");
+  }
+  // Only what is traced is computed: a pass that is neither traced nor needed is not run.
+  settings.rt.shadows = co.shadows || (settings.rt.shadows && !a.image_out.empty());
+  settings.rt.reflections = co.reflections || (settings.rt.reflections && !a.image_out.empty());
+  if (a.image_layout != "tiled" && a.image_layout != "linear") {
+    throw InputError("--image-layout " + a.image_layout + ": choose tiled or linear");
+  }
+  co.tiled_images = a.image_layout == "tiled";
+  co.sample_every = a.sample_every;
+  co.buffer_bytes = uint64_t(a.buffer_mib) << 20;
+  // The preset is checked before any work, so a typo costs nothing.
+  const cachesim::Preset preset = a.din_out.empty() ? cachesim::Preset{} : cachesim::find_preset(a.preset);
+
+  Scene scene = load_scene(a.frame.scene);
+  a.frame.view.apply_light(scene);
+  const Camera camera = a.frame.view.camera_for(scene, float(settings.width) / float(settings.height));
+  vk::Context ctx({a.frame.device, a.frame.validate, true});
+  Frame frame(ctx, scene, camera, settings);
+  for (uint32_t i = 0; i < a.frames_before; ++i) frame.render();
+  const trace::TraceHeader header = frame.trace_header(co.tiled_images);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<CapturedPass> captured;
+  {
+    trace::TraceWriter writer(a.out, header);
+    captured = frame.render_captured(co, writer);
+    writer.finish();
+  }
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!a.image_out.empty()) write_image(a.image_out, frame.read_color());
+  for (const CapturedPass& c : captured) {
+    std::printf("%s: %llu records from %llu of %llu workgroups (every %u-th), %u slice(s), %u re-run(s) after overflow\n",
+                c.pass.c_str(), (unsigned long long)c.records, (unsigned long long)c.sampled_workgroups,
+                (unsigned long long)c.workgroups, a.sample_every, c.slices, c.reruns);
+  }
+  std::printf("trace of %s %ux%u on %s in %.2f s -> %s\n", scene.name.c_str(), settings.width, settings.height,
+              ctx.info().name.c_str(), s, a.out.c_str());
+  if (!a.din_out.empty()) {
+    trace::TraceReader reader(a.out);
+    int pass = -1;
+    for (size_t i = 0; i < reader.passes().size(); ++i) {
+      if (a.din_pass.empty() || reader.passes()[i].name == a.din_pass) {
+        pass = int(i);
+        break;
+      }
+    }
+    if (pass < 0) throw InputError("--din-pass " + a.din_pass + ": not a traced pass");
+    if (a.din_cu >= preset.compute_units) {
+      throw InputError("--din-cu " + std::to_string(a.din_cu) + ": preset " + preset.name + " has " +
+                       std::to_string(preset.compute_units) + " compute units");
+    }
+    const auto records = reader.read_pass(uint32_t(pass));
+    const std::string tmp = a.din_out + ".tmp";
+    std::ofstream out(tmp);
+    const uint64_t lines = cachesim::export_din(out, preset, reader.header(), reader.passes()[pass], records, a.din_cu);
+    out.close();
+    if (!out) throw InputError(a.din_out + ": cannot write");
+    std::rename(tmp.c_str(), a.din_out.c_str());
+    std::printf("Dinero export: %llu requests of CU %u (%s, pass %s) -> %s\n", (unsigned long long)lines, a.din_cu,
+                preset.name.c_str(), reader.passes()[pass].name.c_str(), a.din_out.c_str());
+  }
+}
+
+}  // namespace
+
+void add_trace_command(CLI::App& app) {
+  auto a = std::make_shared<TraceArgs>();
+  CLI::App* cmd = app.add_subcommand("trace", "record every memory access of the ray-tracing passes to a trace file");
+  a->frame.add_to(cmd);
+  cmd->add_option("--out", a->out, "trace file to write (binary, documented in README)");
+  cmd->add_option("--passes", a->passes, "passes to trace: shadows, reflections (comma-separated)")->capture_default_str();
+  cmd->add_option("--sample-every", a->sample_every, "record every k-th workgroup (in dispatch order)")
+      ->check(CLI::Range(1u, 1u << 30))
+      ->capture_default_str();
+  cmd->add_option("--trace-buffer-mib", a->buffer_mib, "GPU trace buffer per slice (bounded by maxStorageBufferRange)")
+      ->check(CLI::Range(1u, 4096u))
+      ->capture_default_str();
+  cmd->add_option("--frames-before", a->frames_before, "untraced frames rendered first (accumulation state)");
+  cmd->add_option("--image-layout", a->image_layout, "how images map to addresses: tiled (8x8 texel tiles) or linear")
+      ->capture_default_str();
+  cmd->add_option("--image", a->image_out, "also write the traced frame's image (equal to an untraced frame's)");
+  cmd->add_option("--export-din", a->din_out, "write one CU's coalesced request stream as Dinero IV text");
+  cmd->add_option("--din-pass", a->din_pass, "pass to export (default: the first traced)");
+  cmd->add_option("--din-cu", a->din_cu, "compute unit to export")->capture_default_str();
+  cmd->add_option("--preset", a->preset, "GPU preset for the export's wave width, CUs and coalescing")->capture_default_str();
+  cmd->callback([a] { run_trace(*a); });
+}
+
+}  // namespace hp::cli

@@ -1,0 +1,126 @@
+#include "cache_analysis.hpp"
+
+#include "cachesim/preset.hpp"
+#include "cachesim/simulator.hpp"
+#include "image/image.hpp"
+#include "trace/trace_file.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+namespace hp {
+
+using json = nlohmann::json;
+
+namespace {
+
+json level_json(const cachesim::LevelStats& l) {
+  return {{"requests", l.requests}, {"hits", l.hits},       {"misses", l.misses},
+          {"hit_rate", l.hit_rate()}, {"sectors", l.sectors}, {"sector_hits", l.sector_hits},
+          {"sector_misses", l.sector_misses}};
+}
+
+// A perceptual-ish ramp (black -> purple -> orange -> yellow) for miss counts, log-scaled to the maximum.
+void ramp(float t, float* rgb) {
+  t = std::clamp(t, 0.0f, 1.0f);
+  const float r = std::clamp(1.6f * t, 0.0f, 1.0f);
+  const float g = std::clamp(1.6f * t - 0.6f, 0.0f, 1.0f);
+  const float b = std::clamp(t < 0.4f ? 1.5f * t : 1.2f - 1.5f * (t - 0.4f) * 2.0f, 0.0f, 1.0f);
+  rgb[0] = srgb_to_linear(r);
+  rgb[1] = srgb_to_linear(g);
+  rgb[2] = srgb_to_linear(b);
+}
+
+// Per-invocation counts back to pixels: 8x8 workgroups in row-major dispatch order.
+std::string write_heatmap(const std::vector<uint32_t>& counts, const trace::PassInfo& pass, uint32_t width,
+                          uint32_t height, const std::string& path) {
+  const uint32_t wx = pass.dispatch.workgroup_count[0];
+  const uint32_t lx = pass.dispatch.workgroup_size[0], ly = pass.dispatch.workgroup_size[1];
+  uint32_t maxc = 0;
+  for (uint32_t c : counts) maxc = std::max(maxc, c);
+  Image4f img(width, height);
+  for (size_t inv = 0; inv < counts.size(); ++inv) {
+    const uint64_t wg = inv / (uint64_t(lx) * ly), local = inv % (uint64_t(lx) * ly);
+    const uint32_t x = uint32_t((wg % wx) * lx + local % lx), y = uint32_t((wg / wx) * ly + local / lx);
+    if (x >= width || y >= height) continue;
+    float* px = img.at(x, y);
+    ramp(maxc ? std::log1p(float(counts[inv])) / std::log1p(float(maxc)) : 0.0f, px);
+    px[3] = 1.0f;
+  }
+  write_image(path, img);
+  return path;
+}
+
+json curve_json(const cachesim::MissRatioCurve& c) {
+  // Sizes in bytes at powers of two (and half-steps) from 1 KiB to past the footprint: enough points to
+  // draw the curve; every value is exact (the histogram holds all distances).
+  json pts = json::array();
+  const uint64_t foot = std::max<uint64_t>(c.footprint_lines(), 1);
+  for (double kib = 1.0; kib <= 1024.0 * 1024.0; kib *= std::sqrt(2.0)) {
+    const uint64_t bytes = uint64_t(kib * 1024.0);
+    const uint64_t lines = std::max<uint64_t>(1, bytes / c.line_bytes);
+    pts.push_back({bytes, c.miss_ratio(lines)});
+    if (lines > foot * 2) break;
+  }
+  return {{"line_bytes", c.line_bytes}, {"accesses", c.accesses}, {"cold", c.cold},
+          {"footprint_bytes", c.footprint_lines() * c.line_bytes}, {"points", pts}};
+}
+
+}  // namespace
+
+json analyse_trace(const std::string& trace_path, const CacheAnalysisOptions& o) {
+  const cachesim::Preset preset = cachesim::find_preset(o.preset);
+  trace::TraceReader reader(trace_path);
+  cachesim::SimOptions so;
+  so.per_invocation = !o.heatmap_dir.empty();
+  so.l1_mrc = so.l2_mrc = o.curves;
+  cachesim::Simulator sim(preset, reader.header(), so);
+  json out;
+  out["preset"] = preset.name;
+  out["passes"] = json::array();
+  for (uint32_t p = 0; p < reader.passes().size(); ++p) {
+    const trace::PassInfo& info = reader.passes()[p];
+    const auto records = reader.read_pass(p);
+    const cachesim::PassResult r = sim.run_pass(info, records);
+    json pj;
+    pj["pass"] = info.name;
+    pj["records"] = records.size();
+    pj["lane_accesses"] = r.lane_accesses;
+    pj["l1"] = level_json(r.stats.l1);
+    pj["l2"] = level_json(r.stats.l2);
+    pj["stores"] = r.stats.stores;
+    pj["atomics"] = r.stats.atomics;
+    pj["dram_read_bytes"] = r.stats.dram_read_bytes;
+    pj["dram_write_bytes"] = r.stats.dram_write_bytes;
+    json buffers = json::object();
+    for (const trace::BufferInfo& b : reader.header().buffers) {
+      const cachesim::BufferStats& bs = r.buffers[b.id];
+      if (bs.l1_requests == 0 && bs.l2_requests == 0) continue;
+      buffers[b.name] = {{"l1_requests", bs.l1_requests}, {"l1_misses", bs.l1_misses}, {"l2_requests", bs.l2_requests},
+                         {"l2_misses", bs.l2_misses},     {"dram_read_bytes", bs.dram_read_bytes}};
+    }
+    pj["buffers"] = buffers;
+    if (o.curves) pj["mrc"] = {{"l1", curve_json(r.l1_curve)}, {"l2", curve_json(r.l2_curve)}};
+    if (!o.heatmap_dir.empty()) {
+      // The pass's own pixel grid: shadows cover the image; reflections their (possibly reduced) grid.
+      uint32_t w = reader.header().image_width, h = reader.header().image_height;
+      if (info.name == "reflections") {
+        for (const auto& b : reader.header().buffers) {
+          if (b.name == "reflection") w = b.width, h = b.height;
+        }
+      }
+      const std::filesystem::path dir(o.heatmap_dir);
+      pj["heatmaps"] = {
+          {"l1_misses", write_heatmap(r.l1_misses, info, w, h,
+                                      (dir / (o.heatmap_prefix + info.name + "_l1_misses.png")).string())},
+          {"l2_misses", write_heatmap(r.l2_misses, info, w, h,
+                                      (dir / (o.heatmap_prefix + info.name + "_l2_misses.png")).string())}};
+    }
+    out["passes"].push_back(pj);
+  }
+  out["dram_writeback_bytes"] = sim.finish();
+  return out;
+}
+
+}  // namespace hp
