@@ -168,7 +168,6 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
   HpHit best;
   best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
   float best_t = r.tmax;
-  uint best_scene = 0xFFFFFFFFu;
   uint lane = gl_LocalInvocationIndex;
   int sp = 0;
   uint node = 0u;
@@ -223,10 +222,13 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
         best.slot = int(k); best.t = t; best.u = u; best.v = v;
         return best;
       }
-      uint sc = slot_scene[k];
-      if (t < best_t || (t == best_t && sc < best_scene)) {
+      // The reference's test is t < best_t || (t == best_t && scene(k) < best_scene), with best_scene =
+      // UINT32_MAX before the first hit; the scene indices are only read on a tie (rare), which spares a
+      // per-lane load per triangle.
+      bool better = t < best_t;
+      if (!better && t == best_t) better = best.slot < 0 || slot_scene[k] < slot_scene[uint(best.slot)];
+      if (better) {
         best_t = t;
-        best_scene = sc;
         best.slot = int(k); best.t = t; best.u = u; best.v = v;
       }
     }
