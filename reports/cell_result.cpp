@@ -1,0 +1,160 @@
+#include "cell_result.hpp"
+
+#include "error.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+
+namespace hp {
+
+using json = nlohmann::json;
+namespace fs = std::filesystem;
+
+CellResult parse_cell(const json& line, const std::string& where) {
+  if (!line.is_object() || line.value("schema", "") != "hybridprof.cell") {
+    throw InputError(where + ": not a hybridprof cell (field 'schema' is not \"hybridprof.cell\")");
+  }
+  if (!line.contains("result")) throw InputError(where + ": field 'result' missing");
+  auto timing = [&] {
+    try {
+      return parse_timing_result(line["result"]);
+    } catch (const InputError& e) {
+      throw InputError(where + ": result: " + e.what());
+    }
+  };
+  CellResult c(timing());
+  c.where = where;
+  auto str = [&](const char* key) {
+    const auto it = line.find(key);
+    if (it == line.end() || !it->is_string()) throw InputError(where + ": field '" + key + "' missing or not a string");
+    return it->get<std::string>();
+  };
+  c.id = str("id");
+  c.matrix = line.value("matrix", "");
+  c.name = line.value("name", "");
+  if (line.contains("axes")) {
+    if (!line["axes"].is_object()) throw InputError(where + ": field 'axes' is not an object");
+    c.axes = line["axes"];
+  }
+  if (line.contains("config")) c.config = line["config"];
+  if (c.timing.timings.measured().empty()) throw InputError(where + ": result: no measured frames");
+  if (line.contains("scene") && line["scene"].contains("triangles")) {
+    const json& t = line["scene"]["triangles"];
+    if (!t.is_number_unsigned()) throw InputError(where + ": field 'scene.triangles' is not a count");
+    c.triangles = t.get<std::uint64_t>();
+  }
+  if (line.contains("bvh") && !line["bvh"].is_null()) {
+    if (!line["bvh"].is_object()) throw InputError(where + ": field 'bvh' is not an object");
+    c.bvh = line["bvh"];
+  }
+  if (line.contains("images")) c.images = line["images"];
+  if (line.contains("cache") && !line["cache"].is_null()) {
+    if (!line["cache"].is_object()) throw InputError(where + ": field 'cache' is not an object");
+    c.cache = line["cache"];
+  }
+  return c;
+}
+
+std::vector<CellResult> load_cells(const std::string& out_dir) {
+  const fs::path file = fs::path(out_dir) / "results.jsonl";
+  if (!fs::exists(file)) throw InputError(file.string() + ": no such file (run `hybridprof run` first)");
+  std::ifstream in(file, std::ios::binary);
+  std::vector<CellResult> cells;
+  std::string line;
+  size_t line_no = 0;
+  // Read line by line rather than through read_results so each cell can name its own line.
+  std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  size_t start = 0;
+  while (start < content.size()) {
+    const size_t end = content.find('\n', start);
+    if (end == std::string::npos) break;  // an unterminated last line is an interrupted write
+    ++line_no;
+    line = content.substr(start, end - start);
+    start = end + 1;
+    if (line.empty()) continue;
+    const std::string where = file.string() + ":" + std::to_string(line_no);
+    json j;
+    try {
+      j = json::parse(line);
+    } catch (const json::parse_error&) {
+      throw InputError(where + ": corrupt result line (not JSON)");
+    }
+    cells.push_back(parse_cell(j, where));
+  }
+  if (cells.empty()) throw InputError(file.string() + ": no finished cell");
+  return cells;
+}
+
+PassSamples pass_samples(const TimingResult& timing) {
+  PassSamples out;
+  for (const FrameSample& f : timing.timings.measured()) {
+    std::vector<std::pair<std::string, double>> frame;  // this frame's sum per pass, in order
+    for (const PassSample& p : f.passes) {
+      auto it = std::find_if(frame.begin(), frame.end(), [&](auto& e) { return e.first == p.pass; });
+      if (it == frame.end()) frame.emplace_back(p.pass, double(p.duration_ns()));
+      else it->second += double(p.duration_ns());
+    }
+    for (const auto& [pass, ns] : frame) {
+      auto it = std::find_if(out.begin(), out.end(), [&](auto& e) { return e.first == pass; });
+      if (it == out.end()) out.push_back({pass, {ns}});
+      else it->second.push_back(ns);
+    }
+  }
+  return out;
+}
+
+namespace {
+void flatten_numbers(const json& j, const std::string& prefix, std::map<std::string, double>& out) {
+  if (j.is_number()) {
+    out[prefix] = j.get<double>();
+  } else if (j.is_object()) {
+    for (const auto& [k, v] : j.items()) flatten_numbers(v, prefix + "/" + k, out);
+  }
+}
+}  // namespace
+
+std::map<std::string, double> deterministic_metrics(const CellResult& c) {
+  std::map<std::string, double> m;
+  for (const auto& [pass, counters] : c.timing.counters.passes()) {
+    for (const auto& [name, value] : counters) m[pass + "/" + name] = double(value);
+  }
+  if (c.bvh.is_object()) {
+    for (const char* k : {"nodes", "leaves", "max_depth", "sah_cost"}) {
+      if (c.bvh.contains(k) && c.bvh[k].is_number()) m[std::string("bvh.") + k] = c.bvh[k].get<double>();
+    }
+  }
+  if (c.triangles) m["scene.triangles"] = double(*c.triangles);
+  if (c.cache.is_object()) flatten_numbers(c.cache, "cache", m);
+  return m;
+}
+
+std::string match_key(const CellResult& c) {
+  json k = c.config;
+  if (k.is_object()) k.erase("inject");
+  return c.matrix + "|" + c.name + "|" + k.dump();
+}
+
+std::string axis_value_text(const json& v) {
+  if (v.is_string()) return v.get<std::string>();
+  if (v.is_array() && !v.empty() && std::all_of(v.begin(), v.end(), [](const json& e) { return e.is_number(); })) {
+    std::string s;
+    for (const json& e : v) s += (s.empty() ? "" : "x") + e.dump();
+    return s;
+  }
+  return v.dump();
+}
+
+std::string cell_label(const CellResult& c) {
+  std::string s;
+  for (const auto& [k, v] : c.axes.items()) s += (s.empty() ? "" : ", ") + axis_leaf(k) + "=" + axis_value_text(v);
+  if (!s.empty()) return s;
+  return c.name.empty() ? c.id : c.name;
+}
+
+std::string axis_leaf(const std::string& axis) {
+  const size_t dot = axis.rfind('.');
+  return dot == std::string::npos ? axis : axis.substr(dot + 1);
+}
+
+}  // namespace hp

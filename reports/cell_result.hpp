@@ -1,0 +1,63 @@
+// One matrix cell read back from OUT/results.jsonl, and the views of it that the report, the
+// Google Benchmark export and the gate share: raw per-pass samples, deterministic metrics, labels.
+#pragma once
+
+#include "timing/result_json.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <map>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace hp {
+
+struct CellResult {
+  explicit CellResult(TimingResult t) : timing(std::move(t)) {}
+
+  std::string id, matrix, name;
+  nlohmann::json axes = nlohmann::json::object();    ///< {axis key path: value}
+  nlohmann::json config = nlohmann::json::object();  ///< canonical scenario
+  TimingResult timing;
+  std::optional<std::uint64_t> triangles;            ///< scene.triangles
+  nlohmann::json bvh;     ///< {build_ms, nodes, leaves, max_depth, sah_cost} or null (no rays traced)
+  nlohmann::json images = nlohmann::json::object();  ///< {"color": "cells/<id>/color.png", ...}
+  /// Cache-simulator tables, when the run captured traces (null otherwise):
+  /// {pass: {l1_hits, l1_misses, l2_hits, l2_misses, buffers: {name: {l1_hits, ...}}}}.
+  nlohmann::json cache;
+  std::string where;  ///< "DIR/results.jsonl:LINE", for messages
+};
+
+/// Parses one results.jsonl line; errors (InputError) start with `where`.
+CellResult parse_cell(const nlohmann::json& line, const std::string& where);
+
+/// Every cell of OUT/results.jsonl. InputError when the file is missing, empty or has a bad line.
+std::vector<CellResult> load_cells(const std::string& out_dir);
+
+/// Raw per-frame samples (ns) per pass, in the order passes first appear. A pass recorded several
+/// times in a frame contributes the sum, as the timing summary does.
+using PassSamples = std::vector<std::pair<std::string, std::vector<double>>>;
+PassSamples pass_samples(const TimingResult& timing);
+
+/// The metrics that must not change between runs of one configuration on one driver, flattened to
+/// names: "<pass>/<counter>" (sums over the measured frames), "bvh.nodes", "bvh.leaves",
+/// "bvh.max_depth", "bvh.sah_cost", "scene.triangles", and "cache/<pass>/..." for every number in
+/// the cache tables. bvh.build_ms is a timing and is left out.
+std::map<std::string, double> deterministic_metrics(const CellResult& cell);
+
+/// Which cells two runs pair up: the canonical config without the gate-validation knob `inject`
+/// (that knob stands in for a code change, so it must not make the cells different cells).
+std::string match_key(const CellResult& cell);
+
+/// A readable value of an axis: strings as they are, [128,72] as "128x72", other JSON dumped.
+std::string axis_value_text(const nlohmann::json& value);
+
+/// "geometry=soup, jitter=shared", or the cell's name, or its id when it has neither.
+std::string cell_label(const CellResult& cell);
+
+/// The last component of an axis key path ("passes.shadows" -> "shadows").
+std::string axis_leaf(const std::string& axis);
+
+}  // namespace hp

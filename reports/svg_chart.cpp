@@ -1,0 +1,240 @@
+#include "svg_chart.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+namespace hp::svg {
+
+namespace {
+
+// Colour-blind-safe palette (Okabe & Ito), cycled.
+const char* const kPalette[] = {"#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000"};
+const char* colour(size_t i) { return kPalette[i % (sizeof(kPalette) / sizeof(kPalette[0]))]; }
+
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.2f", v);
+  return buf;
+}
+
+void check_finite(double v, const char* what) {
+  if (!std::isfinite(v)) throw std::invalid_argument(std::string("svg chart: non-finite ") + what);
+}
+
+// The plot frame shared by both chart kinds: margins, a title, a y axis with grid lines and labels.
+struct Frame {
+  double width, height;
+  double left = 70, right = 20, top = 40, bottom = 90;
+  double y0 = 0, y1 = 1;  // data range of the y axis (the first and last tick)
+  double x0 = 0, x1 = 1;  // data range of the x axis (line charts)
+
+  double plot_w() const { return width - left - right; }
+  double plot_h() const { return height - top - bottom; }
+  double py(double y) const { return top + plot_h() * (1.0 - (y - y0) / (y1 - y0)); }
+  double px(double x) const { return left + plot_w() * (x - x0) / (x1 - x0); }
+};
+
+std::string header(const Frame& f, const std::string& title) {
+  std::string s = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
+  s += "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" width=\"" + num(f.width) + "\" height=\"" +
+       num(f.height) + "\" viewBox=\"0 0 " + num(f.width) + " " + num(f.height) +
+       "\" font-family=\"sans-serif\" font-size=\"12\">\n";
+  s += "<rect class=\"background\" x=\"0\" y=\"0\" width=\"" + num(f.width) + "\" height=\"" + num(f.height) +
+       "\" fill=\"white\"/>\n";
+  s += "<text class=\"title\" x=\"" + num(f.width / 2) + "\" y=\"22\" text-anchor=\"middle\" font-size=\"15\">" +
+       escape(title) + "</text>\n";
+  return s;
+}
+
+std::string y_axis(const Frame& f, const std::vector<double>& ticks, const std::string& label) {
+  std::string s = "<g class=\"y-axis\">\n";
+  for (double t : ticks) {
+    const double y = f.py(t);
+    s += "<line class=\"grid\" x1=\"" + num(f.left) + "\" y1=\"" + num(y) + "\" x2=\"" + num(f.left + f.plot_w()) +
+         "\" y2=\"" + num(y) + "\" stroke=\"#dddddd\"/>\n";
+    s += "<text class=\"tick\" x=\"" + num(f.left - 6) + "\" y=\"" + num(y + 4) + "\" text-anchor=\"end\">" +
+         escape(tick_label(t)) + "</text>\n";
+  }
+  s += "<line class=\"axis\" x1=\"" + num(f.left) + "\" y1=\"" + num(f.top) + "\" x2=\"" + num(f.left) + "\" y2=\"" +
+       num(f.top + f.plot_h()) + "\" stroke=\"black\"/>\n";
+  s += "<line class=\"axis\" x1=\"" + num(f.left) + "\" y1=\"" + num(f.top + f.plot_h()) + "\" x2=\"" +
+       num(f.left + f.plot_w()) + "\" y2=\"" + num(f.top + f.plot_h()) + "\" stroke=\"black\"/>\n";
+  const double cy = f.top + f.plot_h() / 2;
+  s += "<text class=\"axis-label\" x=\"16\" y=\"" + num(cy) + "\" text-anchor=\"middle\" transform=\"rotate(-90 16 " +
+       num(cy) + ")\">" + escape(label) + "</text>\n";
+  return s + "</g>\n";
+}
+
+std::string legend(const Frame& f, const std::vector<std::string>& names) {
+  std::string s = "<g class=\"legend\">\n";
+  double x = f.left;
+  const double y = f.height - 18;
+  for (size_t i = 0; i < names.size(); ++i) {
+    s += "<rect class=\"legend-swatch\" x=\"" + num(x) + "\" y=\"" + num(y - 10) + "\" width=\"12\" height=\"12\" fill=\"" +
+         colour(i) + "\"/>\n";
+    s += "<text class=\"legend-label\" x=\"" + num(x + 16) + "\" y=\"" + num(y) + "\">" + escape(names[i]) + "</text>\n";
+    x += 16 + 7.0 * double(names[i].size()) + 18;
+  }
+  return s + "</g>\n";
+}
+
+std::string error_bar(double x, double y_low, double y_high, double half_width) {
+  std::string s = "<g class=\"errorbar\" stroke=\"black\">";
+  s += "<line x1=\"" + num(x) + "\" y1=\"" + num(y_low) + "\" x2=\"" + num(x) + "\" y2=\"" + num(y_high) + "\"/>";
+  s += "<line x1=\"" + num(x - half_width) + "\" y1=\"" + num(y_low) + "\" x2=\"" + num(x + half_width) + "\" y2=\"" +
+       num(y_low) + "\"/>";
+  s += "<line x1=\"" + num(x - half_width) + "\" y1=\"" + num(y_high) + "\" x2=\"" + num(x + half_width) + "\" y2=\"" +
+       num(y_high) + "\"/>";
+  return s + "</g>\n";
+}
+
+void check_bars(const std::vector<double>& v, const std::vector<double>& lo, const std::vector<double>& hi, size_t n) {
+  if (v.size() != n) throw std::invalid_argument("svg chart: a group or line has the wrong number of values");
+  if ((!lo.empty() && lo.size() != n) || lo.size() != hi.size())
+    throw std::invalid_argument("svg chart: error bars must be absent or one low and one high per value");
+  for (double x : v) check_finite(x, "value");
+  for (double x : lo) check_finite(x, "error bar");
+  for (double x : hi) check_finite(x, "error bar");
+}
+
+}  // namespace
+
+std::vector<double> nice_ticks(double lo, double hi, int target) {
+  check_finite(lo, "axis bound");
+  check_finite(hi, "axis bound");
+  if (lo > hi) std::swap(lo, hi);
+  if (hi == lo) {
+    const double pad = lo == 0.0 ? 1.0 : std::abs(lo) * 0.1;
+    lo -= pad;
+    hi += pad;
+  }
+  const double raw = (hi - lo) / double(std::max(1, target));
+  const double mag = std::pow(10.0, std::floor(std::log10(raw)));
+  double step = mag;
+  for (double m : {1.0, 2.0, 5.0, 10.0}) {
+    if (m * mag >= raw) {
+      step = m * mag;
+      break;
+    }
+  }
+  std::vector<double> ticks;
+  const double first = std::floor(lo / step) * step;
+  for (int i = 0;; ++i) {
+    double t = first + step * i;
+    if (std::abs(t) < step * 1e-9) t = 0.0;  // no "-0" or 1e-17 labels
+    ticks.push_back(t);
+    if (t >= hi - step * 1e-9) break;
+  }
+  return ticks;
+}
+
+std::string tick_label(double v) {
+  char buf[32];
+  if (v != 0.0 && (std::abs(v) >= 1e6 || std::abs(v) < 1e-3)) std::snprintf(buf, sizeof(buf), "%.3g", v);
+  else std::snprintf(buf, sizeof(buf), "%.6g", v);
+  return buf;
+}
+
+std::string escape(const std::string& text) {
+  std::string s;
+  for (char c : text) {
+    switch (c) {
+      case '&': s += "&amp;"; break;
+      case '<': s += "&lt;"; break;
+      case '>': s += "&gt;"; break;
+      case '"': s += "&quot;"; break;
+      default: s += c;
+    }
+  }
+  return s;
+}
+
+std::string render(const BarChart& c) {
+  const size_t ns = c.series.size();
+  if (ns == 0 || c.groups.empty()) throw std::invalid_argument("svg chart: a bar chart needs series and groups");
+  double hi = 0.0;
+  for (const BarGroup& g : c.groups) {
+    check_bars(g.values, g.low, g.high, ns);
+    for (double v : g.values) hi = std::max(hi, v);
+    for (double v : g.high) hi = std::max(hi, v);
+  }
+  const double slot = std::max(24.0, 14.0 * double(ns) + 16.0);  // width of one group
+  Frame f{std::max(360.0, 90.0 + slot * double(c.groups.size())), 380};
+  const std::vector<double> ticks = nice_ticks(0.0, hi);  // bars start at zero: lengths compare
+  f.y0 = ticks.front();
+  f.y1 = ticks.back();
+  const double group_w = f.plot_w() / double(c.groups.size());
+  const double bar_w = std::min(28.0, (group_w - 10.0) / double(ns));
+  std::string s = header(f, c.title) + y_axis(f, ticks, c.y_label);
+  for (size_t g = 0; g < c.groups.size(); ++g) {
+    const BarGroup& grp = c.groups[g];
+    const double gx = f.left + group_w * double(g) + (group_w - bar_w * double(ns)) / 2;
+    s += "<g class=\"group\">\n";
+    for (size_t i = 0; i < ns; ++i) {
+      const double x = gx + bar_w * double(i), y = f.py(grp.values[i]);
+      s += "<rect class=\"bar\" x=\"" + num(x) + "\" y=\"" + num(y) + "\" width=\"" + num(bar_w * 0.9) + "\" height=\"" +
+           num(f.py(0.0) - y) + "\" fill=\"" + colour(i) + "\"><title>" + escape(c.series[i] + ": " + tick_label(grp.values[i])) +
+           "</title></rect>\n";
+      if (!grp.low.empty()) s += error_bar(x + bar_w * 0.45, f.py(grp.low[i]), f.py(grp.high[i]), bar_w * 0.2);
+    }
+    const double lx = f.left + group_w * (double(g) + 0.5), ly = f.top + f.plot_h() + 14;
+    s += "<text class=\"group-label\" x=\"" + num(lx) + "\" y=\"" + num(ly) + "\" text-anchor=\"end\" transform=\"rotate(-30 " +
+         num(lx) + " " + num(ly) + ")\">" + escape(grp.label) + "</text>\n</g>\n";
+  }
+  return s + legend(f, c.series) + "</svg>\n";
+}
+
+std::string render(const LineChart& c) {
+  if (c.lines.empty()) throw std::invalid_argument("svg chart: a line chart needs lines");
+  double xlo = INFINITY, xhi = -INFINITY, yhi = 0.0;
+  for (const Line& l : c.lines) {
+    if (l.x.empty()) throw std::invalid_argument("svg chart: line '" + l.name + "' has no points");
+    check_bars(l.y, l.low, l.high, l.x.size());
+    for (double x : l.x) {
+      check_finite(x, "x");
+      xlo = std::min(xlo, x);
+      xhi = std::max(xhi, x);
+    }
+    for (double y : l.y) yhi = std::max(yhi, y);
+    for (double y : l.high) yhi = std::max(yhi, y);
+  }
+  Frame f{640, 400};
+  f.bottom = 70;
+  const std::vector<double> yt = nice_ticks(0.0, yhi), xt = nice_ticks(xlo, xhi);
+  f.y0 = yt.front();
+  f.y1 = yt.back();
+  f.x0 = xt.front();
+  f.x1 = xt.back();
+  std::string s = header(f, c.title) + y_axis(f, yt, c.y_label);
+  s += "<g class=\"x-axis\">\n";
+  for (double t : xt) {
+    s += "<text class=\"tick\" x=\"" + num(f.px(t)) + "\" y=\"" + num(f.top + f.plot_h() + 16) + "\" text-anchor=\"middle\">" +
+         escape(tick_label(t)) + "</text>\n";
+  }
+  s += "<text class=\"axis-label\" x=\"" + num(f.left + f.plot_w() / 2) + "\" y=\"" + num(f.top + f.plot_h() + 36) +
+       "\" text-anchor=\"middle\">" + escape(c.x_label) + "</text>\n</g>\n";
+  std::vector<std::string> names;
+  for (size_t i = 0; i < c.lines.size(); ++i) {
+    const Line& l = c.lines[i];
+    names.push_back(l.name);
+    // Points in x order, so a line never doubles back.
+    std::vector<size_t> order(l.x.size());
+    for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return l.x[a] < l.x[b]; });
+    std::string pts;
+    for (size_t k : order) pts += (pts.empty() ? "" : " ") + num(f.px(l.x[k])) + "," + num(f.py(l.y[k]));
+    s += "<g class=\"series\">\n<polyline class=\"line\" fill=\"none\" stroke-width=\"2\" stroke=\"" + std::string(colour(i)) +
+         "\" points=\"" + pts + "\"/>\n";
+    for (size_t k : order) {
+      s += "<circle class=\"point\" cx=\"" + num(f.px(l.x[k])) + "\" cy=\"" + num(f.py(l.y[k])) + "\" r=\"3\" fill=\"" +
+           colour(i) + "\"/>\n";
+      if (!l.low.empty()) s += error_bar(f.px(l.x[k]), f.py(l.low[k]), f.py(l.high[k]), 4);
+    }
+    s += "</g>\n";
+  }
+  return s + legend(f, names) + "</svg>\n";
+}
+
+}  // namespace hp::svg

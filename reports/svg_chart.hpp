@@ -1,0 +1,49 @@
+// A small SVG chart writer: axes with "nice" ticks, labels, grouped bars with error bars, lines
+// with markers and error bars, and a legend. No plotting library is packaged for C++ on Debian 12,
+// and the report needs only these two chart kinds. Output is plain SVG 1.1 that browsers and
+// GitHub's markdown viewer render; every element carries a class ("bar", "errorbar", "series",
+// "tick", "legend") so tests and stylesheets can find it.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace hp::svg {
+
+/// Bars grouped by category: groups[g].values[s] is series s in group g. low/high (same sizes as
+/// values, or empty) draw an error bar from low to high.
+struct BarGroup {
+  std::string label;
+  std::vector<double> values, low, high;
+};
+struct BarChart {
+  std::string title, y_label;
+  std::vector<std::string> series;  ///< legend entries, one colour each
+  std::vector<BarGroup> groups;
+};
+
+/// One line of a line chart: points (x[i], y[i]); low/high empty or as long as y (error bars).
+struct Line {
+  std::string name;
+  std::vector<double> x, y, low, high;
+};
+struct LineChart {
+  std::string title, x_label, y_label;
+  std::vector<Line> lines;
+};
+
+/// Ticks covering [lo, hi] at a step of 1, 2 or 5 times a power of ten, about `target` of them.
+/// The first tick is <= lo and the last >= hi. lo == hi gives a range around that value.
+std::vector<double> nice_ticks(double lo, double hi, int target = 5);
+
+/// A tick label without trailing zeros ("0.5", "12", "1e+06" for large magnitudes).
+std::string tick_label(double v);
+
+/// Escapes &, <, >, " for text and attributes.
+std::string escape(const std::string& text);
+
+/// The SVG document. Throws std::invalid_argument when sizes disagree or a value is not finite.
+std::string render(const BarChart& chart);
+std::string render(const LineChart& chart);
+
+}  // namespace hp::svg
