@@ -1,0 +1,527 @@
+#include "report.hpp"
+
+#include "error.hpp"
+#include "svg_chart.hpp"
+#include "timing/stats.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <unistd.h>
+
+namespace hp {
+
+using json = nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), f, v);
+  return buf;
+}
+std::string ms(double ns) { return fmt("%.3f", ns / 1e6); }
+std::string pct(double ratio) { return fmt("%+.1f%%", (ratio - 1.0) * 100.0); }
+std::string p_text(double p) { return p < 0.001 ? "< 0.001" : fmt("%.3f", p); }
+std::string count_text(double v) {
+  // Thousands separators: counts are read by eye against the study's tables, which use them.
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.0f", v);
+  std::string s = buf, out;
+  const size_t lead = s[0] == '-' ? 1 : 0;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (i > lead && (s.size() - i) % 3 == 0) out += ',';
+    out += s[i];
+  }
+  return out;
+}
+std::string md_escape(std::string s) {
+  std::string out;
+  for (char c : s) out += c == '|' ? std::string("\\|") : std::string(1, c);
+  return out;
+}
+
+// Study Table 1 (PIX on a Vega 56, reflection pass): L1 hit, L1 miss, L2 hit, L2 miss.
+struct StudyRow {
+  const char* label;
+  bool shared_offset, indexed;
+  double l1_hit, l1_miss, l2_hit, l2_miss;
+};
+constexpr StudyRow kTable1[] = {
+    {"offset + noEBO", true, false, 4873530, 291719, 115552, 217475},
+    {"offset + EBO", true, true, 6251450, 258988, 91876, 214712},
+    {"nooffset + noEBO", false, false, 5374096, 290892, 134387, 194732},
+    {"nooffset + EBO", false, true, 5979267, 241950, 87422, 192207},
+};
+const StudyRow& study(bool shared, bool indexed) {
+  for (const StudyRow& r : kTable1)
+    if (r.shared_offset == shared && r.indexed == indexed) return r;
+  return kTable1[0];
+}
+
+std::string study_block(const std::string& leaf) {
+  std::string s = "\n**Beside the study (Santoro 2020, Table 1: PIX on a Vega 56, reflection pass).** ";
+  s += "\"offset\" is one shared jitter offset per frame (our `jitter: shared`), \"EBO\" an index buffer "
+       "(our `geometry: indexed`).\n\n| study configuration | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate |\n|---|---|---|---|---|---|\n";
+  for (const StudyRow& r : kTable1) {
+    s += std::string("| ") + r.label + " | " + count_text(r.l1_hit) + " | " + count_text(r.l1_miss) + " | " +
+         count_text(r.l2_hit) + " | " + count_text(r.l2_miss) + " | " +
+         fmt("%.1f%%", 100.0 * r.l1_hit / (r.l1_hit + r.l1_miss)) + " |\n";
+  }
+  s += "\n";
+  if (leaf == "geometry") {
+    s += "In the study the index buffer raised L1 hits by " +
+         pct(study(true, true).l1_hit / study(true, false).l1_hit).substr(1) + " with a shared offset and by " +
+         pct(study(false, true).l1_hit / study(false, false).l1_hit).substr(1) + " without one.";
+  } else {
+    s += "In the study the shared offset changed L1 hits by " + pct(study(true, true).l1_hit / study(false, true).l1_hit) +
+         " with an index buffer and by " + pct(study(true, false).l1_hit / study(false, false).l1_hit) + " without one.";
+  }
+  s += " Our L1/L2 columns for this comparison appear beside these once GPU traces are captured and the "
+       "cells carry cache tables (see \"Cache simulation\").\n";
+  return s;
+}
+
+// Environment fields that decide whether numbers are comparable, and the rest shown for context.
+struct EnvField {
+  const char* label;
+  std::string (*get)(const Environment&);
+  bool must_match;
+};
+const EnvField kEnv[] = {
+    {"device", [](const Environment& e) { return e.device.name; }, true},
+    {"driver", [](const Environment& e) { return e.device.driver_name + " / " + e.device.driver_info; }, true},
+    {"Vulkan API", [](const Environment& e) { return e.device.api_version; }, false},
+    {"CPU", [](const Environment& e) { return e.cpu_model; }, false},
+    {"cores", [](const Environment& e) { return std::to_string(e.core_count); }, true},
+    {"LP_NUM_THREADS", [](const Environment& e) { return e.lp_num_threads; }, true},
+    {"commit", [](const Environment& e) { return e.git_commit; }, true},
+    {"build", [](const Environment& e) { return e.build_type + ", " + e.compiler; }, false},
+    {"host", [](const Environment& e) { return e.hostname + " (" + e.os + ")"; }, false},
+    {"date (UTC)", [](const Environment& e) { return e.date_utc; }, false},
+};
+
+std::string environment_section(const std::vector<CellResult>& cells) {
+  std::string s = "## Environment\n\n| | |\n|---|---|\n";
+  std::vector<std::string> differing;
+  for (const EnvField& f : kEnv) {
+    std::vector<std::string> values;
+    for (const CellResult& c : cells) {
+      const std::string v = f.get(c.timing.environment);
+      if (std::find(values.begin(), values.end(), v) == values.end()) values.push_back(v);
+    }
+    std::string joined;
+    if (std::string(f.label) == "date (UTC)" && values.size() > 1) {
+      std::sort(values.begin(), values.end());
+      joined = values.front() + " … " + values.back();
+    } else {
+      for (const std::string& v : values) joined += (joined.empty() ? "" : "; ") + v;
+    }
+    s += std::string("| ") + f.label + " | " + md_escape(joined) + " |\n";
+    if (f.must_match && values.size() > 1) differing.push_back(f.label);
+  }
+  if (!differing.empty()) {
+    std::string d;
+    for (const std::string& x : differing) d += (d.empty() ? "" : ", ") + x;
+    s += "\n> **Warning:** the cells ran with different " + d +
+         ". Timings of cells from different environments are not comparable; the comparisons below still "
+         "show them.\n";
+  }
+  const TimingSummary& t = cells.front().timing.summary;
+  s += "\nTimes come from " + std::string(t.source == TimingSource::GpuTimestamps ? "GPU timestamps" : "CPU wall clocks") +
+       " around each pass, after discarded warm-up frames; raw results keep nanoseconds.\n";
+  return s;
+}
+
+struct PassStat {
+  std::string pass;
+  std::vector<double> samples;
+  Summary summary;
+};
+std::vector<PassStat> pass_stats(const CellResult& c) {
+  std::vector<PassStat> out;
+  for (auto& [pass, samples] : pass_samples(c.timing)) out.push_back({pass, samples, summarize(samples)});
+  return out;
+}
+
+std::string ci_text(const Summary& s) {
+  if (!s.median_ci.valid) return "— (n < 6)";
+  return "[" + ms(s.median_ci.low) + ", " + ms(s.median_ci.high) + "]";
+}
+
+bool has_pass(const Counters& c, const std::string& pass) { return c.passes().count(pass) > 0; }
+
+std::string cache_tables(const CellResult& c) {
+  if (!c.cache.is_object() || c.cache.empty()) return "";
+  auto get = [](const json& j, const char* k) { return j.contains(k) && j[k].is_number() ? j[k].get<double>() : 0.0; };
+  auto rate = [](double h, double m) { return h + m > 0 ? fmt("%.1f%%", 100.0 * h / (h + m)) : std::string("—"); };
+  std::string s = "\nCache simulation (" + std::string(c.config.value("cache_preset", "preset?")) +
+                  "), in the study's form:\n\n| pass | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate | L2 hit rate |\n|---|---|---|---|---|---|---|\n";
+  std::string buffers;
+  for (const auto& [pass, t] : c.cache.items()) {
+    if (!t.is_object()) continue;
+    s += "| " + pass + " | " + count_text(get(t, "l1_hits")) + " | " + count_text(get(t, "l1_misses")) + " | " +
+         count_text(get(t, "l2_hits")) + " | " + count_text(get(t, "l2_misses")) + " | " +
+         rate(get(t, "l1_hits"), get(t, "l1_misses")) + " | " + rate(get(t, "l2_hits"), get(t, "l2_misses")) + " |\n";
+    if (t.contains("buffers") && t["buffers"].is_object()) {
+      for (const auto& [buf, b] : t["buffers"].items()) {
+        buffers += "| " + pass + " | " + buf + " | " + count_text(get(b, "l1_hits")) + " | " + count_text(get(b, "l1_misses")) +
+                   " | " + count_text(get(b, "l2_hits")) + " | " + count_text(get(b, "l2_misses")) + " | " +
+                   rate(get(b, "l1_hits"), get(b, "l1_misses")) + " |\n";
+      }
+    }
+  }
+  if (!buffers.empty()) {
+    s += "\nPer buffer:\n\n| pass | buffer | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate |\n|---|---|---|---|---|---|---|\n" + buffers;
+  }
+  return s;
+}
+
+std::string cell_section(const CellResult& c) {
+  std::string s = "### " + md_escape(cell_label(c)) + "\n\nCell `" + c.id + "`";
+  if (!c.name.empty()) s += " of `" + c.name + "`";
+  s += ": " + std::to_string(c.timing.timings.measured().size()) + " measured frames after " +
+       std::to_string(c.timing.summary.warmup_frames) + " warm-up.\n\n";
+  s += "| pass | median (ms) | 95% CI of the median (ms) | frames | CV |\n|---|---|---|---|---|\n";
+  const std::vector<PassStat> stats = pass_stats(c);
+  for (const PassStat& p : stats) {
+    s += "| " + p.pass + " | " + ms(p.summary.median) + " | " + ci_text(p.summary) + " | " + std::to_string(p.summary.count) +
+         " | " + (p.summary.cv ? fmt("%.1f%%", *p.summary.cv * 100.0) : std::string("—")) + " |\n";
+  }
+  const Counters& k = c.timing.counters;
+  const double frames = double(c.timing.timings.measured().size());
+  if (!k.empty()) {
+    s += "\n| pass | rays per frame | nodes per ray | triangles per ray | Mrays/s |\n|---|---|---|---|---|\n";
+    for (const PassStat& p : stats) {
+      if (!has_pass(k, p.pass) || k.get(p.pass, counter::rays_cast) == 0) continue;
+      const double rays = double(k.get(p.pass, counter::rays_cast));
+      s += "| " + p.pass + " | " + count_text(rays / frames) + " | " +
+           fmt("%.2f", double(k.get(p.pass, counter::nodes_visited)) / rays) + " | " +
+           fmt("%.2f", double(k.get(p.pass, counter::triangles_tested)) / rays) + " | " +
+           fmt("%.2f", p.summary.median > 0 ? rays / frames / p.summary.median * 1e3 : 0.0) + " |\n";
+    }
+  }
+  if (c.bvh.is_object()) {
+    s += "\nBVH: " + count_text(c.bvh.value("nodes", 0.0)) + " nodes, " + count_text(c.bvh.value("leaves", 0.0)) +
+         " leaves, depth " + std::to_string(c.bvh.value("max_depth", 0)) + ", SAH cost " + fmt("%.3f", c.bvh.value("sah_cost", 0.0)) +
+         ", built in " + fmt("%.1f", c.bvh.value("build_ms", 0.0)) + " ms";
+    s += c.triangles ? " over " + count_text(double(*c.triangles)) + " triangles.\n" : ".\n";
+  } else if (c.triangles) {
+    s += "\nScene: " + count_text(double(*c.triangles)) + " triangles (no BVH: no rays traced).\n";
+  }
+  s += cache_tables(c);
+  if (c.images.is_object() && !c.images.empty()) {
+    s += "\n";
+    for (const auto& [kind, path] : c.images.items()) {
+      if (!path.is_string()) continue;
+      const std::string alt = kind == "shadow" ? "shadow mask (white: lit)" : kind;
+      s += "[![" + alt + "](" + path.get<std::string>() + ")](" + path.get<std::string>() + ") ";
+    }
+    s += "\n";
+  }
+  return s + "\n";
+}
+
+// The x position of a numeric axis value: the number, or the product of a numeric array
+// (a resolution [w, h] becomes its pixel count). nullopt when the value is not numeric.
+std::optional<double> numeric_value(const json& v) {
+  if (v.is_number()) return v.get<double>();
+  if (v.is_array() && !v.empty()) {
+    double p = 1.0;
+    for (const json& e : v) {
+      if (!e.is_number()) return std::nullopt;
+      p *= e.get<double>();
+    }
+    return p;
+  }
+  return std::nullopt;
+}
+
+std::vector<std::string> axes_of(const std::vector<CellResult>& cells) {
+  std::vector<std::string> axes;
+  for (const CellResult& c : cells)
+    for (const auto& [k, v] : c.axes.items())
+      if (std::find(axes.begin(), axes.end(), k) == axes.end()) axes.push_back(k);
+  return axes;
+}
+
+// Other axes of a cell, as a key for "held equal".
+std::string others_key(const CellResult& c, const std::string& axis) {
+  json o = c.axes;
+  o.erase(axis);
+  return o.dump();
+}
+std::string others_text(const CellResult& c, const std::string& axis) {
+  std::string s;
+  for (const auto& [k, v] : c.axes.items())
+    if (k != axis) s += (s.empty() ? "" : ", ") + axis_leaf(k) + "=" + axis_value_text(v);
+  return s;
+}
+
+std::string slug(const std::string& s) {
+  std::string out;
+  for (char ch : s) out += std::isalnum(static_cast<unsigned char>(ch)) ? ch : '_';
+  return out;
+}
+
+void charts_section(const std::vector<CellResult>& cells, Report& r, std::string& s) {
+  s += "## Charts\n\n";
+  // Bar chart: every cell a group, every pass a bar; error bars are the 95% CI of the median.
+  svg::BarChart bars;
+  bars.title = "Median pass time per cell (error bars: 95% CI of the median)";
+  bars.y_label = "ms";
+  std::vector<std::vector<PassStat>> all;
+  for (const CellResult& c : cells) all.push_back(pass_stats(c));
+  for (const auto& stats : all)
+    for (const PassStat& p : stats)
+      if (std::find(bars.series.begin(), bars.series.end(), p.pass) == bars.series.end()) bars.series.push_back(p.pass);
+  for (size_t i = 0; i < cells.size(); ++i) {
+    svg::BarGroup g;
+    g.label = cells.size() == 1 ? cell_label(cells[i]) : cell_label(cells[i]).substr(0, 40);
+    for (const std::string& pass : bars.series) {
+      auto it = std::find_if(all[i].begin(), all[i].end(), [&](const PassStat& p) { return p.pass == pass; });
+      const double med = it == all[i].end() ? 0.0 : it->summary.median / 1e6;
+      g.values.push_back(med);
+      g.low.push_back(it == all[i].end() ? 0.0 : it->summary.median_ci.low / 1e6);
+      g.high.push_back(it == all[i].end() ? 0.0 : it->summary.median_ci.high / 1e6);
+    }
+    bars.groups.push_back(g);
+  }
+  r.charts.push_back({"charts/pass_times.svg", svg::render(bars)});
+  s += "![median pass time per cell](charts/pass_times.svg)\n\n";
+  if (std::any_of(all.begin(), all.end(), [](auto& st) {
+        return std::any_of(st.begin(), st.end(), [](const PassStat& p) { return !p.summary.median_ci.valid; });
+      })) {
+    s += "Cells with fewer than 6 frames have no 95% CI; their error bars span the full range of the frames.\n\n";
+  }
+
+  // Line charts: time against every numeric axis, one chart per combination of the other axes.
+  for (const std::string& axis : axes_of(cells)) {
+    bool numeric = true;
+    for (const CellResult& c : cells)
+      if (c.axes.contains(axis) && !numeric_value(c.axes[axis])) numeric = false;
+    if (!numeric) continue;
+    std::map<std::string, std::vector<size_t>> groups;  // other axes -> cells
+    std::vector<std::string> order;
+    for (size_t i = 0; i < cells.size(); ++i) {
+      if (!cells[i].axes.contains(axis)) continue;
+      const std::string k = others_key(cells[i], axis);
+      if (!groups.count(k)) order.push_back(k);
+      groups[k].push_back(i);
+    }
+    const bool product = cells.front().axes.contains(axis) && cells.front().axes[axis].is_array();
+    size_t n_chart = 0;
+    for (const std::string& k : order) {
+      const auto& idx = groups[k];
+      if (idx.size() < 2) continue;
+      if (++n_chart > 8) {
+        s += "(further charts along `" + axis + "` left out: more than 8 combinations of the other axes)\n\n";
+        break;
+      }
+      svg::LineChart lc;
+      const std::string others = others_text(cells[idx[0]], axis);
+      lc.title = "Median pass time vs " + axis_leaf(axis) + (others.empty() ? "" : " (" + others + ")");
+      lc.x_label = axis_leaf(axis) + (product ? " (product of the values, e.g. pixels)" : "");
+      lc.y_label = "ms";
+      for (const std::string& pass : bars.series) {
+        svg::Line line;
+        line.name = pass;
+        for (size_t i : idx) {
+          auto it = std::find_if(all[i].begin(), all[i].end(), [&](const PassStat& p) { return p.pass == pass; });
+          if (it == all[i].end()) continue;
+          line.x.push_back(*numeric_value(cells[i].axes[axis]));
+          line.y.push_back(it->summary.median / 1e6);
+          line.low.push_back(it->summary.median_ci.low / 1e6);
+          line.high.push_back(it->summary.median_ci.high / 1e6);
+        }
+        if (!line.x.empty()) lc.lines.push_back(line);
+      }
+      const std::string path = "charts/vs_" + slug(axis_leaf(axis)) + "_" + std::to_string(n_chart) + ".svg";
+      r.charts.push_back({path, svg::render(lc)});
+      s += "![" + lc.title + "](" + path + ")\n\n";
+    }
+  }
+}
+
+// One comparison: cell b against cell a, which differ only in `axis`.
+std::string comparison(const CellResult& a, const CellResult& b, const std::string& axis) {
+  const std::string va = axis_value_text(a.axes[axis]), vb = axis_value_text(b.axes[axis]);
+  const std::string leaf = axis_leaf(axis);
+  const std::string others = others_text(a, axis);
+  std::string head = "#### " + md_escape(va) + " → " + md_escape(vb) + (others.empty() ? "" : " (" + md_escape(others) + ")") + "\n\n";
+
+  const std::vector<PassStat> sa = pass_stats(a), sb = pass_stats(b);
+  std::string table = "| pass | " + md_escape(va) + " (ms) | " + md_escape(vb) +
+                      " (ms) | change | p (Mann-Whitney) | rays | nodes visited | triangles tested |\n|---|---|---|---|---|---|---|---|\n";
+  std::vector<std::string> significant;
+  std::string largest;
+  double largest_abs = -1.0;
+  for (const PassStat& pa : sa) {
+    auto it = std::find_if(sb.begin(), sb.end(), [&](const PassStat& p) { return p.pass == pa.pass; });
+    if (it == sb.end()) continue;
+    const double ratio = it->summary.median / pa.summary.median;
+    const MannWhitneyResult mw = mann_whitney_u(it->samples, pa.samples);
+    auto counter_change = [&](const char* name) -> std::string {
+      const Counters& ka = a.timing.counters;
+      const Counters& kb = b.timing.counters;
+      if (!has_pass(ka, pa.pass) || !has_pass(kb, pa.pass)) return "—";
+      // Per frame, so cells with different frame counts compare.
+      const double x = double(ka.get(pa.pass, name)) / double(a.timing.timings.measured().size());
+      const double y = double(kb.get(pa.pass, name)) / double(b.timing.timings.measured().size());
+      if (x == y) return "=";
+      return x == 0 ? "new" : pct(y / x);
+    };
+    table += "| " + pa.pass + " | " + ms(pa.summary.median) + " | " + ms(it->summary.median) + " | " + pct(ratio) + " | " +
+             p_text(mw.p_value) + " | " + counter_change(counter::rays_cast) + " | " + counter_change(counter::nodes_visited) +
+             " | " + counter_change(counter::triangles_tested) + " |\n";
+    const std::string desc = pa.pass + " " + fmt("%.1f%%", std::abs(ratio - 1.0) * 100.0) + (ratio >= 1.0 ? " slower" : " faster") +
+                             " (" + ms(pa.summary.median) + " → " + ms(it->summary.median) + " ms, p " +
+                             (mw.p_value < 0.001 ? "< 0.001" : "= " + p_text(mw.p_value)) + ")";
+    if (mw.p_value < 0.05) significant.push_back(desc);
+    if (std::abs(ratio - 1.0) > largest_abs) {
+      largest_abs = std::abs(ratio - 1.0);
+      largest = desc;
+    }
+  }
+
+  // Counter changes per frame, largest first.
+  std::vector<std::pair<double, std::string>> counter_changes;
+  const double fa = double(a.timing.timings.measured().size()), fb = double(b.timing.timings.measured().size());
+  for (const auto& [pass, counters] : a.timing.counters.passes()) {
+    for (const auto& [name, value] : counters) {
+      const double x = double(value) / fa, y = double(b.timing.counters.get(pass, name)) / fb;
+      if (x != y && x > 0) counter_changes.push_back({std::abs(y / x - 1.0), pass + " " + name + " " + pct(y / x)});
+    }
+  }
+  std::sort(counter_changes.rbegin(), counter_changes.rend());
+  // Cache tables, when both cells have them: L1 hits per pass.
+  std::string cache_part;
+  if (a.cache.is_object() && b.cache.is_object()) {
+    for (const auto& [pass, t] : a.cache.items()) {
+      if (!b.cache.contains(pass) || !t.contains("l1_hits")) continue;
+      const double x = t["l1_hits"].get<double>(), y = b.cache[pass].value("l1_hits", 0.0);
+      if (x > 0) cache_part += (cache_part.empty() ? "" : ", ") + pass + " L1 hits " + pct(y / x) + " (" + count_text(x) + " → " + count_text(y) + ")";
+    }
+  }
+
+  std::string sentence = "Changing " + leaf + " from " + va + " to " + vb + (others.empty() ? "" : " (with " + others + ")");
+  if (!significant.empty()) {
+    sentence += " made ";
+    for (size_t i = 0; i < significant.size(); ++i)
+      sentence += (i == 0 ? "" : i + 1 == significant.size() ? " and " : ", ") + significant[i];
+  } else {
+    sentence += " changed no pass time significantly at p < 0.05" + (largest.empty() ? "" : "; the largest change was " + largest);
+  }
+  if (!a.timing.counters.empty() || !b.timing.counters.empty()) {
+    if (counter_changes.empty()) {
+      sentence += "; the work counters were identical";
+    } else {
+      sentence += "; the work per frame changed: ";
+      for (size_t i = 0; i < counter_changes.size() && i < 3; ++i) sentence += (i ? ", " : "") + counter_changes[i].second;
+      if (counter_changes.size() > 3) sentence += " (and " + std::to_string(counter_changes.size() - 3) + " more)";
+    }
+  }
+  if (!cache_part.empty()) sentence += "; " + cache_part;
+  return head + sentence + ".\n\n" + table + "\n";
+}
+
+void comparisons_section(const std::vector<CellResult>& cells, std::string& s) {
+  const std::vector<std::string> axes = axes_of(cells);
+  s += "## Comparisons along each axis\n\n";
+  if (axes.empty()) {
+    s += "This run has no axes (a single scenario), so there is nothing to compare.\n\n";
+    return;
+  }
+  s += "For each axis and each pair of its values, cells whose other axes are equal are compared. Change is the "
+       "ratio of the medians minus one; p is a two-sided Mann-Whitney U test over the raw frame samples of the "
+       "two cells, per comparison and not corrected for multiplicity (the gate corrects; with fewer than 4 frames "
+       "per side no p-value can fall below 0.05). Counter changes are per frame; \"=\" means identical.\n\n";
+  for (const std::string& axis : axes) {
+    std::vector<json> values;
+    for (const CellResult& c : cells)
+      if (c.axes.contains(axis) && std::find(values.begin(), values.end(), c.axes[axis]) == values.end())
+        values.push_back(c.axes[axis]);
+    s += "### `" + axis + "`\n\n";
+    size_t n = 0;
+    for (size_t i = 0; i < values.size(); ++i) {
+      for (size_t j = i + 1; j < values.size(); ++j) {
+        for (const CellResult& a : cells) {
+          if (!a.axes.contains(axis) || a.axes[axis] != values[i]) continue;
+          for (const CellResult& b : cells) {
+            if (!b.axes.contains(axis) || b.axes[axis] != values[j] || others_key(a, axis) != others_key(b, axis)) continue;
+            s += comparison(a, b, axis);
+            ++n;
+          }
+        }
+      }
+    }
+    if (n == 0) s += "No two cells differ in this axis alone.\n\n";
+    const std::string leaf = axis_leaf(axis);
+    if (leaf == "geometry" || leaf == "jitter") s += study_block(leaf) + "\n";
+  }
+}
+
+}  // namespace
+
+Report build_report(const std::vector<CellResult>& cells) {
+  if (cells.empty()) throw InputError("report: no cells");
+  Report r;
+  std::string& s = r.markdown;
+  const std::string matrix = cells.front().matrix.empty() ? cells.front().name : cells.front().matrix;
+  s += "# hybridprof report: " + md_escape(matrix) + "\n\n";
+  s += std::to_string(cells.size()) + " cell(s) from `results.jsonl`. Pass times are in milliseconds: the median "
+       "over the measured frames with its distribution-free 95% confidence interval (order statistics; none "
+       "below 6 frames), and the coefficient of variation (CV = standard deviation / mean) of the frames.\n\n";
+  s += environment_section(cells) + "\n";
+  charts_section(cells, r, s);
+  s += "## Cells\n\n";
+  for (const CellResult& c : cells) s += cell_section(c);
+  comparisons_section(cells, s);
+  s += "## Cache simulation\n\n";
+  const size_t with_cache = size_t(std::count_if(cells.begin(), cells.end(), [](const CellResult& c) { return c.cache.is_object(); }));
+  if (with_cache == 0) {
+    s += "No cell carries cache-simulator tables: GPU trace capture is not implemented yet. When results carry a "
+         "`cache` object per cell (per pass: `l1_hits`, `l1_misses`, `l2_hits`, `l2_misses`, `buffers`), the L1/L2 "
+         "table in the study's form, the per-buffer breakdown and the L1-hit changes in the comparisons appear "
+         "here without any other change.\n";
+  } else {
+    s += std::to_string(with_cache) + " of " + std::to_string(cells.size()) +
+         " cells carry cache tables; they are shown in each cell's section, and their L1-hit changes in the comparisons.\n";
+  }
+  return r;
+}
+
+void write_text_atomically(const std::string& path, const std::string& content) {
+  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw InputError(path + ": cannot write");
+    out << content;
+    out.flush();
+    if (!out) throw InputError(path + ": write failed");
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw InputError(path + ": cannot rename the temporary file into place");
+  }
+}
+
+std::string write_report(const std::string& out_dir) {
+  const Report r = build_report(load_cells(out_dir));
+  std::error_code ec;
+  fs::create_directories(fs::path(out_dir) / "charts", ec);
+  if (ec) throw InputError(out_dir + "/charts: cannot create: " + ec.message());
+  for (const ReportFile& f : r.charts) write_text_atomically((fs::path(out_dir) / f.path).string(), f.content);
+  const std::string path = (fs::path(out_dir) / "report.md").string();
+  write_text_atomically(path, r.markdown);
+  return path;
+}
+
+}  // namespace hp
