@@ -1,0 +1,257 @@
+// The gate's rules on synthetic runs: A/A passes, a large significant slowdown fails, a moderate one
+// warns, a tiny significant one passes, environments and cells that differ cannot be compared,
+// counters must match unless the policy tolerates the change, and Holm's correction is applied.
+#include "gate.hpp"
+
+#include "error.hpp"
+#include "synthetic.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+namespace hp {
+namespace {
+
+using test::SynthCell;
+namespace fs = std::filesystem;
+
+GateSide side(const std::vector<SynthCell>& cells, const std::string& label) {
+  GateSide s;
+  s.label = label;
+  for (const SynthCell& c : cells) {
+    s.cells.push_back(test::cell(c));
+    s.samples[match_key(s.cells.back())] = pass_samples(s.cells.back().timing);
+  }
+  return s;
+}
+
+SynthCell with_passes(std::size_t n, std::uint64_t seed, double spread = 0.03, double shadows_scale = 1.0) {
+  SynthCell c;
+  c.passes = test::passes(n, seed, spread, shadows_scale);
+  c.counters_per_frame.set("shadows", "rays_cast", 6292);
+  c.counters_per_frame.set("shadows", "nodes_visited", 90304);
+  c.counters_per_frame.set("reflections", "rays_cast", 19809);
+  return c;
+}
+
+const GateRow* row(const GateOutcome& o, const std::string& metric) {
+  for (const GateRow& r : o.rows)
+    if (r.metric == metric) return &r;
+  return nullptr;
+}
+
+TEST(Gate, AaPasses) {
+  const GateOutcome o = run_gate(side({with_passes(40, 1)}, "a"), side({with_passes(40, 2)}, "b"), {});
+  EXPECT_EQ(o.exit_code, 0) << format_gate(o);
+  EXPECT_EQ(o.fails, 0u);
+  EXPECT_EQ(o.timing_comparisons, 5u);
+  EXPECT_GT(o.identical, 0u);  // counters, BVH, triangles all compared and equal
+}
+
+TEST(Gate, PlantedThirtyPercentSlowdownFails) {
+  const GateOutcome o = run_gate(side({with_passes(50, 1)}, "a"), side({with_passes(50, 2, 0.03, 1.3)}, "b"), {});
+  EXPECT_EQ(o.exit_code, 1) << format_gate(o);
+  ASSERT_NE(row(o, "time shadows (ms)"), nullptr);
+  EXPECT_EQ(row(o, "time shadows (ms)")->verdict, "FAIL");
+  EXPECT_EQ(row(o, "time gbuffer (ms)")->verdict, "pass");
+  EXPECT_EQ(o.fails, 1u);
+  EXPECT_NE(format_gate(o).find("REGRESSION"), std::string::npos);
+}
+
+TEST(Gate, ModerateSlowdownWarns) {
+  const GateOutcome o = run_gate(side({with_passes(50, 1, 0.02)}, "a"), side({with_passes(50, 2, 0.02, 1.07)}, "b"), {});
+  EXPECT_EQ(o.exit_code, 0) << format_gate(o);
+  EXPECT_EQ(row(o, "time shadows (ms)")->verdict, "WARN");
+  EXPECT_EQ(o.warns, 1u);
+  // The same change fails under a threshold below it.
+  GateOptions strict;
+  strict.policy.threshold = 0.06;
+  EXPECT_EQ(run_gate(side({with_passes(50, 1, 0.02)}, "a"), side({with_passes(50, 2, 0.02, 1.07)}, "b"), strict).exit_code, 1);
+}
+
+TEST(Gate, TinySignificantChangePasses) {
+  const GateOutcome o = run_gate(side({with_passes(100, 1, 0.005)}, "a"), side({with_passes(100, 2, 0.005, 1.02)}, "b"), {});
+  EXPECT_EQ(o.exit_code, 0) << format_gate(o);
+  const GateRow* r = row(o, "time shadows (ms)");
+  ASSERT_TRUE(r && r->p_holm);
+  EXPECT_LT(*r->p_holm, 1e-6);  // clearly significant, yet only 2%: not practically large
+  EXPECT_EQ(r->verdict, "pass");
+}
+
+TEST(Gate, SignificantSpeedupPasses) {
+  const GateOutcome o = run_gate(side({with_passes(50, 1)}, "a"), side({with_passes(50, 2, 0.03, 0.7)}, "b"), {});
+  EXPECT_EQ(o.exit_code, 0);
+  EXPECT_EQ(row(o, "time shadows (ms)")->verdict, "pass (faster)");
+}
+
+TEST(Gate, HolmCorrectionDecides) {
+  // Five frames a side, every candidate frame slower than every baseline frame: exact p = 2/252.
+  auto cell = [](int i, double scale) {
+    SynthCell c;
+    c.axes = {{"seed", i}};
+    c.passes = {{"shadows", test::samples(3e6 * scale, 0.02, 5, 10 + i)}};
+    return c;
+  };
+  std::vector<SynthCell> base, cand;
+  for (int i = 0; i < 10; ++i) {
+    base.push_back(cell(i, 1.0));
+    cand.push_back(cell(i, 1.3));
+  }
+  // Alone, one such comparison fails ...
+  const GateOutcome one = run_gate(side({base[0]}, "a"), side({cand[0]}, "b"), {});
+  EXPECT_EQ(one.exit_code, 1) << format_gate(one);
+  // ... but among ten, Holm multiplies the smallest p by 10: 0.079 > 0.05, so none fails.
+  const GateOutcome ten = run_gate(side(base, "a"), side(cand, "b"), {});
+  EXPECT_EQ(ten.exit_code, 0) << format_gate(ten);
+  ASSERT_EQ(ten.timing_comparisons, 10u);
+  for (const GateRow& r : ten.rows) {
+    if (!r.p_raw) continue;
+    EXPECT_LT(*r.p_raw, 0.05);
+    EXPECT_NEAR(*r.p_holm, 10 * 2.0 / 252.0, 1e-9);
+    EXPECT_EQ(r.verdict, "pass");
+  }
+}
+
+TEST(Gate, DifferentDevicesCannotCompareTimings) {
+  SynthCell b = with_passes(30, 1), c = with_passes(30, 2, 0.03, 1.5);
+  c.device = "NVIDIA H100";
+  const GateOutcome o = run_gate(side({b}, "a"), side({c}, "b"), {});
+  EXPECT_EQ(o.exit_code, 2) << format_gate(o);
+  EXPECT_EQ(o.timing_comparisons, 0u);
+  ASSERT_FALSE(o.cannot_compare.empty());
+  EXPECT_NE(o.cannot_compare.front().find("device"), std::string::npos);
+  // Thread count differences refuse too.
+  SynthCell t = with_passes(30, 2);
+  t.lp_num_threads = "1";
+  EXPECT_EQ(run_gate(side({b}, "a"), side({t}, "b"), {}).exit_code, 2);
+  // Deterministic metrics alone still compare across devices.
+  GateOptions det;
+  det.deterministic_only = true;
+  const GateOutcome d = run_gate(side({b}, "a"), side({c}, "b"), det);
+  EXPECT_EQ(d.exit_code, 0) << format_gate(d);
+  EXPECT_FALSE(d.notes.empty());
+}
+
+TEST(Gate, CellOnOneSideOnlyCannotCompare) {
+  SynthCell x = with_passes(10, 1), y = with_passes(10, 2);
+  x.axes = {{"geometry", "indexed"}};
+  y.axes = {{"geometry", "soup"}};
+  const GateOutcome o = run_gate(side({x, y}, "a"), side({x}, "b"), {});
+  EXPECT_EQ(o.exit_code, 2);
+  ASSERT_EQ(o.cannot_compare.size(), 1u);
+  EXPECT_NE(o.cannot_compare[0].find("geometry=soup"), std::string::npos);
+}
+
+TEST(Gate, InjectKnobDoesNotSplitCells) {
+  SynthCell b = with_passes(30, 1), c = with_passes(30, 2, 0.03, 1.3);
+  c.inject_fraction = 0.35;
+  EXPECT_NE(test::cell(b).id, test::cell(c).id);
+  EXPECT_EQ(run_gate(side({b}, "a"), side({c}, "b"), {}).exit_code, 1);
+}
+
+TEST(Gate, CounterMismatchFailsUnlessTolerated) {
+  SynthCell b = with_passes(20, 1), c = with_passes(20, 2);
+  c.counters_per_frame.set("shadows", "nodes_visited", 92110);  // +2%
+  const GateOutcome o = run_gate(side({b}, "a"), side({c}, "b"), {});
+  EXPECT_EQ(o.exit_code, 1) << format_gate(o);
+  EXPECT_EQ(row(o, "shadows/nodes_visited")->verdict, "FAIL");
+
+  const std::string dir = test::temp_dir("policy");
+  const std::string path = dir + "/policy.json";
+  std::ofstream(path) << R"({"tolerances": {"nodes_visited": 0.05}})";
+  GateOptions tolerant;
+  tolerant.policy = load_policy(path);
+  const GateOutcome t = run_gate(side({b}, "a"), side({c}, "b"), tolerant);
+  EXPECT_EQ(t.exit_code, 0) << format_gate(t);
+  EXPECT_EQ(row(t, "shadows/nodes_visited")->verdict, "within tolerance 0.05");
+  // A tolerance on one pass's metric does not cover the change.
+  std::ofstream(path) << R"({"tolerances": {"reflections/nodes_visited": 0.05}})";
+  tolerant.policy = load_policy(path);
+  EXPECT_EQ(run_gate(side({b}, "a"), side({c}, "b"), tolerant).exit_code, 1);
+  // A missing counter fails.
+  SynthCell m = with_passes(20, 2);
+  m.counters_per_frame = Counters{};
+  m.counters_per_frame.set("shadows", "rays_cast", 6292);
+  EXPECT_EQ(run_gate(side({b}, "a"), side({m}, "b"), {}).exit_code, 1);
+  // The BVH is a deterministic metric too.
+  SynthCell v = with_passes(20, 2);
+  v.bvh["nodes"] = 69229;
+  EXPECT_EQ(row(run_gate(side({b}, "a"), side({v}, "b"), {}), "bvh.nodes")->verdict, "FAIL");
+}
+
+TEST(Gate, PolicyFileErrorsNameTheKey) {
+  const std::string path = test::temp_dir("badpolicy") + "/p.json";
+  std::ofstream(path) << R"({"treshold": 0.1})";
+  try {
+    load_policy(path);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("treshold"), std::string::npos);
+  }
+  std::ofstream(path) << R"({"threshold": 0.02, "warn": 0.05})";
+  EXPECT_THROW(load_policy(path), InputError);
+}
+
+TEST(Gate, FoldersAndFreshProcessPooling) {
+  const std::string root = test::temp_dir("runs");
+  std::vector<std::string> dirs;
+  for (int r = 0; r < 3; ++r) {
+    SynthCell c = with_passes(9, 100 + r);
+    dirs.push_back(root + "/run" + std::to_string(r));
+    test::write_results(dirs.back(), {test::line(c)});
+  }
+  const GateSide s = side_from_runs(dirs, "base");
+  EXPECT_TRUE(s.problems.empty());
+  ASSERT_EQ(s.samples.size(), 1u);
+  const PassSamples& ps = s.samples.begin()->second;
+  ASSERT_EQ(ps.size(), 5u);
+  EXPECT_EQ(ps[1].first, "shadows");
+  ASSERT_EQ(ps[1].second.size(), 3u);  // one median per process, not 27 frames
+  const GateSide one = side_from_dir(dirs[0]);
+  std::vector<double> frames = one.samples.begin()->second[1].second;
+  EXPECT_EQ(frames.size(), 9u);
+  std::sort(frames.begin(), frames.end());
+  EXPECT_DOUBLE_EQ(ps[1].second[0], frames[4]);
+  // A run whose counters differ makes the side not comparable.
+  SynthCell odd = with_passes(9, 200);
+  odd.counters_per_frame.set("shadows", "rays_cast", 1);
+  test::write_results(root + "/odd", {test::line(odd)});
+  EXPECT_FALSE(side_from_runs({dirs[0], root + "/odd"}, "base").problems.empty());
+  EXPECT_THROW(side_from_dir(root + "/missing"), InputError);
+}
+
+TEST(Gate, AbRunsBothCommandsInterleaved) {
+  // Stand-in "binaries": shell scripts that log their turn and copy a prepared result into --out.
+  const std::string root = test::temp_dir("ab");
+  test::write_results(root + "/a", {test::line(with_passes(9, 1))});
+  test::write_results(root + "/b", {test::line(with_passes(9, 2, 0.03, 1.5))});
+  for (const char* side : {"a", "b"}) {
+    const std::string script = root + "/fake_" + side;
+    std::ofstream(script) << "#!/bin/sh\n# usage: fake run FILE --out DIR\necho " << side << " >> " << root
+                          << "/order\nmkdir -p \"$4\" && cp " << root << "/" << side << "/results.jsonl \"$4/\"\n";
+    fs::permissions(script, fs::perms::owner_all);
+  }
+  const std::string scenario = root + "/s.json";
+  std::ofstream(scenario) << "{}";
+  AbOptions ab{root + "/fake_a", root + "/fake_b", scenario, 6, root + "/work", false, false};
+  const auto [base, cand] = run_ab(ab);
+  std::ifstream order_file(root + "/order");
+  std::string order, w;
+  while (order_file >> w) order += w;
+  EXPECT_EQ(order, "abbaabbaabba");
+  EXPECT_EQ(base.samples.begin()->second[1].second.size(), 6u);
+  EXPECT_EQ(cand.sample_kind, "process medians");
+  const GateOutcome o = run_gate(base, cand, {});
+  // Six identical process medians a side, 50% apart: significant even after Holm (5 tests).
+  EXPECT_EQ(o.exit_code, 1) << format_gate(o);
+  EXPECT_EQ(row(o, "time shadows (ms)")->verdict, "FAIL");
+  // A failing command is an input error naming it.
+  AbOptions bad = ab;
+  bad.candidate_cmd = "false";
+  EXPECT_THROW(run_ab(bad), InputError);
+}
+
+}  // namespace
+}  // namespace hp

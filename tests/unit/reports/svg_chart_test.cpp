@@ -1,0 +1,149 @@
+// The SVG writer's output parsed back as XML (a small tag reader: well-formedness and element counts).
+#include "svg_chart.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace hp::svg {
+namespace {
+
+struct Element {
+  std::string name;
+  std::map<std::string, std::string> attrs;
+};
+
+// Reads every start tag, checks that end tags match and that nothing is left open. Throws on
+// malformed input; returns the elements in document order.
+std::vector<Element> parse_xml(const std::string& s) {
+  std::vector<Element> out;
+  std::vector<std::string> open;
+  size_t i = 0;
+  while ((i = s.find('<', i)) != std::string::npos) {
+    const size_t end = s.find('>', i);
+    if (end == std::string::npos) throw std::runtime_error("unterminated tag");
+    std::string tag = s.substr(i + 1, end - i - 1);
+    i = end + 1;
+    if (tag.starts_with("?")) continue;
+    if (tag.starts_with("/")) {
+      if (open.empty() || open.back() != tag.substr(1)) throw std::runtime_error("mismatched </" + tag.substr(1) + ">");
+      open.pop_back();
+      continue;
+    }
+    const bool self_closing = tag.ends_with("/");
+    if (self_closing) tag.pop_back();
+    Element e;
+    size_t p = tag.find_first_of(" \n");
+    e.name = tag.substr(0, p);
+    while (p != std::string::npos && p < tag.size()) {
+      const size_t eq = tag.find('=', p);
+      if (eq == std::string::npos) break;
+      const size_t q1 = tag.find('"', eq), q2 = tag.find('"', q1 + 1);
+      if (q1 != eq + 1 || q2 == std::string::npos) throw std::runtime_error("bad attribute in <" + e.name + ">");
+      std::string key = tag.substr(p, eq - p);
+      key.erase(0, key.find_first_not_of(" \n"));
+      const std::string value = tag.substr(q1 + 1, q2 - q1 - 1);
+      if (value.find('<') != std::string::npos) throw std::runtime_error("unescaped < in an attribute");
+      e.attrs[key] = value;
+      p = q2 + 1;
+    }
+    out.push_back(e);
+    if (!self_closing) open.push_back(e.name);
+  }
+  if (!open.empty()) throw std::runtime_error("<" + open.back() + "> left open");
+  return out;
+}
+
+size_t count(const std::vector<Element>& els, const std::string& name, const std::string& cls) {
+  size_t n = 0;
+  for (const Element& e : els)
+    if (e.name == name && (cls.empty() || (e.attrs.count("class") && e.attrs.at("class") == cls))) ++n;
+  return n;
+}
+
+TEST(SvgChart, BarChartHasBarsErrorBarsAndLegend) {
+  BarChart c;
+  c.title = "times <ms> & more";
+  c.y_label = "ms";
+  c.series = {"gbuffer", "shadows", "reflections"};
+  c.groups = {{"cell a", {12, 3, 7}, {11, 2.5, 6}, {13, 3.5, 8}}, {"cell b", {10, 4, 6}, {9, 3, 5}, {11, 5, 7}}};
+  const std::string svg = render(c);
+  const auto els = parse_xml(svg);
+  EXPECT_EQ(els.front().name, "svg");
+  EXPECT_EQ(count(els, "rect", "bar"), 6u);
+  EXPECT_EQ(count(els, "g", "errorbar"), 6u);
+  EXPECT_EQ(count(els, "rect", "legend-swatch"), 3u);
+  EXPECT_EQ(count(els, "text", "group-label"), 2u);
+  EXPECT_GE(count(els, "text", "tick"), 3u);
+  EXPECT_NE(svg.find("times &lt;ms&gt; &amp; more"), std::string::npos);
+  // The tallest bar (12, in series 0) is taller than the shortest (3).
+  double h12 = 0, h3 = 0;
+  for (const Element& e : els) {
+    if (e.name != "rect" || e.attrs.count("class") == 0 || e.attrs.at("class") != "bar") continue;
+    const double h = std::stod(e.attrs.at("height"));
+    if (h12 == 0) h12 = h;
+    else if (h3 == 0) h3 = h;
+  }
+  EXPECT_NEAR(h3 / h12, 3.0 / 12.0, 0.01);
+}
+
+TEST(SvgChart, LineChartHasOnePolylinePerLine) {
+  LineChart c;
+  c.title = "time vs pixels";
+  c.x_label = "pixels";
+  c.y_label = "ms";
+  c.lines = {{"shadows", {4608, 9216, 36864}, {1, 2, 8}, {}, {}}, {"reflections", {36864, 4608, 9216}, {9, 2, 3}, {8, 1, 2}, {10, 3, 4}}};
+  const auto els = parse_xml(render(c));
+  EXPECT_EQ(count(els, "polyline", "line"), 2u);
+  EXPECT_EQ(count(els, "circle", "point"), 6u);
+  EXPECT_EQ(count(els, "g", "errorbar"), 3u);
+  EXPECT_EQ(count(els, "text", "legend-label"), 2u);
+  // Points are drawn in x order, so the polyline's x coordinates increase.
+  for (const Element& e : els) {
+    if (e.name != "polyline") continue;
+    std::string pts = e.attrs.at("points");
+    double last = -1;
+    size_t p = 0;
+    while (p < pts.size()) {
+      const double x = std::stod(pts.substr(p));
+      EXPECT_GT(x, last);
+      last = x;
+      p = pts.find(' ', p);
+      if (p == std::string::npos) break;
+      ++p;
+    }
+  }
+}
+
+TEST(SvgChart, NiceTicksCoverTheRange) {
+  const auto t = nice_ticks(0.0, 13.7);
+  EXPECT_LE(t.front(), 0.0);
+  EXPECT_GE(t.back(), 13.7);
+  EXPECT_GE(t.size(), 3u);
+  EXPECT_LE(t.size(), 9u);
+  EXPECT_DOUBLE_EQ(t[1] - t[0], 5.0);  // 13.7 / 5 = 2.74 rounds up to a step of 5
+  const auto s = nice_ticks(4608, 36864);
+  EXPECT_LE(s.front(), 4608);
+  EXPECT_GE(s.back(), 36864);
+  EXPECT_EQ(nice_ticks(2.0, 2.0).size() >= 2, true);
+  EXPECT_EQ(tick_label(0.5), "0.5");
+  EXPECT_EQ(tick_label(12), "12");
+}
+
+TEST(SvgChart, RejectsInconsistentInput) {
+  BarChart c;
+  c.series = {"a", "b"};
+  c.groups = {{"g", {1}, {}, {}}};
+  EXPECT_THROW(render(c), std::invalid_argument);
+  c.groups = {{"g", {1, std::nan("")}, {}, {}}};
+  EXPECT_THROW(render(c), std::invalid_argument);
+  LineChart l;
+  EXPECT_THROW(render(l), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace hp::svg
