@@ -1,12 +1,20 @@
 // Speed of the cache simulator, single thread, on a generated BVH-like trace (cachesim/synthetic.hpp:
-// 512x512 rays over a 2^18-node tree; no captured BVH trace exists yet).
+// 512x512 rays over a 2^18-node tree; no captured BVH trace exists yet). What an "access" is:
+//   lane access  one record of the trace: one lane's load/store (27.0 M here);
+//   request      one coalesced line request that a wave step sends to an L1 (10.6 M here): what
+//                Dinero IV counts as a reference, and what issue 6's 150 M accesses/s target and
+//                the 9-14 M/s Dinero figure are compared against.
+// Benchmarks:
 //   Hierarchy/*      the coalesced request stream of vega56 replayed through 56 L1s + the L2
-//                    (items = L1 requests): the "accesses/s L1+L2" figure.
+//                    (items = requests; lane_accesses = the same work counted in lane accesses).
 //   DineroStyle      one 16k:64:4 L1 + one 4m:64:16 L2 on the same line stream, as `--din` does.
-//   L2Fixed / L2Mrc  the L2 request stream through one fixed-size L2, vs the exact all-sizes
-//                    stack-distance curve (Olken), vs SHARDS sampling: the MRC cost ratio.
+//   L2Fixed / L2Mrc  the L2 request stream (9.6 M) through one fixed-size L2, vs the exact all-sizes
+//                    stack-distance curve (one by one, and batched as the hierarchy feeds it), vs
+//                    SHARDS sampling: the MRC cost ratio.
 //   EndToEnd         Simulator::run_pass: grouping, SIMT scheduling, coalescing and caches
 //                    (items = lane accesses).
+// Rates are per CPU second (Google Benchmark's default): on a shared VM they are less disturbed by
+// other processes than wall time, not undisturbed. Note the load average printed in the header.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
