@@ -14,6 +14,9 @@ const float HP_FLT_MAX = 3.402823466e+38;
 vec3 hit_normal(uint slot, float u, float v) {
   vec3 n0, n1, n2;
   if (HP_GEOMETRY_SOUP != 0u) {
+    HP_REC_LOAD(HP_TBUF_SOUP_NORMALS, slot * 36u, 12u);
+    HP_REC_LOAD(HP_TBUF_SOUP_NORMALS, slot * 36u + 12u, 12u);
+    HP_REC_LOAD(HP_TBUF_SOUP_NORMALS, slot * 36u + 24u, 12u);
     uint b = slot * 9u;
     n0 = vec3(soup_normals[b + 0u], soup_normals[b + 1u], soup_normals[b + 2u]);
     n1 = vec3(soup_normals[b + 3u], soup_normals[b + 4u], soup_normals[b + 5u]);
@@ -22,6 +25,10 @@ vec3 hit_normal(uint slot, float u, float v) {
     uint i0 = indices[slot * 3u + 0u] * 3u;
     uint i1 = indices[slot * 3u + 1u] * 3u;
     uint i2 = indices[slot * 3u + 2u] * 3u;
+    HP_REC_LOAD(HP_TBUF_INDICES, slot * 12u, 12u);
+    HP_REC_LOAD(HP_TBUF_NORMALS, i0 * 4u, 12u);  // i0 is already a float index (vertex * 3)
+    HP_REC_LOAD(HP_TBUF_NORMALS, i1 * 4u, 12u);
+    HP_REC_LOAD(HP_TBUF_NORMALS, i2 * 4u, 12u);
     n0 = vec3(normals[i0], normals[i0 + 1u], normals[i0 + 2u]);
     n1 = vec3(normals[i1], normals[i1 + 1u], normals[i1 + 2u]);
     n2 = vec3(normals[i2], normals[i2 + 1u], normals[i2 + 2u]);
@@ -32,8 +39,11 @@ vec3 hit_normal(uint slot, float u, float v) {
 }
 
 void main() {
-  ivec2 q = ivec2(gl_GlobalInvocationID.xy);
+  // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise).
+  uvec2 wg = gl_WorkGroupID.xy + uvec2(0u, rt.frame.z);
+  ivec2 q = ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy);
   if (q.x >= int(rt.grid.x) || q.y >= int(rt.grid.y)) return;
+  HP_TRACE_BEGIN(wg, gl_NumWorkGroups.x, rt.frame.w);
   uint cell = uint(q.y) * rt.grid.x + uint(q.x);
   int s = int(rt.grid.z);
   // The full-resolution pixel at the centre of this grid cell (clamped on a ragged edge).
@@ -44,6 +54,9 @@ void main() {
   RayDump dump;
   dump.origin_tmin = vec4(0.0); dump.dir_tmax = vec4(0.0); dump.hit = ivec4(-1, 0, 0, 0);
   vec4 result = vec4(0.0);  // alpha 0: not a reflective pixel
+  uint pix = uint(p.y) * frame.extent.x + uint(p.x);
+  HP_REC_LOAD(HP_TBUF_GBUF_DEPTH, pix * 4u, 4u);
+  HP_REC_LOAD(HP_TBUF_GBUF_NORMAL, pix * 8u, 8u);
   float depth = texelFetch(g_depth, p, 0).r;
   vec4 nr = texelFetch(g_normal_roughness, p, 0);
   if (!hp_is_background(depth) && nr.a < rt.reflection.x) {
@@ -71,10 +84,14 @@ void main() {
     vec3 color = frame.sky_color.rgb;
     if (hp_prepare(o, d, 0.0, HP_FLT_MAX, r)) {
       HpHit h = hp_trace(r, false, st);
-      dump.hit = ivec4(h.slot < 0 ? -1 : int(slot_scene[h.slot]), floatBitsToInt(h.t), 1, 0);
+      dump.hit = ivec4(h.slot, floatBitsToInt(h.t), 1, 0);  // slot: mapped to the scene index below
       if (h.slot >= 0) {
         uint slot = uint(h.slot);
-        GpuMaterial m = materials[slot_material[slot]];
+        HP_REC_LOAD(HP_TBUF_SLOT_MATERIAL, slot * 4u, 4u);
+        uint mi = slot_material[slot];
+        HP_REC_LOAD(HP_TBUF_MATERIALS, mi * 32u, 16u);
+        HP_REC_LOAD(HP_TBUF_MATERIALS, mi * 32u + 16u, 16u);
+        GpuMaterial m = materials[mi];
         vec3 hn = hit_normal(slot, h.u, h.v);
         if (dot(hn, d) > 0.0) hn = -hn;
         vec3 hp = o + h.t * d;
@@ -102,8 +119,13 @@ void main() {
     dump.dir_tmax = vec4(d, HP_FLT_MAX);
     result = vec4(color, 1.0);
   }
+  HP_REC_STORE(HP_TBUF_REFLECTION, cell * 16u, 16u);
   imageStore(reflection_image, q, result);
-  if ((rt.grid.w & HP_RT_DUMP_RAYS) != 0u) reflection_dump[cell] = dump;
+  if ((rt.grid.w & HP_RT_DUMP_RAYS) != 0u) {
+    // Debug output only: the slot -> scene lookup is not part of the pass's real work (nor traced).
+    if (dump.hit.x >= 0) dump.hit.x = int(slot_scene[uint(dump.hit.x)]);
+    reflection_dump[cell] = dump;
+  }
   if ((rt.grid.w & HP_RT_COUNTERS) != 0u) {
     hp_counter_add(HP_COUNTER_REFL_RAYS, uint(dump.hit.z));
     hp_counter_add(HP_COUNTER_REFL_NODES, st.nodes);

@@ -9,17 +9,22 @@ layout(local_size_x = 8, local_size_y = 8) in;
 const float HP_FLT_MAX = 3.402823466e+38;
 
 void main() {
-  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise).
+  uvec2 wg = gl_WorkGroupID.xy + uvec2(0u, rt.frame.z);
+  ivec2 p = ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy);
   // A ragged edge is covered by rounding the dispatch up and skipping here (the study truncated it).
   if (p.x >= int(frame.extent.x) || p.y >= int(frame.extent.y)) return;
+  HP_TRACE_BEGIN(wg, gl_NumWorkGroups.x, rt.frame.w);
   uint pix = uint(p.y) * frame.extent.x + uint(p.x);
   HpStats st;
   st.nodes = 0u; st.tris = 0u;
   float lit = 1.0;
   RayDump dump;
   dump.origin_tmin = vec4(0.0); dump.dir_tmax = vec4(0.0); dump.hit = ivec4(-1, 0, 0, 0);
+  HP_REC_LOAD(HP_TBUF_GBUF_DEPTH, pix * 4u, 4u);
   float depth = texelFetch(g_depth, p, 0).r;
   if (!hp_is_background(depth)) {
+    HP_REC_LOAD(HP_TBUF_GBUF_NORMAL, pix * 8u, 8u);
     vec3 n = normalize(texelFetch(g_normal_roughness, p, 0).xyz);
     vec3 pos = hp_world_position(p, depth);
     vec3 l = frame.light_dir.xyz;
@@ -31,14 +36,19 @@ void main() {
       if (hp_prepare(o, l, 0.0, HP_FLT_MAX, r)) {
         HpHit h = hp_trace(r, true, st);
         lit = h.slot < 0 ? 1.0 : 0.0;
-        dump.hit = ivec4(h.slot < 0 ? -1 : int(slot_scene[h.slot]), floatBitsToInt(h.t), 1, 0);
+        dump.hit = ivec4(h.slot, floatBitsToInt(h.t), 1, 0);  // slot: mapped to the scene index below
       }
       dump.origin_tmin = vec4(o, 0.0);
       dump.dir_tmax = vec4(l, HP_FLT_MAX);
     }
   }
+  HP_REC_STORE(HP_TBUF_SHADOW_MASK, pix * 4u, 4u);
   imageStore(shadow_mask, p, vec4(lit));
-  if ((rt.grid.w & HP_RT_DUMP_RAYS) != 0u) shadow_dump[pix] = dump;
+  if ((rt.grid.w & HP_RT_DUMP_RAYS) != 0u) {
+    // Debug output only: the slot -> scene lookup is not part of the pass's real work (nor traced).
+    if (dump.hit.x >= 0) dump.hit.x = int(slot_scene[uint(dump.hit.x)]);
+    shadow_dump[pix] = dump;
+  }
   if ((rt.grid.w & HP_RT_COUNTERS) != 0u) {
     hp_counter_add(HP_COUNTER_SHADOW_RAYS, uint(dump.hit.z));
     hp_counter_add(HP_COUNTER_SHADOW_NODES, st.nodes);

@@ -16,10 +16,11 @@ uint hp_trace_invocation = 0u;  // global linear invocation index in the full (u
 uint hp_trace_seq = 0u;         // this invocation's access counter
 bool hp_trace_on = false;       // this workgroup is sampled
 
-// Call once at the start of main(), with the workgroup's position in the full dispatch.
-void hp_trace_begin(uvec2 workgroup, uint workgroups_x, uint sample_every) {
+// Call once at the start of main(), with the workgroup's position in the full dispatch. The group size is
+// passed in: this file is included before main's local_size layout, where gl_WorkGroupSize is still 1.
+void hp_trace_begin(uvec2 workgroup, uint workgroups_x, uint sample_every, uint group_invocations) {
   uint wg_linear = workgroup.y * workgroups_x + workgroup.x;
-  hp_trace_invocation = wg_linear * (gl_WorkGroupSize.x * gl_WorkGroupSize.y) + gl_LocalInvocationIndex;
+  hp_trace_invocation = wg_linear * group_invocations + gl_LocalInvocationIndex;
   hp_trace_on = sample_every <= 1u || (wg_linear % sample_every) == 0u;
 }
 
@@ -35,7 +36,7 @@ void hp_rec(uint buffer_id, uint kind, uint offset, uint size) {
 }
 #define HP_REC_LOAD(buf, off, size) hp_rec((buf), HP_TRACE_LOAD, uint(off), uint(size))
 #define HP_REC_STORE(buf, off, size) hp_rec((buf), HP_TRACE_STORE, uint(off), uint(size))
-#define HP_TRACE_BEGIN(wg, wgx, k) hp_trace_begin((wg), (wgx), (k))
+#define HP_TRACE_BEGIN(wg, wgx, k) hp_trace_begin((wg), (wgx), (k), gl_WorkGroupSize.x * gl_WorkGroupSize.y)
 #else
 #define HP_REC_LOAD(buf, off, size)
 #define HP_REC_STORE(buf, off, size)

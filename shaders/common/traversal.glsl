@@ -9,6 +9,7 @@
 #extension GL_EXT_shader_explicit_arithmetic_types_float64 : require
 
 #include "common/rt_bindings.glsl"
+#include "common/trace_capture.glsl"
 
 // The node buffer (binding 2) seen as 64-bit words, for fetching a node in four loads instead of eight:
 // lavapipe loads each component of a per-invocation address lane by lane, so halving the components
@@ -97,7 +98,12 @@ vec3 hp_position(uint i) {
 }
 
 void hp_fetch_triangle(uint slot, out vec3 p0, out vec3 p1, out vec3 p2) {
+  // Traced as the accesses a GPU makes for one float3 each (12 bytes), whatever word size this shader
+  // happens to load with: the cache model cares about the bytes touched.
   if (HP_GEOMETRY_SOUP != 0u) {
+    HP_REC_LOAD(HP_TBUF_SOUP, slot * 36u, 12u);
+    HP_REC_LOAD(HP_TBUF_SOUP, slot * 36u + 12u, 12u);
+    HP_REC_LOAD(HP_TBUF_SOUP, slot * 36u + 24u, 12u);
     uint b = slot * 9u;
     bool odd = (b & 1u) != 0u;
     uint wb = (b + 1u) >> 1u;
@@ -116,6 +122,10 @@ void hp_fetch_triangle(uint slot, out vec3 p0, out vec3 p1, out vec3 p2) {
     uvec2 w = unpackDouble2x32(index_words[(b + 1u) >> 1u]);
     uint single = indices[odd ? b : b + 2u];
     uvec3 i = hp_triple(w, single, odd);
+    HP_REC_LOAD(HP_TBUF_INDICES, slot * 12u, 12u);
+    HP_REC_LOAD(HP_TBUF_POSITIONS, i.x * 12u, 12u);
+    HP_REC_LOAD(HP_TBUF_POSITIONS, i.y * 12u, 12u);
+    HP_REC_LOAD(HP_TBUF_POSITIONS, i.z * 12u, 12u);
     p0 = hp_position(i.x);
     p1 = hp_position(i.y);
     p2 = hp_position(i.z);
@@ -175,6 +185,8 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
   while (!done) {
     uint first = 0u, last = 0u;
     for (;;) {
+      HP_REC_LOAD(HP_TBUF_NODES, node * 32u, 16u);  // a 32-byte node is two 16-byte loads on a GPU
+      HP_REC_LOAD(HP_TBUF_NODES, node * 32u + 16u, 16u);
       uvec2 w0 = unpackDouble2x32(node_words[node * 4u + 0u]);
       uvec2 w1 = unpackDouble2x32(node_words[node * 4u + 1u]);
       uvec2 w2 = unpackDouble2x32(node_words[node * 4u + 2u]);
@@ -207,6 +219,8 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
       node = hp_stack[uint(sp) * HP_TRAVERSAL_MAX_GROUP + lane];
     }
     if (HP_OBJECT_LEAVES != 0u && first != last) {
+      HP_REC_LOAD(HP_TBUF_OBJECT_FIRST, first * 4u, 4u);
+      HP_REC_LOAD(HP_TBUF_OBJECT_FIRST, last * 4u, 4u);
       first = object_first[first];
       last = object_first[last];
     }
@@ -226,7 +240,11 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
       // UINT32_MAX before the first hit; the scene indices are only read on a tie (rare), which spares a
       // per-lane load per triangle.
       bool better = t < best_t;
-      if (!better && t == best_t) better = best.slot < 0 || slot_scene[k] < slot_scene[uint(best.slot)];
+      if (!better && t == best_t) {
+        HP_REC_LOAD(HP_TBUF_SLOT_SCENE, k * 4u, 4u);
+        if (best.slot >= 0) HP_REC_LOAD(HP_TBUF_SLOT_SCENE, uint(best.slot) * 4u, 4u);
+        better = best.slot < 0 || slot_scene[k] < slot_scene[uint(best.slot)];
+      }
       if (better) {
         best_t = t;
         best.slot = int(k); best.t = t; best.u = u; best.v = v;

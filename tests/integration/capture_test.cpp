@@ -1,0 +1,184 @@
+// Memory-trace capture on a real device: the traced frame's image equals the untraced one, slices that
+// overflow a small buffer are re-run so that no record is lost, sampling records the sampled workgroups
+// only, and the file replays through the cache simulator.
+#include "vulkan_env.hpp"
+
+#include "cache_analysis.hpp"
+#include "common/trace_buffers.h"
+#include "error.hpp"
+#include "frame.hpp"
+#include "scene/load.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <map>
+#include <tuple>
+#include <filesystem>
+#include <set>
+
+namespace hp {
+namespace {
+
+namespace fs = std::filesystem;
+
+FrameSettings small(uint32_t w, uint32_t h) {
+  FrameSettings s;
+  s.width = w;
+  s.height = h;
+  s.rt.shadows = true;
+  s.rt.reflections = true;
+  s.rt.jitter = JitterMode::shared;
+  return s;
+}
+
+struct Captured {
+  std::vector<CapturedPass> passes;
+  Image4f image;
+  fs::path file;
+};
+
+Captured capture(vk::Context& ctx, const Scene& scene, const FrameSettings& s, const CaptureOptions& o,
+                 const std::string& name) {
+  Captured c;
+  c.file = fs::temp_directory_path() / ("hp_capture_" + std::to_string(::getpid()) + "_" + name + ".hptrace");
+  Frame frame(ctx, scene, scene.camera, s);
+  {
+    trace::TraceWriter writer(c.file, frame.trace_header(o.tiled_images));
+    c.passes = frame.render_captured(o, writer);
+    writer.finish();
+  }
+  c.image = frame.read_color();
+  return c;
+}
+
+TEST(Capture, TracedImageEqualsUntracedAndRecordsAreComplete) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  const FrameSettings s = small(96, 112);
+  Frame plain(*ctx, scene, scene.camera, s);
+  plain.render();
+  const Image4f untraced = plain.read_color();
+
+  CaptureOptions o;
+  const Captured big = capture(*ctx, scene, s, o, "big");
+  ASSERT_EQ(big.passes.size(), 2u);
+  EXPECT_EQ(std::memcmp(big.image.rgba.data(), untraced.rgba.data(), untraced.rgba.size() * 4), 0)
+      << "the traced frame must render the same image";
+  for (const auto& p : big.passes) {
+    EXPECT_GT(p.records, p.workgroups * 64) << p.pass << ": at least one access per invocation";
+    EXPECT_EQ(p.reruns, 0u);
+  }
+
+  // A buffer that holds three quarters of the smaller pass (each pass has 14 workgroup rows): slices shrink
+  // until they fit, and the records are the same.
+  const uint64_t least = std::min(big.passes[0].records, big.passes[1].records);
+  o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (least * 3 / 4);
+  const Captured tiny = capture(*ctx, scene, s, o, "tiny");
+  ASSERT_EQ(tiny.passes.size(), 2u);
+  for (size_t i = 0; i < 2; ++i) {
+    EXPECT_GT(tiny.passes[i].slices, 1u) << tiny.passes[i].pass;
+    EXPECT_GT(tiny.passes[i].reruns, 0u) << tiny.passes[i].pass << ": the first whole-pass slice must overflow";
+    EXPECT_EQ(tiny.passes[i].records, big.passes[i].records) << tiny.passes[i].pass << ": records lost or doubled";
+  }
+  trace::TraceReader a(big.file), b(tiny.file);
+  for (uint32_t p = 0; p < 2; ++p) {
+    auto ra = a.read_pass(p), rb = b.read_pass(p);
+    auto key = [](const gpu::TraceRecord& r) { return std::tuple(r.invocation, r.seq, r.info, r.offset); };
+    std::vector<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>> ka, kb;
+    for (const auto& r : ra) ka.push_back(key(r));
+    for (const auto& r : rb) kb.push_back(key(r));
+    std::sort(ka.begin(), ka.end());
+    std::sort(kb.begin(), kb.end());
+    EXPECT_TRUE(ka == kb) << "pass " << p << ": sliced capture differs from the whole-pass capture";
+    // Every invocation numbers its accesses 0, 1, 2, ... without gaps.
+    std::map<uint32_t, uint32_t> next;
+    for (const auto& k : ka) {
+      EXPECT_EQ(std::get<1>(k), next[std::get<0>(k)]++) << "sequence gap at invocation " << std::get<0>(k);
+      if (::testing::Test::HasFailure()) break;
+    }
+  }
+  fs::remove(big.file);
+  fs::remove(tiny.file);
+}
+
+TEST(Capture, SamplingRecordsOnlySampledWorkgroupsAndReplays) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = small(128, 64);
+  s.rt.reflections = false;
+  CaptureOptions o;
+  o.sample_every = 4;
+  const Captured c = capture(*ctx, scene, s, o, "sampled");
+  ASSERT_EQ(c.passes.size(), 1u);
+  EXPECT_EQ(c.passes[0].workgroups, 16u * 8u);
+  EXPECT_EQ(c.passes[0].sampled_workgroups, 32u);
+  trace::TraceReader r(c.file);
+  std::set<uint32_t> groups;
+  std::set<uint32_t> buffers;
+  for (const auto& rec : r.read_pass(0)) {
+    groups.insert(rec.invocation / 64);
+    buffers.insert(gpu::trace_buffer(rec.info));
+  }
+  EXPECT_EQ(groups.size(), 32u);
+  for (uint32_t g : groups) EXPECT_EQ(g % 4, 0u);
+  for (uint32_t b : {HP_TBUF_NODES, HP_TBUF_GBUF_DEPTH, HP_TBUF_GBUF_NORMAL, HP_TBUF_SHADOW_MASK}) {
+    EXPECT_TRUE(buffers.count(b)) << "buffer " << b << " never accessed";
+  }
+  EXPECT_TRUE(buffers.count(HP_TBUF_INDICES) && buffers.count(HP_TBUF_POSITIONS)) << "indexed triangle fetches";
+  EXPECT_FALSE(buffers.count(HP_TBUF_SOUP)) << "the indexed layout must not read the soup";
+
+  CacheAnalysisOptions ao;
+  ao.curves = true;
+  const nlohmann::json cache = analyse_trace(c.file.string(), ao);
+  ASSERT_EQ(cache["passes"].size(), 1u);
+  const auto& p = cache["passes"][0];
+  const uint64_t l1 = p["l1"]["requests"], hits = p["l1"]["hits"], misses = p["l1"]["misses"];
+  EXPECT_GT(l1, 0u);
+  EXPECT_EQ(hits + misses, l1);
+  EXPECT_EQ(p["l2"]["requests"].get<uint64_t>(), misses + p["stores"].get<uint64_t>() + p["atomics"].get<uint64_t>())
+      << "the L2 sees the L1's load misses and every store";
+  EXPECT_TRUE(p["buffers"].contains("bvh_nodes"));
+  fs::remove(c.file);
+}
+
+TEST(Capture, SoupLayoutReadsTheSoupOnly) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:cornell");
+  FrameSettings s = small(64, 48);
+  s.geometry = GeometryLayout::soup;
+  s.rt.roughness_threshold = 1.01f;  // every Cornell wall reflects
+  const Captured c = capture(*ctx, scene, s, CaptureOptions{}, "soup");
+  trace::TraceReader r(c.file);
+  std::set<uint32_t> buffers;
+  for (uint32_t p = 0; p < r.passes().size(); ++p) {
+    for (const auto& rec : r.read_pass(p)) buffers.insert(gpu::trace_buffer(rec.info));
+  }
+  EXPECT_TRUE(buffers.count(HP_TBUF_SOUP));
+  EXPECT_FALSE(buffers.count(HP_TBUF_INDICES));
+  EXPECT_FALSE(buffers.count(HP_TBUF_POSITIONS));
+  EXPECT_TRUE(buffers.count(HP_TBUF_SOUP_NORMALS)) << "reflection hits shade with the soup's normals";
+  EXPECT_TRUE(buffers.count(HP_TBUF_REFLECTION));
+  fs::remove(c.file);
+}
+
+TEST(Capture, OneRowThatCannotFitIsAClearError) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = small(256, 16);
+  s.rt.reflections = false;
+  Frame frame(*ctx, scene, scene.camera, s);
+  CaptureOptions o;
+  o.buffer_bytes = 16 + 64 * 16 * 2;  // two records per lane of one workgroup: far too small
+  const fs::path f = fs::temp_directory_path() / ("hp_capture_err_" + std::to_string(::getpid()) + ".hptrace");
+  try {
+    trace::TraceWriter writer(f, frame.trace_header(true));
+    frame.render_captured(o, writer);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("capacity"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(f)) << "an unfinished trace must leave no file";
+}
+
+}  // namespace
+}  // namespace hp
