@@ -5,7 +5,8 @@
 //   Cpu/<pass>/<scene>: the reference traversal casting the rays the GPU cast in that pass (dumped once),
 //                       on T threads, T = LP_NUM_THREADS if set, else the core count (lavapipe's default).
 // Shadows: one any-hit ray per lit-facing pixel. Reflections: closest-hit rays of reflective pixels,
-// shaded without a shadow ray at the hit (so both sides cast exactly the same rays).
+// shaded without a shadow ray at the hit (so both sides cast exactly the same rays); every visible pixel
+// reflects (roughness threshold above 1).
 // Run: build/tests/bench/hp_bench_frame [--benchmark_filter=...] ; HP_BENCH_WIDTH/HEIGHT override 1280x720.
 #include "bvh/traverse.hpp"
 #include "frame.hpp"
@@ -56,6 +57,9 @@ FrameSettings settings_for(Pass pass, bool dump) {
   s.rt.shadows = pass == Pass::shadows;
   s.rt.reflections = pass == Pass::reflections;
   s.rt.reflection_shadows = false;
+  // Every visible pixel reflects, so that scenes with rough materials (the shared glTF scenes) have
+  // reflection rays too.
+  s.rt.roughness_threshold = 1.01f;
   s.rt.counters = false;
   s.rt.dump_rays = dump;
   s.rt.offset = ShadowOffset::robust;
@@ -64,6 +68,8 @@ FrameSettings settings_for(Pass pass, bool dump) {
 
 // One setup per (scene, pass), built on first use and kept: building a frame compiles pipelines.
 Setup& setup(const std::string& spec, Pass pass) {
+  // The context first: statics are destroyed in reverse order, so the frames go before their device.
+  vk::Context& ctx = context();
   static std::map<std::pair<std::string, int>, std::unique_ptr<Setup>> cache;
   auto& slot = cache[{spec, int(pass)}];
   if (!slot) {
@@ -72,7 +78,7 @@ Setup& setup(const std::string& spec, Pass pass) {
     s.scene = load_scene(spec);
     const FrameSettings fs = settings_for(pass, false);
     s.camera = s.scene.has_camera ? s.scene.camera : auto_frame(s.scene, float(fs.width) / float(fs.height));
-    s.frame = std::make_unique<Frame>(context(), s.scene, s.camera, fs);
+    s.frame = std::make_unique<Frame>(ctx, s.scene, s.camera, fs);
     // The rays: one frame with dumps on (the dump writes cost GPU time, so timed frames run without them).
     Frame dumper(context(), s.scene, s.camera, settings_for(pass, true));
     dumper.render();
