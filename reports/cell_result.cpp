@@ -125,7 +125,15 @@ std::map<std::string, double> deterministic_metrics(const CellResult& c) {
     }
   }
   if (c.triangles) m["scene.triangles"] = double(*c.triangles);
-  if (c.cache.is_object()) flatten_numbers(c.cache, "cache", m);
+  if (c.cache.is_object() && c.cache.contains("passes") && c.cache["passes"].is_array()) {
+    for (const json& p : c.cache["passes"]) {
+      if (!p.is_object() || !p.contains("pass") || !p["pass"].is_string()) continue;
+      json counts = p;
+      counts.erase("pass");
+      counts.erase("mrc");
+      flatten_numbers(counts, "cache/" + p["pass"].get<std::string>(), m);
+    }
+  }
   return m;
 }
 

@@ -24,8 +24,9 @@ struct CellResult {
   std::optional<std::uint64_t> triangles;            ///< scene.triangles
   nlohmann::json bvh;     ///< {build_ms, nodes, leaves, max_depth, sah_cost} or null (no rays traced)
   nlohmann::json images = nlohmann::json::object();  ///< {"color": "cells/<id>/color.png", ...}
-  /// Cache-simulator tables, when the run captured traces (null otherwise):
-  /// {pass: {l1_hits, l1_misses, l2_hits, l2_misses, buffers: {name: {l1_hits, ...}}}}.
+  /// Cache-simulator tables, when the scenario traced passes (null otherwise), as analyse_trace
+  /// writes them: {preset, passes: [{pass, l1: {requests, hits, misses, hit_rate, ...}, l2: {...},
+  /// buffers: {name: {l1_requests, l1_misses, l2_requests, l2_misses, ...}}, mrc, heatmaps}]}.
   nlohmann::json cache;
   std::string where;  ///< "DIR/results.jsonl:LINE", for messages
 };
@@ -43,8 +44,9 @@ PassSamples pass_samples(const TimingResult& timing);
 
 /// The metrics that must not change between runs of one configuration on one driver, flattened to
 /// names: "<pass>/<counter>" (sums over the measured frames), "bvh.nodes", "bvh.leaves",
-/// "bvh.max_depth", "bvh.sah_cost", "scene.triangles", and "cache/<pass>/..." for every number in
-/// the cache tables. bvh.build_ms is a timing and is left out.
+/// "bvh.max_depth", "bvh.sah_cost", "scene.triangles", and "cache/<pass>/l1/hits"-style names for
+/// every number of each traced pass's cache tables (miss-ratio curve points left out: they follow
+/// from the counts). bvh.build_ms is a timing and is left out.
 std::map<std::string, double> deterministic_metrics(const CellResult& cell);
 
 /// Which cells two runs pair up: the canonical config without the gate-validation knob `inject`

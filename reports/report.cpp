@@ -64,7 +64,7 @@ const StudyRow& study(bool shared, bool indexed) {
   return kTable1[0];
 }
 
-std::string study_block(const std::string& leaf) {
+std::string study_block(const std::string& leaf, bool have_cache) {
   std::string s = "\n**Beside the study (Santoro 2020, Table 1: PIX on a Vega 56, reflection pass).** ";
   s += "\"offset\" is one shared jitter offset per frame (our `jitter: shared`), \"EBO\" an index buffer "
        "(our `geometry: indexed`).\n\n| study configuration | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate |\n|---|---|---|---|---|---|\n";
@@ -82,8 +82,13 @@ std::string study_block(const std::string& leaf) {
     s += "In the study the shared offset changed L1 hits by " + pct(study(true, true).l1_hit / study(false, true).l1_hit) +
          " with an index buffer and by " + pct(study(true, false).l1_hit / study(false, false).l1_hit) + " without one.";
   }
-  s += " Our L1/L2 columns for this comparison appear beside these once GPU traces are captured and the "
-       "cells carry cache tables (see \"Cache simulation\").\n";
+  if (have_cache) {
+    s += " Our L1-hit changes for the same comparison are in the sentences above (our scene, our cache preset, "
+         "one traced frame per cell); the full tables are in each cell's section.\n";
+  } else {
+    s += " Our L1/L2 columns for this comparison appear beside these once GPU traces are captured: this run's "
+         "cells carry no cache tables (add `\"trace\": {\"passes\": [\"reflections\"]}` to the scenario).\n";
+  }
   return s;
 }
 
@@ -156,29 +161,57 @@ std::string ci_text(const Summary& s) {
 
 bool has_pass(const Counters& c, const std::string& pass) { return c.passes().count(pass) > 0; }
 
+// One traced pass of a cell's cache tables (analyse_trace's schema), with the study's four counts.
+struct CachePass {
+  std::string pass;
+  double l1_hits = 0, l1_misses = 0, l2_hits = 0, l2_misses = 0;
+  const json* j = nullptr;
+};
+double num_or0(const json& j, const char* k) { return j.contains(k) && j[k].is_number() ? j[k].get<double>() : 0.0; }
+std::vector<CachePass> cache_passes(const CellResult& c) {
+  std::vector<CachePass> out;
+  if (!c.cache.is_object() || !c.cache.contains("passes") || !c.cache["passes"].is_array()) return out;
+  for (const json& p : c.cache["passes"]) {
+    if (!p.is_object() || !p.contains("pass") || !p["pass"].is_string()) continue;
+    const json l1 = p.value("l1", json::object()), l2 = p.value("l2", json::object());
+    out.push_back({p["pass"].get<std::string>(), num_or0(l1, "hits"), num_or0(l1, "misses"), num_or0(l2, "hits"),
+                   num_or0(l2, "misses"), &p});
+  }
+  return out;
+}
+std::string rate(double hits, double misses) {
+  return hits + misses > 0 ? fmt("%.1f%%", 100.0 * hits / (hits + misses)) : std::string("—");
+}
+
 std::string cache_tables(const CellResult& c) {
-  if (!c.cache.is_object() || c.cache.empty()) return "";
-  auto get = [](const json& j, const char* k) { return j.contains(k) && j[k].is_number() ? j[k].get<double>() : 0.0; };
-  auto rate = [](double h, double m) { return h + m > 0 ? fmt("%.1f%%", 100.0 * h / (h + m)) : std::string("—"); };
-  std::string s = "\nCache simulation (" + std::string(c.config.value("cache_preset", "preset?")) +
-                  "), in the study's form:\n\n| pass | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate | L2 hit rate |\n|---|---|---|---|---|---|---|\n";
-  std::string buffers;
-  for (const auto& [pass, t] : c.cache.items()) {
-    if (!t.is_object()) continue;
-    s += "| " + pass + " | " + count_text(get(t, "l1_hits")) + " | " + count_text(get(t, "l1_misses")) + " | " +
-         count_text(get(t, "l2_hits")) + " | " + count_text(get(t, "l2_misses")) + " | " +
-         rate(get(t, "l1_hits"), get(t, "l1_misses")) + " | " + rate(get(t, "l2_hits"), get(t, "l2_misses")) + " |\n";
-    if (t.contains("buffers") && t["buffers"].is_object()) {
-      for (const auto& [buf, b] : t["buffers"].items()) {
-        buffers += "| " + pass + " | " + buf + " | " + count_text(get(b, "l1_hits")) + " | " + count_text(get(b, "l1_misses")) +
-                   " | " + count_text(get(b, "l2_hits")) + " | " + count_text(get(b, "l2_misses")) + " | " +
-                   rate(get(b, "l1_hits"), get(b, "l1_misses")) + " |\n";
+  const std::vector<CachePass> passes = cache_passes(c);
+  if (passes.empty()) return "";
+  std::string s = "\nCache simulation (preset " + c.cache.value("preset", std::string("?")) +
+                  ", one traced frame), in the study's form:\n\n| pass | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate | L2 hit rate |\n|---|---|---|---|---|---|---|\n";
+  std::string buffers, heatmaps;
+  for (const CachePass& p : passes) {
+    s += "| " + p.pass + " | " + count_text(p.l1_hits) + " | " + count_text(p.l1_misses) + " | " + count_text(p.l2_hits) + " | " +
+         count_text(p.l2_misses) + " | " + rate(p.l1_hits, p.l1_misses) + " | " + rate(p.l2_hits, p.l2_misses) + " |\n";
+    if (p.j->contains("buffers") && (*p.j)["buffers"].is_object()) {
+      for (const auto& [buf, b] : (*p.j)["buffers"].items()) {
+        const double l1r = num_or0(b, "l1_requests"), l1m = num_or0(b, "l1_misses");
+        const double l2r = num_or0(b, "l2_requests"), l2m = num_or0(b, "l2_misses");
+        buffers += "| " + p.pass + " | " + buf + " | " + count_text(l1r) + " | " + count_text(l1m) + " | " + rate(l1r - l1m, l1m) +
+                   " | " + count_text(l2r) + " | " + count_text(l2m) + " | " + rate(l2r - l2m, l2m) + " |\n";
+      }
+    }
+    if (p.j->contains("heatmaps") && (*p.j)["heatmaps"].is_object()) {
+      for (const auto& [kind, path] : (*p.j)["heatmaps"].items()) {
+        if (path.is_string())
+          heatmaps += "[![" + p.pass + " " + kind + "](" + path.get<std::string>() + ")](" + path.get<std::string>() + ") ";
       }
     }
   }
   if (!buffers.empty()) {
-    s += "\nPer buffer:\n\n| pass | buffer | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate |\n|---|---|---|---|---|---|---|\n" + buffers;
+    s += "\nPer buffer:\n\n| pass | buffer | L1 requests | L1 misses | L1 hit rate | L2 requests | L2 misses | L2 hit rate |\n"
+         "|---|---|---|---|---|---|---|---|\n" + buffers;
   }
+  if (!heatmaps.empty()) s += "\nMiss heatmaps (per pixel, log scale: black none, yellow most):\n\n" + heatmaps + "\n";
   return s;
 }
 
@@ -346,6 +379,30 @@ void charts_section(const std::vector<CellResult>& cells, Report& r, std::string
       s += "![" + lc.title + "](" + path + ")\n\n";
     }
   }
+
+  // Miss-ratio curves of the traced passes, one chart per cell (listed under "Cache simulation").
+  for (size_t i = 0; i < cells.size(); ++i) {
+    svg::LineChart mc;
+    mc.title = "Miss ratio vs cache size: " + cell_label(cells[i]);
+    mc.x_label = "fully associative LRU cache size, log2 bytes (10 = 1 KiB, 20 = 1 MiB)";
+    mc.y_label = "miss ratio";
+    for (const CachePass& p : cache_passes(cells[i])) {
+      if (!p.j->contains("mrc") || !(*p.j)["mrc"].is_object()) continue;
+      for (const char* level : {"l1", "l2"}) {
+        const json& curve = (*p.j)["mrc"].value(level, json::object());
+        if (!curve.contains("points") || !curve["points"].is_array()) continue;
+        svg::Line line;
+        line.name = p.pass + " " + (std::string(level) == "l1" ? "L1" : "L2");
+        for (const json& pt : curve["points"]) {
+          if (!pt.is_array() || pt.size() != 2 || !pt[0].is_number() || !pt[1].is_number() || pt[0].get<double>() <= 0) continue;
+          line.x.push_back(std::log2(pt[0].get<double>()));
+          line.y.push_back(pt[1].get<double>());
+        }
+        if (!line.x.empty()) mc.lines.push_back(line);
+      }
+    }
+    if (!mc.lines.empty()) r.charts.push_back({"charts/mrc_" + cells[i].id + ".svg", svg::render(mc)});
+  }
 }
 
 // One comparison: cell b against cell a, which differ only in `axis`.
@@ -400,13 +457,14 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
   }
   std::sort(counter_changes.rbegin(), counter_changes.rend());
   // Cache tables, when both cells have them: L1 hits per pass.
+  // Cache tables, when both cells have them: L1 hits per traced pass.
   std::string cache_part;
-  if (a.cache.is_object() && b.cache.is_object()) {
-    for (const auto& [pass, t] : a.cache.items()) {
-      if (!b.cache.contains(pass) || !t.contains("l1_hits")) continue;
-      const double x = t["l1_hits"].get<double>(), y = b.cache[pass].value("l1_hits", 0.0);
-      if (x > 0) cache_part += (cache_part.empty() ? "" : ", ") + pass + " L1 hits " + pct(y / x) + " (" + count_text(x) + " → " + count_text(y) + ")";
-    }
+  const std::vector<CachePass> ca = cache_passes(a), cb = cache_passes(b);
+  for (const CachePass& x : ca) {
+    auto y = std::find_if(cb.begin(), cb.end(), [&](const CachePass& p) { return p.pass == x.pass; });
+    if (y == cb.end() || x.l1_hits <= 0) continue;
+    cache_part += (cache_part.empty() ? "" : ", ") + x.pass + " L1 hits " + pct(y->l1_hits / x.l1_hits) + " (" +
+                  count_text(x.l1_hits) + " → " + count_text(y->l1_hits) + ")";
   }
 
   std::string sentence = "Changing " + leaf + " from " + va + " to " + vb + (others.empty() ? "" : " (with " + others + ")");
@@ -462,7 +520,8 @@ void comparisons_section(const std::vector<CellResult>& cells, std::string& s) {
     }
     if (n == 0) s += "No two cells differ in this axis alone.\n\n";
     const std::string leaf = axis_leaf(axis);
-    if (leaf == "geometry" || leaf == "jitter") s += study_block(leaf) + "\n";
+    const bool have_cache = std::any_of(cells.begin(), cells.end(), [](const CellResult& c) { return !cache_passes(c).empty(); });
+    if (leaf == "geometry" || leaf == "jitter") s += study_block(leaf, have_cache) + "\n";
   }
 }
 
@@ -483,15 +542,19 @@ Report build_report(const std::vector<CellResult>& cells) {
   for (const CellResult& c : cells) s += cell_section(c);
   comparisons_section(cells, s);
   s += "## Cache simulation\n\n";
-  const size_t with_cache = size_t(std::count_if(cells.begin(), cells.end(), [](const CellResult& c) { return c.cache.is_object(); }));
+  const size_t with_cache =
+      size_t(std::count_if(cells.begin(), cells.end(), [](const CellResult& c) { return !cache_passes(c).empty(); }));
   if (with_cache == 0) {
-    s += "No cell carries cache-simulator tables: GPU trace capture is not implemented yet. When results carry a "
-         "`cache` object per cell (per pass: `l1_hits`, `l1_misses`, `l2_hits`, `l2_misses`, `buffers`), the L1/L2 "
-         "table in the study's form, the per-buffer breakdown and the L1-hit changes in the comparisons appear "
-         "here without any other change.\n";
+    s += "No cell carries cache-simulator tables: the scenario traced no pass. Add `\"trace\": {\"passes\": "
+         "[\"reflections\"]}` to a scenario and each cell gets a `cache` object (one traced frame replayed through "
+         "the preset's caches); the L1/L2 table in the study's form, the per-buffer breakdown, the miss heatmaps, "
+         "the miss-ratio curves and the L1-hit changes in the comparisons then appear without any other change.\n";
   } else {
     s += std::to_string(with_cache) + " of " + std::to_string(cells.size()) +
-         " cells carry cache tables; they are shown in each cell's section, and their L1-hit changes in the comparisons.\n";
+         " cells carry cache tables; they are shown in each cell's section, and their L1-hit changes in the "
+         "comparisons. Miss-ratio curves (fully associative LRU, exact by stack distance):\n\n";
+    for (const ReportFile& f : r.charts)
+      if (f.path.starts_with("charts/mrc_")) s += "![miss-ratio curve](" + f.path + ")\n\n";
   }
   return r;
 }

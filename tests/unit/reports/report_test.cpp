@@ -75,7 +75,7 @@ TEST(Report, ComparisonsStateWhatChangedAndByHowMuch) {
   EXPECT_NE(md.find("the work counters were identical"), std::string::npos);
   // The study's Table 1 beside the geometry axis, with its two headline figures.
   for (const char* s : {"4,873,530", "6,251,450", "5,374,096", "5,979,267", "by 28.3% with a shared offset and by 11.3% without",
-                        "once GPU traces are captured"})
+                        "once GPU traces are captured: this run's cells carry no cache tables"})
     EXPECT_NE(md.find(s), std::string::npos) << s;
 }
 
@@ -99,19 +99,36 @@ TEST(Report, WarnsWhenEnvironmentsDiffer) {
 }
 
 TEST(Report, RendersCacheTablesWhenPresent) {
+  // The schema analyse_trace writes (profiler/cache_analysis.cpp).
   auto with_cache = [](const char* g, double l1_hits, std::uint64_t seed) {
     test::SynthCell c = cell(g, json{64, 36}, seed);
-    c.cache = {{"reflections",
-                {{"l1_hits", l1_hits}, {"l1_misses", 291719}, {"l2_hits", 115552}, {"l2_misses", 217475},
-                 {"buffers", {{"bvh_nodes", {{"l1_hits", 4000000}, {"l1_misses", 100000}, {"l2_hits", 5}, {"l2_misses", 7}}}}}}}};
+    json level1 = {{"requests", l1_hits + 291719}, {"hits", l1_hits}, {"misses", 291719}};
+    json level2 = {{"requests", 333027}, {"hits", 115552}, {"misses", 217475}};
+    c.cache = {{"preset", "vega56"},
+               {"passes",
+                {{{"pass", "reflections"},
+                  {"l1", level1},
+                  {"l2", level2},
+                  {"buffers", {{"bvh_nodes", {{"l1_requests", 4100000}, {"l1_misses", 100000}, {"l2_requests", 100000}, {"l2_misses", 7}}}}},
+                  {"mrc", {{"l1", {{"points", {{1024, 0.5}, {2048, 0.3}, {4096, 0.1}}}}}}},
+                  {"heatmaps", {{"l1_misses", "cells/x/reflections_l1_misses.png"}}}}}}};
     return test::cell(c);
   };
-  const std::string md = build_report({with_cache("indexed", 4873530, 1), with_cache("soup", 6251450, 2)}).markdown;
+  const Report r = build_report({with_cache("indexed", 4873530, 1), with_cache("soup", 6251450, 2)});
+  const std::string& md = r.markdown;
   EXPECT_NE(md.find("| pass | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate | L2 hit rate |"), std::string::npos);
   EXPECT_NE(md.find("| reflections | 4,873,530 | 291,719 | 115,552 | 217,475 | 94.4% | 34.7% |"), std::string::npos) << md;
-  EXPECT_NE(md.find("| reflections | bvh_nodes | 4,000,000 | 100,000 |"), std::string::npos);
+  EXPECT_NE(md.find("| reflections | bvh_nodes | 4,100,000 | 100,000 | 97.6% |"), std::string::npos);
   EXPECT_NE(md.find("reflections L1 hits +28.3% (4,873,530 → 6,251,450)"), std::string::npos);
+  EXPECT_NE(md.find("(cells/x/reflections_l1_misses.png)"), std::string::npos);
   EXPECT_NE(md.find("2 of 2 cells carry cache tables"), std::string::npos);
+  EXPECT_NE(md.find("Our L1-hit changes for the same comparison"), std::string::npos);
+  EXPECT_EQ(std::count_if(r.charts.begin(), r.charts.end(), [](const ReportFile& f) { return f.path.starts_with("charts/mrc_"); }), 2);
+  // Cache counts are deterministic metrics; the curves are not listed.
+  const auto m = deterministic_metrics(with_cache("indexed", 4873530, 1));
+  EXPECT_EQ(m.at("cache/reflections/l1/hits"), 4873530);
+  EXPECT_EQ(m.at("cache/reflections/buffers/bvh_nodes/l1_misses"), 100000);
+  EXPECT_EQ(m.count("cache/reflections/mrc/l1/points"), 0u);
 }
 
 TEST(Report, SingleCellAndFewFrames) {
@@ -125,7 +142,6 @@ TEST(Report, SingleCellAndFewFrames) {
 TEST(Report, WritesFilesAtomically) {
   const std::string dir = test::temp_dir("report");
   std::vector<json> lines;
-  for (const CellResult& c : matrix()) (void)c;
   std::uint64_t seed = 1;
   for (const char* g : {"indexed", "soup"}) lines.push_back(test::line(cell(g, json{64, 36}, seed++)));
   test::write_results(dir, lines);
