@@ -15,6 +15,7 @@ FrameSample to_frame_sample(const FrameTiming& timing, const RayCounters* c) {
   FrameSample s;
   for (const auto& p : timing.passes) s.passes.push_back({p.name, p.begin_ns, p.end_ns, "graphics"});
   s.cpu_wall_ns = timing.cpu_wall_ns;
+  for (const auto& [pass, n] : timing.compute_invocations) s.counters.set(pass, counter::compute_invocations, n);
   if (c) {
     s.counters.set("shadows", counter::rays_cast, c->shadow_rays);
     s.counters.set("shadows", counter::nodes_visited, c->shadow_nodes);

@@ -6,6 +6,7 @@
 #include <glm/gtc/packing.hpp>
 
 #include <chrono>
+#include <string_view>
 #include <cstring>
 
 namespace hp {
@@ -70,7 +71,8 @@ Frame::Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const F
              VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT),
       sampler_(ctx),
       gbuffer_pass_(ctx, uniforms_, settings.reversed_z),
-      timestamps_(ctx, kMaxPasses) {
+      timestamps_(ctx, kMaxPasses),
+      invocations_(ctx, kMaxPasses) {
   const bool traced = settings.rt.shadows || settings.rt.reflections;
   if (traced) {
     rt_geometry_ = build_rt_geometry(scene, settings.bvh);
@@ -116,9 +118,15 @@ void Frame::set_light(const DirectionalLight& light) {
 }
 
 void Frame::record_passes(VkCommandBuffer cmd, bool ts) {
+  // Invocation counts are a counter: recorded with the timed frames when counters are asked for.
+  const bool count = ts && settings_.rt.counters && invocations_.supported();
+  if (count) invocations_.reset(cmd);
   auto pass = [&](const char* name, auto&& body) {
+    const bool compute = std::string_view(name) != "gbuffer";
     if (ts) timestamps_.begin(cmd, name);
+    if (count && compute) invocations_.begin(cmd, name);
     body();
+    if (count && compute) invocations_.end(cmd);
     if (ts) timestamps_.end(cmd);
   };
   pass("gbuffer", [&] { gbuffer_pass_.record(cmd, gpu_scene_, gbuffer_); });
@@ -148,6 +156,7 @@ FrameTiming Frame::render(bool with_timestamps) {
       record_passes(cmd, true);
     });
     for (const auto& iv : timestamps_.read(ctx_)) timing.passes.push_back({iv.pass, iv.begin_ns, iv.end_ns});
+    if (settings_.rt.counters && invocations_.supported()) timing.compute_invocations = invocations_.read();
   } else {
     // No timestamps on this queue: one submission per pass, timed on the host (includes submit latency).
     timing.source = "cpu-wall";

@@ -14,6 +14,7 @@
 #include "rt_scene.hpp"
 #include "trace/trace_file.hpp"
 #include "view.hpp"
+#include "vk/pipeline_stats.hpp"
 #include "vk/timestamps.hpp"
 
 #include <memory>
@@ -52,6 +53,9 @@ struct FrameTiming {
   std::vector<Pass> passes;
   uint64_t cpu_wall_ns = 0;  ///< record + submit + wait, on the host
   std::string source;
+  /// Compute-shader invocations per compute pass (pipeline statistics queries), when counters are on and
+  /// the device supports the queries.
+  std::vector<std::pair<std::string, uint64_t>> compute_invocations;
 };
 
 /// What a memory-trace capture records (Frame::render_captured).
@@ -132,6 +136,7 @@ class Frame {
   GBufferPass gbuffer_pass_;
   std::unique_ptr<CompositePass> composite_pass_;
   vk::TimestampQueries timestamps_;
+  vk::ComputeInvocationQueries invocations_;
   std::unique_ptr<vk::Buffer> trace_buffer_;
   uint32_t frame_index_ = 0;
   uint32_t sample_index_ = 0;

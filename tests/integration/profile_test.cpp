@@ -48,6 +48,16 @@ TEST(Profile, RealRunGivesNestedTimelineAndStableCounters) {
     EXPECT_GT(f.counters.get("reflections", counter::rays_cast), 0u);
   }
   EXPECT_GT(frames[0].counters.get("shadows", counter::rays_cast), 0u);
+  // Pipeline statistics: every invocation of the 8x8-tiled dispatch counts, the ragged edge's idle lanes too.
+  VkPhysicalDeviceFeatures features{};
+  vkGetPhysicalDeviceFeatures(ctx->physical_device(), &features);
+  if (features.pipelineStatisticsQuery) {
+    for (const auto& f : frames) {
+      EXPECT_EQ(f.counters.get("shadows", counter::compute_invocations), 96u * 56u);
+      EXPECT_EQ(f.counters.get("composite", counter::compute_invocations), 96u * 56u);
+      EXPECT_EQ(f.counters.get("reflections", counter::compute_invocations), 96u * 56u);
+    }
+  }
 
   TimelineFixes fixes;
   const nlohmann::json timeline = build_timeline(t, &fixes);
