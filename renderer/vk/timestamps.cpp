@@ -26,19 +26,33 @@ TimestampQueries::~TimestampQueries() {
 void TimestampQueries::reset(VkCommandBuffer cmd) {
   used_ = 0;
   names_.clear();
+  slots_.clear();
+  open_ = boundary_ = false;
   if (pool_) vkCmdResetQueryPool(cmd, pool_, 0, capacity_);
 }
 
 void TimestampQueries::begin(VkCommandBuffer cmd, const std::string& pass) {
   if (!pool_) return;
-  if (used_ + 2 > capacity_) throw std::logic_error("TimestampQueries: more passes than the pool holds");
+  if (open_) throw std::logic_error("TimestampQueries: begin() inside an open pass");
   names_.push_back(pass);
+  open_ = true;
+  if (boundary_) {  // the previous pass's end timestamp is this pass's begin
+    slots_.push_back({used_ - 1, 0});
+    return;
+  }
+  if (used_ + 2 > capacity_) throw std::logic_error("TimestampQueries: more passes than the pool holds");
+  slots_.push_back({used_, 0});
   vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool_, used_++);
 }
 
 void TimestampQueries::end(VkCommandBuffer cmd) {
   if (!pool_) return;
+  if (!open_) throw std::logic_error("TimestampQueries: end() without begin()");
+  if (used_ + 1 > capacity_) throw std::logic_error("TimestampQueries: more passes than the pool holds");
+  slots_.back().second = used_;
   vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool_, used_++);
+  open_ = false;
+  boundary_ = true;
 }
 
 std::vector<TimestampQueries::Interval> TimestampQueries::read(Context&) const {
@@ -47,11 +61,11 @@ std::vector<TimestampQueries::Interval> TimestampQueries::read(Context&) const {
   std::vector<uint64_t> ticks(used_);
   HP_VK(vkGetQueryPoolResults(device_, pool_, 0, used_, ticks.size() * sizeof(uint64_t), ticks.data(),
                               sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
-  for (size_t i = 0; i + 1 < ticks.size(); i += 2) {
+  for (size_t p = 0; p < slots_.size(); ++p) {
     Interval iv;
-    iv.pass = names_[i / 2];
-    iv.begin_ns = static_cast<uint64_t>(std::llround(double(ticks[i] & mask_) * period_ns_));
-    iv.end_ns = static_cast<uint64_t>(std::llround(double(ticks[i + 1] & mask_) * period_ns_));
+    iv.pass = names_[p];
+    iv.begin_ns = static_cast<uint64_t>(std::llround(double(ticks[slots_[p].first] & mask_) * period_ns_));
+    iv.end_ns = static_cast<uint64_t>(std::llround(double(ticks[slots_[p].second] & mask_) * period_ns_));
     out.push_back(iv);
   }
   return out;

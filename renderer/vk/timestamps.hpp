@@ -1,8 +1,9 @@
-// GPU timestamps around the passes of a frame. Each pass gets a begin and an end timestamp written at
-// VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT: the begin one waits for all earlier work, the end one for the
-// pass, so a pass's interval holds that pass alone (on lavapipe every timestamp not at top-of-pipe waits
-// for all earlier work anyway). Ticks are masked with timestampValidBits and converted with
-// timestampPeriod.
+// GPU timestamps around the passes of a frame, written at VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT: each one
+// waits for all earlier work, so a pass's interval holds that pass alone (on lavapipe every timestamp not
+// at top-of-pipe waits for all earlier work anyway). Passes recorded back to back share the boundary
+// timestamp (the end of one is the begin of the next: N + 1 queries for N passes, not 2N), which halves
+// the queries' own cost; the barrier between two passes then counts toward the later one. Ticks are
+// masked with timestampValidBits and converted with timestampPeriod.
 #pragma once
 
 #include "vk/context.hpp"
@@ -42,6 +43,9 @@ class TimestampQueries {
   uint64_t mask_ = 0;
   double period_ns_ = 1.0;
   std::vector<std::string> names_;
+  std::vector<std::pair<uint32_t, uint32_t>> slots_;  // per pass: begin and end query index
+  bool open_ = false;                                  // a pass is between begin() and end()
+  bool boundary_ = false;                              // the last query written was an end()
 };
 
 }  // namespace hp::vk
