@@ -195,7 +195,14 @@ void TraceWriter::finish() {
 
 // ------------------------------------------------------------------------------------------------ reader
 
-void TraceReader::fail(const std::string& what) const { throw InputError(path_.string() + ": " + what); }
+// Buffer and pass names come from the file: keep the message one line whatever bytes they hold.
+static std::string one_line(std::string s) {
+  for (char& ch : s)
+    if (ch == '\n' || ch == '\r') ch = ' ';
+  return s;
+}
+
+void TraceReader::fail(const std::string& what) const { throw InputError(one_line(path_.string() + ": " + what)); }
 
 TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
   file_ = std::fopen(path_.c_str(), "rb");
@@ -229,7 +236,9 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
       RecordsEntry e{};
       if (ch.payload_bytes < sizeof e || std::fread(&e, sizeof e, 1, file_) != 1) fail("malformed RECS" + at);
       if (e.pass >= passes_.size()) fail("RECS" + at + " names pass " + std::to_string(e.pass) + " before its PASS");
-      if (ch.payload_bytes != sizeof e + e.count * sizeof(TraceRecord))
+      // Compare by division: count * 16 wraps for counts >= 2^60, which made a tiny chunk claim 2^60 records.
+      if ((ch.payload_bytes - sizeof e) % sizeof(TraceRecord) != 0 ||
+          e.count != (ch.payload_bytes - sizeof e) / sizeof(TraceRecord))
         fail("malformed RECS" + at + ": record count does not match the chunk size");
       chunks_.push_back({e.pass, pos + sizeof e, e.count});
       total += e.count;
@@ -247,6 +256,9 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
           BufferEntry e{};
           if (!c.get(&e, sizeof e)) fail("malformed BUFS" + at + ": entry " + std::to_string(i));
           BufferInfo b;
+          // Bound the name by the chunk before allocating it (a corrupt length once asked for 4 GiB).
+          if (e.name_bytes > payload.size() - c.pos)
+            fail("malformed BUFS" + at + ": name of entry " + std::to_string(i) + " runs past the chunk");
           b.name.resize(e.name_bytes);
           if (!c.get(b.name.data(), e.name_bytes)) fail("malformed BUFS" + at + ": name of entry " + std::to_string(i));
           c.pos += pad8(e.name_bytes);
@@ -275,6 +287,7 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
         if (!c.get(&e, sizeof e)) fail("malformed PASS" + at);
         if (e.index != passes_.size()) fail("PASS" + at + " out of order");
         PassInfo p;
+        if (e.name_bytes > payload.size() - c.pos) fail("malformed PASS" + at + ": name runs past the chunk");
         p.name.resize(e.name_bytes);
         if (!c.get(p.name.data(), e.name_bytes)) fail("malformed PASS" + at);
         for (int i = 0; i < 3; ++i) {
@@ -337,7 +350,7 @@ void validate_records(const std::string& where, const TraceHeader& header, const
   for (size_t i = 0; i < records.size(); ++i) {
     const TraceRecord& r = records[i];
     auto bad = [&](const std::string& why) {
-      throw InputError(where + ": record " + std::to_string(i) + ": " + why);
+      throw InputError(one_line(where + ": record " + std::to_string(i) + ": " + why));
     };
     if (r.info & HP_TRACE_RESERVED_MASK) bad("reserved info bits set");
     if (gpu::trace_kind(r.info) > HP_TRACE_ATOMIC) bad("unknown access kind");

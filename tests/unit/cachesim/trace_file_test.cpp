@@ -162,5 +162,45 @@ TEST(TraceFile, CorruptFilesGiveOneLineErrorsNamingTheFile) {
   EXPECT_NE(error_reading(tmp("does_not_exist")).find("cannot open trace file"), std::string::npos);
 }
 
+// Found by tests/fuzz/fuzz_trace (corpus/trace/oom_buffer_name_length.hptrace): a buffer name length of
+// ~4 GiB was allocated before it was checked against the chunk.
+TEST(TraceFile, NameLengthPastTheChunkIsAnErrorNotAnAllocation) {
+  const auto good = tmp("name_len.hptrace");
+  write_trace(good, sample());
+  auto bytes = bytes_of(good);
+  // Header 32 + chunk header 16 + count 4 = entry 0 at 52; its name_bytes field is 48 bytes in.
+  ASSERT_EQ(bytes[100], 5);  // "nodes"
+  bytes[103] = char(0xfb);
+  write_bytes(good, bytes);
+  EXPECT_EQ(error_reading(good), good.string() + ": malformed BUFS chunk at byte 32: name of entry 0 runs past the chunk");
+}
+
+// A RECS count of 2^60 + n wraps count * 16 to the chunk's true size; with END agreeing, read_pass then
+// tried to allocate 2^64 bytes. The count must match the chunk exactly.
+TEST(TraceFile, WrappingRecordCountIsAnError) {
+  const auto p = tmp("wrap.hptrace");
+  write_trace(p, sample());
+  auto bytes = bytes_of(p);
+  const std::string text(bytes.begin(), bytes.end());
+  const size_t recs = text.find("RECS"), end = text.rfind("END ");
+  ASSERT_NE(recs, std::string::npos);
+  ASSERT_NE(end, std::string::npos);
+  bytes[recs + 16 + 24 + 7] |= 0x10;  // RecordsEntry::count, top byte
+  bytes[end + 16 + 7] |= 0x10;        // EndEntry::total_records, top byte
+  write_bytes(p, bytes);
+  EXPECT_EQ(error_reading(p), p.string() + ": malformed RECS chunk at byte " + std::to_string(recs) +
+                                  ": record count does not match the chunk size");
+}
+
+// Names come from the file; an error quoting one stays on one line.
+TEST(TraceFile, ErrorsQuotingANameStayOnOneLine) {
+  Trace t = sample();
+  t.passes[0].name = "sha\ndows";
+  t.records[0][3].info = HP_TRACE_INFO(3u, HP_TRACE_LOAD, 4u);
+  const auto p = tmp("newline.hptrace");
+  write_trace(p, t);
+  EXPECT_EQ(error_reading(p), p.string() + ": pass 'sha dows': record 3: unknown buffer id 3");
+}
+
 }  // namespace
 }  // namespace hp::trace
