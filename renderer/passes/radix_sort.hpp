@@ -1,0 +1,63 @@
+// A GPU radix sort of (uint key, uint value) pairs: stable, least-significant digit first, 4 bits per
+// pass, as many passes as the caller's significant key bits need (ceil(key_bits / 4)). The number of
+// elements is read on the GPU from a count buffer, so a count produced by an atomic counter can be sorted
+// without a CPU readback: the dispatches are sized for the capacity and the kernels skip what lies past
+// the live count. See shaders/sort/ for the kernels.
+#pragma once
+
+#include "vk/pipeline.hpp"
+#include "vk/resources.hpp"
+
+#include <cstdint>
+
+namespace hp {
+
+class RadixSort {
+ public:
+  /// Builds the pipelines and the scratch buffers (two ping-pong buffers of `capacity` uints, the
+  /// per-block histograms). Throws hp::InputError when `capacity` is 0 or a capacity-sized buffer would
+  /// exceed the device's maxStorageBufferRange.
+  RadixSort(vk::Context& ctx, uint32_t capacity);
+
+  uint32_t capacity() const { return capacity_; }
+  /// Digit passes for `key_bits` significant bits (0 for 0 bits).
+  static uint32_t pass_count(uint32_t key_bits);
+
+  /// Records the sort of the first min(count, capacity) pairs of `keys`/`values` by the low `key_bits`
+  /// bits of the key (higher bits are carried along but ignored: equal low bits keep input order).
+  /// `count` holds the element count as a uint at offset 0. The sorted pairs end in `keys`/`values`
+  /// (after an odd number of passes a final copy kernel moves them back from the scratch buffers);
+  /// elements past the count are left untouched. All three buffers need STORAGE_BUFFER usage; `keys` and
+  /// `values` must hold at least `capacity` uints.
+  ///
+  /// Barriers: the recording starts with one that makes all earlier writes (any stage) visible to the
+  /// sort, and ends with one that makes the sorted buffers visible to any later stage.
+  ///
+  /// Descriptor sets are rewritten only when the buffers differ from the previous call; a call with
+  /// different buffers must not be made while a command buffer recorded with the old ones is pending.
+  void record(VkCommandBuffer cmd, const vk::Buffer& keys, const vk::Buffer& values, const vk::Buffer& count,
+              uint32_t key_bits);
+
+ private:
+  void bind(const vk::Buffer& keys, const vk::Buffer& values, const vk::Buffer& count);
+
+  uint32_t capacity_ = 0;
+  uint32_t blocks_ = 0;  ///< workgroups of the block kernels, covering the capacity
+  vk::Buffer scratch_keys_;
+  vk::Buffer scratch_values_;
+  vk::Buffer histograms_;
+  // Same (identically defined) layout: `to_scratch_` reads the caller's buffers and writes the scratch
+  // ones, `to_caller_` the reverse. The pipelines are built on to_scratch_'s pipeline layout, which is
+  // compatible with both sets.
+  vk::DescriptorSet to_scratch_;
+  vk::DescriptorSet to_caller_;
+  vk::Pipeline histogram_;
+  vk::Pipeline scan_;
+  vk::Pipeline scatter_;
+  vk::Pipeline copy_;
+  VkBuffer bound_keys_ = VK_NULL_HANDLE;
+  VkBuffer bound_values_ = VK_NULL_HANDLE;
+  VkBuffer bound_count_ = VK_NULL_HANDLE;
+};
+
+}  // namespace hp
