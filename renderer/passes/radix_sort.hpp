@@ -16,7 +16,8 @@ class RadixSort {
  public:
   /// Builds the pipelines and the scratch buffers (two ping-pong buffers of `capacity` uints, the
   /// per-block histograms). Throws hp::InputError when `capacity` is 0 or a capacity-sized buffer would
-  /// exceed the device's maxStorageBufferRange.
+  /// exceed the device's maxStorageBufferRange; hp::DeviceError when the device cannot run 256-thread
+  /// workgroups with ~17 KiB of shared memory.
   RadixSort(vk::Context& ctx, uint32_t capacity);
 
   uint32_t capacity() const { return capacity_; }
