@@ -44,10 +44,10 @@ RadixSort::RadixSort(vk::Context& ctx, uint32_t capacity) : capacity_(capacity) 
     throw InputError("radix sort: capacity " + std::to_string(capacity) + " elements (" + std::to_string(bytes) +
                      " bytes per buffer) exceeds the device's maxStorageBufferRange of " + std::to_string(limit) +
                      " bytes");
-  // The kernels use 256-thread workgroups and the scatter ~17 KiB of shared memory: above Vulkan's
+  // The kernels use 256-thread workgroups and the scatter ~17 KiB of shared memory (radix_scatter.comp): above Vulkan's
   // guaranteed minimums (128 invocations, 16 KiB), within lavapipe's and every desktop GPU's limits.
   const VkPhysicalDeviceLimits& lim = ctx.properties().limits;
-  const uint32_t shared_bytes = (RADIX_DIGITS * RADIX_THREADS + RADIX_THREADS + RADIX_DIGITS) * sizeof(uint32_t);
+  const uint32_t shared_bytes = (RADIX_DIGITS * RADIX_THREADS + RADIX_THREADS + RADIX_THREADS / 16 + RADIX_DIGITS) * sizeof(uint32_t);
   if (lim.maxComputeWorkGroupInvocations < RADIX_THREADS || lim.maxComputeWorkGroupSize[0] < RADIX_THREADS ||
       lim.maxComputeSharedMemorySize < shared_bytes)
     throw DeviceError("radix sort: needs " + std::to_string(RADIX_THREADS) + "-invocation workgroups and " +

@@ -14,8 +14,12 @@ layout(local_size_x = RADIX_THREADS) in;
 #define CELLS (RADIX_DIGITS * RADIX_THREADS)
 #define CELLS_PER_THREAD (CELLS / RADIX_THREADS)
 
+#define GROUP_SIZE 16u
+#define GROUPS (RADIX_THREADS / GROUP_SIZE)
+
 shared uint s_cnt[CELLS];          // [digit][thread], 16 KiB
 shared uint s_sum[RADIX_THREADS];  // per-thread partial sums for the block-wide scan
+shared uint s_group[GROUPS];       // their sums per group of GROUP_SIZE threads
 shared uint s_base[RADIX_DIGITS];  // global offset of the digit minus its block-local start
 
 void main() {
@@ -33,22 +37,36 @@ void main() {
   barrier();
 
   // Block-wide exclusive scan of the CELLS counters in digit-major order: each thread scans
-  // CELLS_PER_THREAD consecutive cells, the per-thread totals are scanned (Hillis-Steele), then added.
+  // CELLS_PER_THREAD consecutive cells; the 256 per-thread totals are scanned in two levels (16 threads
+  // each scan 16 totals, then one thread scans the 16 group sums), three barriers instead of the 16 of a
+  // Hillis-Steele scan: barriers are what a CPU implementation (lavapipe) pays for most.
   const uint c0 = t * CELLS_PER_THREAD;
   uint total = 0u;
   for (uint k = 0u; k < CELLS_PER_THREAD; ++k) total += s_cnt[c0 + k];
   s_sum[t] = total;
   memoryBarrierShared();
   barrier();
-  for (uint off = 1u; off < RADIX_THREADS; off <<= 1u) {
-    const uint add = t >= off ? s_sum[t - off] : 0u;
-    memoryBarrierShared();
-    barrier();
-    s_sum[t] += add;
-    memoryBarrierShared();
-    barrier();
+  if (t < GROUPS) {
+    uint acc = 0u;
+    for (uint k = 0u; k < GROUP_SIZE; ++k) {
+      acc += s_sum[t * GROUP_SIZE + k];
+      s_sum[t * GROUP_SIZE + k] = acc;  // inclusive within the group
+    }
+    s_group[t] = acc;
   }
-  uint run = s_sum[t] - total;  // exclusive
+  memoryBarrierShared();
+  barrier();
+  if (t == 0u) {
+    uint acc = 0u;
+    for (uint g = 0u; g < GROUPS; ++g) {
+      const uint c = s_group[g];
+      s_group[g] = acc;  // exclusive over groups
+      acc += c;
+    }
+  }
+  memoryBarrierShared();
+  barrier();
+  uint run = s_group[t / GROUP_SIZE] + s_sum[t] - total;  // exclusive
   for (uint k = 0u; k < CELLS_PER_THREAD; ++k) {
     const uint c = s_cnt[c0 + k];
     s_cnt[c0 + k] = run;
