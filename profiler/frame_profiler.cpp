@@ -36,12 +36,16 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o) {
   std::vector<double> with_queries, without_queries;
   for (uint32_t i = 0; i < o.warmup; ++i) timings.add(to_frame_sample(frame.render(), nullptr));
   for (uint32_t i = 0; i < o.frames; ++i) {
+    // Frames without queries alternate before and after the measured one (A B B A ...), so that neither
+    // side is always the first after a readback.
+    const bool overhead = o.measure_query_overhead && gpu;
+    if (overhead && i % 2 == 1) without_queries.push_back(double(frame.render(false).cpu_wall_ns));
     const FrameTiming t = frame.render();
     with_queries.push_back(double(t.cpu_wall_ns));
     RayCounters c;
     if (counters) c = frame.read_counters();
     timings.add(to_frame_sample(t, counters ? &c : nullptr));
-    if (o.measure_query_overhead && gpu) without_queries.push_back(double(frame.render(false).cpu_wall_ns));
+    if (overhead && i % 2 == 0) without_queries.push_back(double(frame.render(false).cpu_wall_ns));
   }
   if (!without_queries.empty()) {
     QueryOverhead q;
