@@ -190,36 +190,36 @@ trace::TraceHeader Frame::trace_header(bool tiled) const {
   h.image_width = settings_.width;
   h.image_height = settings_.height;
   uint64_t next = 0x10000;  // synthetic device addresses: consecutive, 4 KiB aligned, never 0
+  auto place = [&](trace::BufferInfo b, uint64_t footprint_bytes) {
+    b.base_address = next;
+    next += (footprint_bytes + 4095) / 4096 * 4096;
+    h.buffers.push_back(std::move(b));
+  };
   auto add = [&](uint32_t id, const char* name, uint64_t size) {
     trace::BufferInfo b;
     b.id = id;
     b.name = name;
-    b.base_address = next;
     b.size_bytes = std::max<uint64_t>(size, 4);
-    next += (b.size_bytes + 4095) / 4096 * 4096;
-    h.buffers.push_back(b);
+    place(std::move(b), std::max<uint64_t>(size, 4));
   };
   auto add_image = [&](uint32_t id, const char* name, uint32_t w, uint32_t hh, uint32_t texel) {
     trace::BufferInfo b;
     b.id = id;
     b.name = name;
-    b.base_address = next;
     b.texel_bytes = texel;
     b.width = w;
     b.height = hh;
-    if (tiled) {
+    b.size_bytes = uint64_t(w) * hh * texel;
+    uint64_t footprint = b.size_bytes;
+    if (tiled) {  // whole 8x8 tiles are stored, ragged edges included
       b.kind = trace::BufferKind::image_tiled;
       b.tile_width = b.tile_height = 8;
-      const uint64_t tw = (w + 7) / 8, th = (hh + 7) / 8;
-      b.size_bytes = uint64_t(w) * hh * texel;
-      next += (tw * th * 64 * texel + 4095) / 4096 * 4096;
+      footprint = uint64_t((w + 7) / 8) * ((hh + 7) / 8) * 64 * texel;
     } else {
       b.kind = trace::BufferKind::image_linear;
       b.row_pitch_bytes = w * texel;
-      b.size_bytes = uint64_t(w) * hh * texel;
-      next += (b.size_bytes + 4095) / 4096 * 4096;
     }
-    h.buffers.push_back(b);
+    place(std::move(b), footprint);
   };
   if (rt_scene_) {
     const RtScene& r = *rt_scene_;

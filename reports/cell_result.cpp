@@ -1,5 +1,7 @@
 #include "cell_result.hpp"
 
+#include <cstdio>
+
 #include "error.hpp"
 
 #include <algorithm>
@@ -163,6 +165,12 @@ std::string cell_label(const CellResult& c) {
 std::string axis_leaf(const std::string& axis) {
   const size_t dot = axis.rfind('.');
   return dot == std::string::npos ? axis : axis.substr(dot + 1);
+}
+
+std::string format_number(const char* format, double value) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), format, value);
+  return buf;
 }
 
 }  // namespace hp

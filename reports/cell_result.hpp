@@ -62,4 +62,7 @@ std::string cell_label(const CellResult& cell);
 /// The last component of an axis key path ("passes.shadows" -> "shadows").
 std::string axis_leaf(const std::string& axis);
 
+/// printf-style formatting of one number, for tables and sentences (shared by the report and the gate).
+std::string format_number(const char* format, double value);
+
 }  // namespace hp

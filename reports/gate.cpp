@@ -20,11 +20,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), f, v);
-  return buf;
-}
+std::string fmt(const char* f, double v) { return format_number(f, v); }
 std::string metric_value(double v) {
   if (v == std::floor(v) && std::abs(v) < 1e15) return fmt("%.0f", v);
   return fmt("%.6g", v);

@@ -20,11 +20,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof(buf), f, v);
-  return buf;
-}
+std::string fmt(const char* f, double v) { return format_number(f, v); }
 std::string ms(double ns) { return fmt("%.3f", ns / 1e6); }
 std::string pct(double ratio) { return fmt("%+.1f%%", (ratio - 1.0) * 100.0); }
 std::string p_text(double p) { return p < 0.001 ? "< 0.001" : fmt("%.3f", p); }
