@@ -52,9 +52,9 @@ bool hp_reflection_ray(ivec2 q, uint cell, out vec3 o, out vec3 d) {
   float depth = texelFetch(g_depth, p, 0).r;
   vec4 nr = texelFetch(g_normal_roughness, p, 0);
   if (hp_is_background(depth) || !(nr.a < rt.reflection.x)) return false;
-  vec3 n = normalize(nr.xyz);
+  precise vec3 n = normalize(nr.xyz);
   vec3 pos = hp_world_position(p, depth);
-  vec3 v = normalize(frame.camera_pos.xyz - pos);
+  precise vec3 v = normalize(frame.camera_pos.xyz - pos);
   vec2 xi;
   if (int(rt.reflection.y) == HP_JITTER_SHARED) {
     xi = rt.jitter.xy;  // one offset for every thread this frame (the study's scenario 1)
@@ -65,10 +65,11 @@ bool hp_reflection_ray(ivec2 q, uint cell, out vec3 o, out vec3 d) {
     vec2 rot = vec2(float(h & 0xFFFFu), float(h >> 16)) / 65536.0;
     xi = fract(vec2(hp_halton2(rt.frame.x + 1u), hp_halton3(rt.frame.x + 1u)) + rot);
   }
-  d = reflect(-v, n);
+  precise vec3 mirror = reflect(-v, n);
+  d = mirror;
   if (nr.a > 0.0) {
-    vec3 hv = hp_sample_ggx(n, nr.a, xi);
-    vec3 dj = reflect(-v, hv);
+    precise vec3 hv = hp_sample_ggx(n, nr.a, xi);
+    precise vec3 dj = reflect(-v, hv);
     if (dot(dj, n) > 0.0) d = dj;  // a sample below the surface falls back to the mirror direction
   }
   o = int(rt.shadow.y) == HP_OFFSET_ROBUST ? hp_offset_robust(pos, n) : hp_offset_bias(pos, n, rt.shadow.x);
@@ -94,7 +95,7 @@ vec3 hp_shade_reflection(vec3 o, vec3 d, inout HpStats st, inout uint shadow_ray
   GpuMaterial m = materials[mi];
   vec3 hn = hit_normal(slot, h.u, h.v);
   if (dot(hn, d) > 0.0) hn = -hn;
-  vec3 hp = o + h.t * d;
+  precise vec3 hp = o + h.t * d;  // the shadow ray's origin: identical in every path (no FMA)
   vec3 l = frame.light_dir.xyz;
   float vis = 1.0;
   if ((rt.grid.w & HP_RT_REFLECTION_SHADOWS) != 0u && dot(hn, l) > 0.0) {

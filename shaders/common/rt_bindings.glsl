@@ -42,10 +42,13 @@ void hp_counter_add(uint at, uint v) {
   if (old > 0xFFFFFFFFu - v) atomicAdd(counters[at + 1u], 1u);
 }
 
+// `precise` here and in the ray set-up: the same ray must come out bit for bit in every shader that builds
+// it (direct reflections, compaction, traced variants), whatever the compiler would fuse into FMAs.
 vec3 hp_world_position(ivec2 p, float depth) {
-  vec2 ndc = (vec2(p) + 0.5) / vec2(frame.extent.xy) * 2.0 - 1.0;
-  vec4 h = frame.inv_view_proj * vec4(ndc, depth, 1.0);
-  return h.xyz / h.w;
+  precise vec2 ndc = (vec2(p) + 0.5) / vec2(frame.extent.xy) * 2.0 - 1.0;
+  precise vec4 h = frame.inv_view_proj * vec4(ndc, depth, 1.0);
+  precise vec3 w = h.xyz / h.w;
+  return w;
 }
 
 bool hp_is_background(float depth) { return depth == (frame.params.x > 0.5 ? 0.0 : 1.0); }

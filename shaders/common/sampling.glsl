@@ -34,7 +34,8 @@ vec3 hp_sample_ggx(vec3 n, float roughness, vec2 xi) {
   vec3 up = abs(n.z) < 0.999 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0);
   vec3 tx = normalize(cross(up, n));
   vec3 ty = cross(n, tx);
-  return normalize(tx * (sin_t * cos(phi)) + ty * (sin_t * sin(phi)) + n * cos_t);
+  precise vec3 h = normalize(tx * (sin_t * cos(phi)) + ty * (sin_t * sin(phi)) + n * cos_t);
+  return h;
 }
 
 #endif
