@@ -75,6 +75,12 @@ void FrameOptions::add_to(CLI::App* cmd) {
   cmd->add_option("--buckets", buckets, "SAH buckets of the BVH build")->check(CLI::Range(2, 1024))->capture_default_str();
   cmd->add_option("--leaf-size", leaf_size, "largest BVH leaf")->check(CLI::Range(1, 1 << 20))->capture_default_str();
   cmd->add_option("--seed", seed, "seed of the reflection jitter")->capture_default_str();
+  cmd->add_option("--reflection-path", reflection_path,
+                  "direct (a thread per reflective pixel) or compact (append, sort, consume: the study's 4.2)")
+      ->capture_default_str();
+  cmd->add_option("--sort", sort, "compact path: sort key none, octant, direction or origin")->capture_default_str();
+  cmd->add_option("--writeback", writeback, "compact path: index (exact) or reproject (the study's)")
+      ->capture_default_str();
   cmd->add_option("--device", device, "Vulkan device: index or name substring (default: discrete GPU, else lavapipe)");
   cmd->add_flag("--validate", validate, "enable the Khronos validation layer; any message fails the run");
   view.add_to(cmd);
@@ -113,6 +119,12 @@ FrameSettings FrameOptions::settings() const {
   }
   s.bvh.buckets = buckets;
   s.bvh.max_leaf_size = leaf_size;
+  s.rt.reflection_path = parse_reflection_path(reflection_path);
+  s.rt.sort = parse_sort_key(sort);
+  s.rt.writeback = parse_writeback(writeback);
+  if (s.rt.reflection_path == ReflectionPath::direct && (s.rt.sort != SortKey::none || s.rt.writeback != Writeback::index)) {
+    throw InputError("--sort/--writeback apply to --reflection-path compact only");
+  }
   return s;
 }
 

@@ -43,6 +43,7 @@ struct FrameOptions {
   int buckets = 12;
   int leaf_size = 4;
   uint32_t seed = 1;
+  std::string reflection_path = "direct", sort = "none", writeback = "index";
   std::string device;
   bool validate = false;
   ViewOptions view;

@@ -77,8 +77,13 @@ Frame::Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const F
   if (traced) {
     rt_geometry_ = build_rt_geometry(scene, settings.bvh);
     rt_scene_ = std::make_unique<RtScene>(ctx, scene, *rt_geometry_, settings.geometry, settings.rt.reflections);
+    Aabb bounds;
+    if (!rt_geometry_->bvh.nodes.empty()) {
+      bounds.min = rt_geometry_->bvh.nodes[0].bmin;
+      bounds.max = rt_geometry_->bvh.nodes[0].bmax;
+    }
     rt_passes_ = std::make_unique<RayTracingPasses>(ctx, *rt_scene_, gbuffer_, uniforms_, sampler_.handle(),
-                                                    settings.rt);
+                                                    settings.rt, bounds);
   } else {
     dummy_shadow_ = make_dummy(ctx, VK_FORMAT_R32_SFLOAT);
     dummy_reflection_ = make_dummy(ctx, VK_FORMAT_R32G32B32A32_SFLOAT);
@@ -134,7 +139,13 @@ void Frame::record_passes(VkCommandBuffer cmd, bool ts) {
     rt_passes_->record_prepare(cmd);
     if (settings_.rt.shadows) pass("shadows", [&] { rt_passes_->record_shadows(cmd); });
     if (settings_.rt.reflections) {
-      pass("reflections", [&] { rt_passes_->record_reflections(cmd); });
+      if (settings_.rt.reflection_path == ReflectionPath::compact) {
+        pass("compact", [&] { rt_passes_->record_compact(cmd); });
+        if (settings_.rt.sort != SortKey::none) pass("sort", [&] { rt_passes_->record_sort(cmd); });
+        pass("consume", [&] { rt_passes_->record_consume(cmd); });
+      } else {
+        pass("reflections", [&] { rt_passes_->record_reflections(cmd); });
+      }
       pass("accumulate", [&] { rt_passes_->record_accumulate(cmd); });
     }
   }
@@ -171,7 +182,12 @@ FrameTiming Frame::render(bool with_timestamps) {
     if (rt_passes_) {
       ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_prepare(cmd); });
       if (settings_.rt.shadows) timed("shadows", [&](VkCommandBuffer cmd) { rt_passes_->record_shadows(cmd); });
-      if (settings_.rt.reflections) {
+      if (settings_.rt.reflections && settings_.rt.reflection_path == ReflectionPath::compact) {
+        timed("compact", [&](VkCommandBuffer cmd) { rt_passes_->record_compact(cmd); });
+        if (settings_.rt.sort != SortKey::none) timed("sort", [&](VkCommandBuffer cmd) { rt_passes_->record_sort(cmd); });
+        timed("consume", [&](VkCommandBuffer cmd) { rt_passes_->record_consume(cmd); });
+        timed("accumulate", [&](VkCommandBuffer cmd) { rt_passes_->record_accumulate(cmd); });
+      } else if (settings_.rt.reflections) {
         timed("reflections", [&](VkCommandBuffer cmd) { rt_passes_->record_reflections(cmd); });
         timed("accumulate", [&](VkCommandBuffer cmd) { rt_passes_->record_accumulate(cmd); });
       }
@@ -245,6 +261,9 @@ trace::TraceHeader Frame::trace_header(bool tiled) const {
 
 std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace::TraceWriter& writer) {
   if (!rt_passes_) throw InputError("trace: no ray-tracing pass is enabled, nothing to trace");
+  if (o.reflections && settings_.rt.reflections && settings_.rt.reflection_path == ReflectionPath::compact) {
+    throw InputError("trace: tracing the compaction path's sub-passes is not supported yet (trace the direct path)");
+  }
   if (o.sample_every == 0) throw InputError("trace: --sample-every must be at least 1");
   const uint64_t limit = ctx_.properties().limits.maxStorageBufferRange;
   const uint64_t bytes = o.buffer_bytes ? o.buffer_bytes : std::min<uint64_t>(64ull << 20, limit);

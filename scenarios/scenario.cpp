@@ -104,7 +104,8 @@ struct Reader {
 const std::set<std::string> kTopKeys = {"name", "scene", "camera", "light", "resolution", "reversed_z", "passes",
                                         "geometry", "jitter", "shadow_offset", "bias", "reflection_scale",
                                         "roughness_threshold", "reflection_shadows", "bvh", "frames", "warmup",
-                                        "counters", "seed", "cache_preset", "inject", "trace"};
+                                        "counters", "seed", "cache_preset", "inject", "trace",
+                                        "reflection_path", "sort", "writeback"};
 
 json vec_json(const std::optional<glm::vec3>& v) {
   if (!v) return nullptr;
@@ -187,6 +188,12 @@ Scenario parse_scenario(const json& j, const std::string& file, const std::strin
   f.rt.reflection_divisor = uint32_t(std::lround(1.0 / scale));
   f.rt.roughness_threshold = float(r.number("roughness_threshold", 0.35, 0.0, 1.01));
   f.rt.reflection_shadows = r.boolean("reflection_shadows", true);
+  f.rt.reflection_path = parse_reflection_path(r.choice("reflection_path", "direct", {"direct", "compact"}));
+  f.rt.sort = parse_sort_key(r.choice("sort", "none", {"none", "octant", "direction", "origin"}));
+  f.rt.writeback = parse_writeback(r.choice("writeback", "index", {"index", "reproject"}));
+  if (f.rt.reflection_path == ReflectionPath::direct && (f.rt.sort != SortKey::none || f.rt.writeback != Writeback::index)) {
+    fail(file, r.where("sort"), "sort and writeback apply to \"reflection_path\": \"compact\" only");
+  }
   if (const json* b = r.object("bvh", {"buckets", "full_sweep", "leaf_size", "granularity", "traversal_cost"})) {
     Reader br{*b, file, r.where("bvh")};
     f.bvh.buckets = int(br.integer("buckets", 12, 2, 1024));
@@ -250,6 +257,13 @@ json Scenario::canonical() const {
   j["reflection_scale"] = 1.0 / f.rt.reflection_divisor;
   j["roughness_threshold"] = f.rt.roughness_threshold;
   j["reflection_shadows"] = f.rt.reflection_shadows;
+  // Only non-default compaction settings enter the canonical form, so the ids of every direct-path
+  // scenario (and the committed baselines keyed by them) stay as they were.
+  if (f.rt.reflection_path != ReflectionPath::direct) {
+    j["reflection_path"] = to_string(f.rt.reflection_path);
+    j["sort"] = to_string(f.rt.sort);
+    j["writeback"] = to_string(f.rt.writeback);
+  }
   j["bvh"] = {{"buckets", f.bvh.buckets},
               {"full_sweep", f.bvh.full_sweep},
               {"leaf_size", f.bvh.max_leaf_size},

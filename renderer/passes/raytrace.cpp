@@ -4,6 +4,9 @@
 #include "vk/check.hpp"
 
 #include "shaders/accumulate_comp.h"
+#include "shaders/compact_args_comp.h"
+#include "shaders/compact_comp.h"
+#include "shaders/consume_comp.h"
 #include "shaders/reflections_comp.h"
 #include "shaders/reflections_traced_comp.h"
 #include "shaders/shadows_comp.h"
@@ -25,6 +28,46 @@ JitterMode parse_jitter_mode(const std::string& name) {
   if (name == "shared") return JitterMode::shared;
   if (name == "per-thread") return JitterMode::per_thread;
   throw InputError("--jitter " + name + ": unknown mode (choose shared or per-thread)");
+}
+
+ReflectionPath parse_reflection_path(const std::string& name) {
+  if (name == "direct") return ReflectionPath::direct;
+  if (name == "compact") return ReflectionPath::compact;
+  throw InputError("--reflection-path " + name + ": unknown path (choose direct or compact)");
+}
+
+SortKey parse_sort_key(const std::string& name) {
+  if (name == "none") return SortKey::none;
+  if (name == "octant") return SortKey::octant;
+  if (name == "direction") return SortKey::direction;
+  if (name == "origin") return SortKey::origin;
+  throw InputError("--sort " + name + ": unknown key (choose none, octant, direction, origin)");
+}
+
+Writeback parse_writeback(const std::string& name) {
+  if (name == "index") return Writeback::index;
+  if (name == "reproject") return Writeback::reproject;
+  throw InputError("--writeback " + name + ": unknown mode (choose index or reproject)");
+}
+
+const char* to_string(ReflectionPath p) { return p == ReflectionPath::compact ? "compact" : "direct"; }
+const char* to_string(SortKey k) {
+  switch (k) {
+    case SortKey::octant: return "octant";
+    case SortKey::direction: return "direction";
+    case SortKey::origin: return "origin";
+    default: return "none";
+  }
+}
+const char* to_string(Writeback w) { return w == Writeback::reproject ? "reproject" : "index"; }
+
+uint32_t sort_key_bits(SortKey k) {
+  switch (k) {
+    case SortKey::octant: return 3;
+    case SortKey::direction: return 20;
+    case SortKey::origin: return 30;
+    default: return 0;
+  }
 }
 
 const char* to_string(ShadowOffset o) { return o == ShadowOffset::robust ? "robust" : "normal-bias"; }
@@ -67,8 +110,8 @@ glm::vec2 halton23(uint32_t i) {
 
 RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const GBuffer& gbuffer,
                                    const vk::Buffer& frame_uniforms, VkSampler sampler,
-                                   const RayTracingOptions& options)
-    : options_(options), width_(gbuffer.depth.width()), height_(gbuffer.depth.height()) {
+                                   const RayTracingOptions& options, const Aabb& scene_bounds)
+    : options_(options), width_(gbuffer.depth.width()), height_(gbuffer.depth.height()), bounds_(scene_bounds) {
   if (options.reflection_divisor != 1 && options.reflection_divisor != 2 && options.reflection_divisor != 4) {
     throw InputError("--reflection-scale: must be 1, 0.5 or 0.25");
   }
@@ -100,6 +143,7 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   for (uint32_t i = 15; i <= 17; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCS, nullptr});
   for (uint32_t i = 18; i <= 20; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCS, nullptr});
   b.push_back({21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // trace records (instrumented variants)
+  for (uint32_t i = 22; i <= 25; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // compaction
   descriptors_ = vk::DescriptorSet(ctx, b, 0, 0);
   auto& ds = descriptors_;
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
@@ -127,6 +171,24 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   ds.write_image(20, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, accum_.view(), VK_IMAGE_LAYOUT_GENERAL);
   dummy_trace_ = vk::Buffer(ctx, 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
   ds.write_buffer(21, SB, dummy_trace_.handle());
+  // Compaction buffers: sized for every grid cell when that path is on, else 4-byte dummies.
+  const bool compact = options.reflections && options.reflection_path == ReflectionPath::compact;
+  const uint64_t cells = uint64_t(grid_w_) * grid_h_;
+  const VkBufferUsageFlags sb_usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+  compact_rays_ = vk::Buffer(ctx, compact ? cells * sizeof(gpu::CompactRay) : 4, sb_usage, false);
+  sort_keys_ = vk::Buffer(ctx, compact ? cells * 4 : 4, sb_usage, false);
+  sort_values_ = vk::Buffer(ctx, compact ? cells * 4 : 4, sb_usage, false);
+  ray_count_ = vk::Buffer(ctx, 16, sb_usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                          false);
+  if (compact && cells * sizeof(gpu::CompactRay) > ctx.properties().limits.maxStorageBufferRange) {
+    throw InputError("compact reflections: " + std::to_string(cells) + " rays need " +
+                     std::to_string((cells * sizeof(gpu::CompactRay)) >> 20) +
+                     " MiB, over this device's maxStorageBufferRange");
+  }
+  ds.write_buffer(22, SB, compact_rays_.handle());
+  ds.write_buffer(23, SB, sort_keys_.handle());
+  ds.write_buffer(24, SB, sort_values_.handle());
+  ds.write_buffer(25, SB, ray_count_.handle());
 
   const uint32_t soup = scene.layout() == GeometryLayout::soup ? 1u : 0u;
   const uint32_t objects = scene.object_leaves() ? 1u : 0u;
@@ -134,8 +196,16 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   objects_ = objects;
   // Only the pipelines the options ask for are compiled (lavapipe compiles each one with LLVM).
   if (options.shadows) shadow_pipeline_ = specialized_pipeline(ctx, shadows_comp, ds.pipeline_layout(), soup, objects);
-  if (options.reflections) {
+  if (compact) {
+    compact_pipeline_ = specialized_pipeline(ctx, compact_comp, ds.pipeline_layout(), soup, objects);
+    args_pipeline_ = specialized_pipeline(ctx, compact_args_comp, ds.pipeline_layout(), soup, objects);
+    consume_pipeline_ = specialized_pipeline(ctx, consume_comp, ds.pipeline_layout(), soup, objects);
+    if (options.sort != SortKey::none) sorter_ = std::make_unique<RadixSort>(ctx, uint32_t(cells));
+  }
+  if (options.reflections && !compact) {
     reflection_pipeline_ = specialized_pipeline(ctx, reflections_comp, ds.pipeline_layout(), soup, objects);
+  }
+  if (options.reflections) {
     accumulate_pipeline_ = specialized_pipeline(ctx, accumulate_comp, ds.pipeline_layout(), soup, objects);
   }
   begin_frame(0);
@@ -153,6 +223,10 @@ void RayTracingPasses::begin_frame(uint32_t sample_index) {
   p.reflection = glm::vec4(options_.roughness_threshold,
                            options_.jitter == JitterMode::shared ? HP_JITTER_SHARED : HP_JITTER_PER_THREAD, 0.0f, 0.0f);
   p.frame = glm::uvec4(sample_index, options_.seed, 0u, 0u);
+  p.bounds_min = glm::vec4(bounds_.empty() ? glm::vec3(0.0f) : bounds_.min, float(int(options_.sort)));
+  p.bounds_max = glm::vec4(bounds_.empty() ? glm::vec3(1.0f) : bounds_.max,
+                           options_.writeback == Writeback::reproject ? float(HP_WRITEBACK_REPROJECT)
+                                                                      : float(HP_WRITEBACK_INDEX));
   // The shared offset: the Halton point of this frame, Cranley-Patterson-rotated by the seed so that a
   // different seed gives a different (still low-discrepancy) sequence.
   const glm::vec2 h = halton23(sample_index + 1);
@@ -245,6 +319,44 @@ void RayTracingPasses::record_accumulate(VkCommandBuffer cmd) const {
   dispatch(cmd, accumulate_pipeline_, grid_w_, grid_h_);
 }
 
+void RayTracingPasses::record_compact(VkCommandBuffer cmd) const {
+  vkCmdFillBuffer(cmd, ray_count_.handle(), 0, VK_WHOLE_SIZE, 0);
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+  dispatch(cmd, compact_pipeline_, grid_w_, grid_h_);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, args_pipeline_.handle());
+  VkDescriptorSet set = descriptors_.set();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
+  vkCmdDispatch(cmd, 1, 1, 1);
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                     VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+}
+
+void RayTracingPasses::record_sort(VkCommandBuffer cmd) {
+  if (!sorter_) return;
+  sorter_->record(cmd, sort_keys_, sort_values_, ray_count_, sort_key_bits(options_.sort));
+}
+
+void RayTracingPasses::record_consume(VkCommandBuffer cmd) const {
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, consume_pipeline_.handle());
+  VkDescriptorSet set = descriptors_.set();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
+  vkCmdDispatchIndirect(cmd, ray_count_.handle(), 4);  // consume_groups_x/y/z follow the count
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
+                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
+                         VK_ACCESS_2_TRANSFER_READ_BIT);
+}
+
+uint32_t RayTracingPasses::read_compacted_count(vk::Context& ctx) const {
+  const auto bytes = vk::read_buffer(ctx, ray_count_);
+  uint32_t n = 0;
+  std::memcpy(&n, bytes.data(), 4);
+  return n;
+}
+
 RayCounters RayTracingPasses::read_counters(vk::Context& ctx) const {
   const auto bytes = vk::read_buffer(ctx, counters_);
   uint32_t w[HP_COUNTER_WORDS];
@@ -258,6 +370,9 @@ RayCounters RayTracingPasses::read_counters(vk::Context& ctx) const {
   c.reflection_nodes = at(HP_COUNTER_REFL_NODES);
   c.reflection_tris = at(HP_COUNTER_REFL_TRIS);
   c.reflection_shadow_rays = at(HP_COUNTER_REFL_SHADOW_RAYS);
+  c.reprojection_misplaced = at(HP_COUNTER_REPROJECT_MISPLACED);
+  c.reprojected = options_.reflections && options_.reflection_path == ReflectionPath::compact &&
+                  options_.writeback == Writeback::reproject;
   return c;
 }
 

@@ -5,6 +5,7 @@
 
 #include "common/shared_types.h"
 #include "passes/gbuffer.hpp"
+#include "passes/radix_sort.hpp"
 #include "rt_scene.hpp"
 #include "vk/pipeline.hpp"
 
@@ -15,10 +16,23 @@ namespace hp {
 
 enum class ShadowOffset { normal_bias, robust };
 enum class JitterMode { shared, per_thread };
+/// How reflection rays reach the traversal: `direct` (one thread per grid cell) or `compact` (valid rays
+/// appended to a buffer, optionally sorted, consumed by an indirectly sized dispatch: the study's 4.2).
+enum class ReflectionPath { direct, compact };
+enum class SortKey { none, octant, direction, origin };
+enum class Writeback { index, reproject };
 ShadowOffset parse_shadow_offset(const std::string& name);
 JitterMode parse_jitter_mode(const std::string& name);
+ReflectionPath parse_reflection_path(const std::string& name);
+SortKey parse_sort_key(const std::string& name);
+Writeback parse_writeback(const std::string& name);
 const char* to_string(ShadowOffset o);
 const char* to_string(JitterMode j);
+const char* to_string(ReflectionPath p);
+const char* to_string(SortKey k);
+const char* to_string(Writeback w);
+/// Significant bits of a sort key mode (the radix sort's passes follow: 4 bits each).
+uint32_t sort_key_bits(SortKey k);
 
 struct RayTracingOptions {
   bool shadows = true;
@@ -35,19 +49,25 @@ struct RayTracingOptions {
   /// Gate-validation knob: the shadow pass re-traces the first fraction of the image rows (same results,
   /// more work). 0 = off.
   float inject_shadow_fraction = 0.0f;
+  ReflectionPath reflection_path = ReflectionPath::direct;
+  SortKey sort = SortKey::none;          ///< compact path only
+  Writeback writeback = Writeback::index;  ///< compact path only
 };
 
 /// Deterministic work counters of one frame (HP_RT_COUNTERS).
 struct RayCounters {
   uint64_t shadow_rays = 0, shadow_nodes = 0, shadow_tris = 0;
   uint64_t reflection_rays = 0, reflection_nodes = 0, reflection_tris = 0, reflection_shadow_rays = 0;
+  uint64_t reprojection_misplaced = 0;  ///< compact path, write-back by reprojection: rays written elsewhere
+  bool reprojected = false;             ///< the frame wrote back by reprojection (the counter above applies)
   bool operator==(const RayCounters&) const = default;
 };
 
 class RayTracingPasses {
  public:
+  /// `scene_bounds` quantizes origin sort keys.
   RayTracingPasses(vk::Context& ctx, const RtScene& scene, const GBuffer& gbuffer, const vk::Buffer& frame_uniforms,
-                   VkSampler sampler, const RayTracingOptions& options);
+                   VkSampler sampler, const RayTracingOptions& options, const Aabb& scene_bounds);
 
   uint32_t grid_width() const { return grid_w_; }
   uint32_t grid_height() const { return grid_h_; }
@@ -60,6 +80,13 @@ class RayTracingPasses {
   void record_shadows(VkCommandBuffer cmd) const;
   void record_reflections(VkCommandBuffer cmd) const;
   void record_accumulate(VkCommandBuffer cmd) const;
+  /// The compaction path: append the valid rays and size the consume dispatch on the GPU; sort them
+  /// (when a key is chosen); trace and shade them one thread per ray.
+  void record_compact(VkCommandBuffer cmd) const;
+  void record_sort(VkCommandBuffer cmd);
+  void record_consume(VkCommandBuffer cmd) const;
+  /// Rays appended by the last compaction (a readback, for tests and reports; the frame never waits on it).
+  uint32_t read_compacted_count(vk::Context& ctx) const;
 
   const vk::Image& shadow_mask() const { return shadow_mask_; }
   const vk::Image& reflection() const { return reflection_; }
@@ -91,6 +118,10 @@ class RayTracingPasses {
   vk::DescriptorSet descriptors_;
   vk::Pipeline shadow_pipeline_, reflection_pipeline_, accumulate_pipeline_;
   vk::Pipeline shadow_traced_, reflection_traced_;
+  vk::Pipeline compact_pipeline_, args_pipeline_, consume_pipeline_;
+  vk::Buffer compact_rays_, sort_keys_, sort_values_, ray_count_;
+  std::unique_ptr<RadixSort> sorter_;
+  Aabb bounds_;
   vk::Buffer dummy_trace_;
   uint32_t soup_ = 0, objects_ = 0;
   gpu::RayParams params_cache_{};

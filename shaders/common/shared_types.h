@@ -83,8 +83,25 @@ struct RayParams {
   vec4 reflection;   // x = roughness threshold (reflective when roughness < x), y = jitter mode (HP_JITTER_*)
   uvec4 frame;       // x = sample index (frames since the last reset), y = seed, z = triangles, w = nodes
   vec4 jitter;       // xy = this frame's shared offset in [0, 1)^2 (HP_JITTER_SHARED)
+  vec4 bounds_min;   // xyz: scene bounds (origin sort keys); w = sort key mode (HP_SORT_*)
+  vec4 bounds_max;   // xyz: scene bounds; w = write-back mode (HP_WRITEBACK_*)
 };
-HP_CHECK_SIZE(RayParams, 80);
+HP_CHECK_SIZE(RayParams, 112);
+
+// Ray compaction / sorting (the study's section 4.2).
+#define HP_SORT_NONE 0
+#define HP_SORT_OCTANT 1
+#define HP_SORT_DIRECTION 2
+#define HP_SORT_ORIGIN 3
+#define HP_WRITEBACK_INDEX 0
+#define HP_WRITEBACK_REPROJECT 1
+
+// A compacted reflection ray: its origin and grid cell, its direction.
+struct CompactRay {
+  vec4 origin_cell;  // xyz origin, w = uintBitsToFloat(grid cell)
+  vec4 dir;          // xyz direction, w unused
+};
+HP_CHECK_SIZE(CompactRay, 32);
 
 #define HP_RT_COUNTERS 1u        // shaders add rays, nodes visited and triangles tested to the counter buffer
 #define HP_RT_DUMP_RAYS 2u       // shaders write every ray they cast and its result (tests, cross-checks)
@@ -110,6 +127,7 @@ HP_CHECK_SIZE(RayDump, 48);
 #define HP_COUNTER_REFL_NODES 8
 #define HP_COUNTER_REFL_TRIS 10
 #define HP_COUNTER_REFL_SHADOW_RAYS 12
+#define HP_COUNTER_REPROJECT_MISPLACED 14  // compaction with write-back by reprojection: rays written elsewhere
 #define HP_COUNTER_WORDS 16
 
 // A material as the reflection pass reads it.

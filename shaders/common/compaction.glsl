@@ -1,0 +1,18 @@
+// Buffers of the compaction path (bindings 22..25 of the ray-tracing set).
+#ifndef HP_COMPACTION_GLSL
+#define HP_COMPACTION_GLSL
+
+#include "common/shared_types.h"
+
+layout(std430, set = 0, binding = 22) buffer CompactRayBuffer { CompactRay compact_rays[]; };
+layout(std430, set = 0, binding = 23) buffer SortKeyBuffer { uint sort_keys[]; };
+layout(std430, set = 0, binding = 24) buffer SortValueBuffer { uint sort_values[]; };
+// The live ray count (appended atomically) and the indirect dispatch of the consume pass.
+layout(std430, set = 0, binding = 25) buffer RayCountBuffer {
+  uint ray_count;
+  uint consume_groups_x, consume_groups_y, consume_groups_z;
+};
+
+#define HP_CONSUME_GROUP 64u
+
+#endif

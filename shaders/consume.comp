@@ -1,0 +1,35 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// Consumes the compacted (optionally sorted) reflection rays, one thread per ray: the same traversal and
+// shading as the direct pass. The result goes to the ray's grid cell (write-back by index, exact) or to
+// the cell its origin reprojects to (the study's write-back), where misplaced writes are counted.
+#include "common/reflection_common.glsl"
+#include "common/compaction.glsl"
+
+layout(local_size_x = 64) in;
+
+void main() {
+  uint i = gl_GlobalInvocationID.x;
+  if (i >= ray_count) return;
+  CompactRay cr = compact_rays[sort_values[i]];
+  vec3 o = cr.origin_cell.xyz;
+  vec3 d = cr.dir.xyz;
+  uint cell = floatBitsToUint(cr.origin_cell.w);
+  HpStats st;
+  st.nodes = 0u; st.tris = 0u;
+  uint shadow_rays = 0u;
+  HpHit h;
+  bool was_cast;
+  vec3 color = hp_shade_reflection(o, d, st, shadow_rays, h, was_cast);
+  uint target = cell;
+  if (int(rt.bounds_max.w) == HP_WRITEBACK_REPROJECT) {
+    // The study wrote results back by projecting the ray origin to the screen.
+    vec4 c = frame.view_proj * vec4(o, 1.0);
+    vec2 px = (c.xy / c.w * 0.5 + 0.5) * vec2(frame.extent.xy);
+    ivec2 g = clamp(ivec2(floor(px)) / int(rt.grid.z), ivec2(0), ivec2(rt.grid.xy) - 1);
+    target = uint(g.y) * rt.grid.x + uint(g.x);
+    if (target != cell && (rt.grid.w & HP_RT_COUNTERS) != 0u) hp_counter_add(HP_COUNTER_REPROJECT_MISPLACED, 1u);
+  }
+  imageStore(reflection_image, ivec2(target % rt.grid.x, target / rt.grid.x), vec4(color, 1.0));
+  hp_count_reflection(was_cast, st, shadow_rays);
+}
