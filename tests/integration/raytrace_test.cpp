@@ -230,23 +230,23 @@ TEST(RayTrace, TimestampsAreOrderedPerPass) {
   }
 }
 
-}  // namespace
-}  // namespace hp
-
-namespace hp {
-namespace {
-
-// The compaction path (the study's 4.2): every valid ray and only those, the same image as the direct
-// path whatever the sort key with write-back by index, and misplaced writes counted with reprojection.
-TEST(Compaction, KeepsExactlyTheValidRaysAndMatchesTheDirectPath) {
-  HP_REQUIRE_VULKAN(ctx);
-  const Scene scene = load_scene("builtin:pica");
+// Reflections only, with counters, at 160x90: what the compaction tests compare.
+FrameSettings reflections_only() {
   FrameSettings s;
   s.width = 160;
   s.height = 90;
   s.rt.shadows = false;
   s.rt.reflections = true;
   s.rt.counters = true;
+  return s;
+}
+
+// The compaction path (the study's 4.2): every valid ray and only those, the same image as the direct
+// path whatever the sort key with write-back by index, and misplaced writes counted with reprojection.
+TEST(Compaction, KeepsExactlyTheValidRaysAndMatchesTheDirectPath) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = reflections_only();
   s.rt.jitter = JitterMode::per_thread;
   s.rt.roughness_threshold = 0.6f;
   Frame direct(*ctx, scene, scene.camera, s);
@@ -287,12 +287,7 @@ TEST(Compaction, KeepsExactlyTheValidRaysAndMatchesTheDirectPath) {
 TEST(Compaction, ReprojectionWritebackCountsMisplacedRays) {
   HP_REQUIRE_VULKAN(ctx);
   const Scene scene = load_scene("builtin:pica");
-  FrameSettings s;
-  s.width = 160;
-  s.height = 90;
-  s.rt.shadows = false;
-  s.rt.reflections = true;
-  s.rt.counters = true;
+  FrameSettings s = reflections_only();
   s.rt.reflection_path = ReflectionPath::compact;
   s.rt.writeback = Writeback::reproject;
   s.rt.offset = ShadowOffset::normal_bias;
