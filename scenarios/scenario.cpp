@@ -324,9 +324,15 @@ Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<
       if (!axes.contains(k)) fail(file, "exclude[" + std::to_string(e) + "]." + k, "is not an axis");
     }
   }
+  // Checked before each multiplication: many axes would otherwise wrap the product around.
+  constexpr size_t kMaxCells = 100000;
   size_t total = 1;
-  for (const auto& a : ax) total *= a.second.size();
-  if (total > 100000) fail(file, "axes", std::to_string(total) + " cells: over the limit of 100000");
+  for (const auto& a : ax) {
+    if (total > kMaxCells / a.second.size()) {
+      fail(file, "axes", "more than " + std::to_string(kMaxCells) + " cells (the limit of a matrix)");
+    }
+    total *= a.second.size();
+  }
   std::set<std::string> ids;
   for (size_t i = 0; i < total; ++i) {
     json cell = base;

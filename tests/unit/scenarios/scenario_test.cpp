@@ -126,6 +126,17 @@ TEST(Matrix, ExpandsInFileOrderWithExcludes) {
   }
 }
 
+TEST(Matrix, TooManyCellsIsAnErrorEvenWhenTheProductWouldWrap) {
+  // 64 axes of 2 values: 2^64 cells, which wraps a 64-bit product to 0. The cell count is checked before
+  // any cell is expanded, so the (otherwise unknown) axis keys are never reached.
+  nlohmann::json doc = nlohmann::json::parse(R"({"base": {}, "axes": {}})");
+  for (int i = 0; i < 64; ++i) doc["axes"]["seed" + std::to_string(i)] = {1, 2};
+  const std::string e = error_of(doc);
+  EXPECT_NE(e.find("more than 100000 cells"), std::string::npos) << e;
+  nlohmann::json small = nlohmann::json::parse(R"({"base": {}, "axes": {"seed": [1, 2, 3], "bias": [0.1, 0.2]}})");
+  EXPECT_EQ(parse_matrix(small, "f.json").cells.size(), 6u);
+}
+
 TEST(Matrix, NestedAxisPathsAndPlainScenario) {
   const Matrix m = parse_matrix(json::parse(R"({"base": {}, "axes": {"bvh.buckets": [4, 8, 16]}})"), "f.json");
   ASSERT_EQ(m.cells.size(), 3u);
