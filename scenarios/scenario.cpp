@@ -86,7 +86,7 @@ struct Reader {
     const json* v = get(key);
     if (!v) return std::nullopt;
     if (!v->is_array() || v->size() != 3) fail(file, where(key), "expected an array of three numbers");
-    glm::vec3 out;
+    glm::vec3 out(0.0f);
     for (int i = 0; i < 3; ++i) {
       if (!(*v)[i].is_number()) fail(file, where(key) + "[" + std::to_string(i) + "]", "expected a number");
       out[i] = (*v)[i].get<float>();

@@ -226,7 +226,9 @@ TEST(RayTrace, TimestampsAreOrderedPerPass) {
   for (size_t i = 0; i < t.passes.size(); ++i) {
     EXPECT_GT(t.passes[i].begin_ns, 0u);
     EXPECT_GT(t.passes[i].end_ns, t.passes[i].begin_ns) << t.passes[i].name;
-    if (i) EXPECT_GE(t.passes[i].begin_ns, t.passes[i - 1].end_ns) << t.passes[i].name;
+    if (i) {
+      EXPECT_GE(t.passes[i].begin_ns, t.passes[i - 1].end_ns) << t.passes[i].name;
+    }
   }
 }
 
