@@ -6,6 +6,7 @@
 #include <glm/gtc/packing.hpp>
 
 #include <chrono>
+#include <functional>
 #include <string_view>
 #include <cstring>
 
@@ -250,6 +251,13 @@ trace::TraceHeader Frame::trace_header(bool tiled) const {
     add(HP_TBUF_SLOT_MATERIAL, "slot_material", r.slot_material().size());
     add(HP_TBUF_MATERIALS, "materials", r.materials().size());
   }
+  if (rt_passes_ && settings_.rt.reflections && settings_.rt.reflection_path == ReflectionPath::compact) {
+    const uint64_t cells = uint64_t(rt_passes_->grid_width()) * rt_passes_->grid_height();
+    add(HP_TBUF_COMPACT_RAYS, "compact_rays", cells * sizeof(gpu::CompactRay));
+    add(HP_TBUF_SORT_KEYS, "sort_keys", cells * 4);
+    add(HP_TBUF_SORT_VALUES, "sort_values", cells * 4);
+    add(HP_TBUF_RAY_COUNT, "ray_count", 16);
+  }
   add_image(HP_TBUF_GBUF_DEPTH, "gbuffer_depth", settings_.width, settings_.height, 4);
   add_image(HP_TBUF_GBUF_NORMAL, "gbuffer_normal_roughness", settings_.width, settings_.height, 8);
   add_image(HP_TBUF_SHADOW_MASK, "shadow_mask", settings_.width, settings_.height, 4);
@@ -261,9 +269,6 @@ trace::TraceHeader Frame::trace_header(bool tiled) const {
 
 std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace::TraceWriter& writer) {
   if (!rt_passes_) throw InputError("trace: no ray-tracing pass is enabled, nothing to trace");
-  if (o.reflections && settings_.rt.reflections && settings_.rt.reflection_path == ReflectionPath::compact) {
-    throw InputError("trace: tracing the compaction path's sub-passes is not supported yet (trace the direct path)");
-  }
   if (o.sample_every == 0) throw InputError("trace: --sample-every must be at least 1");
   const uint64_t limit = ctx_.properties().limits.maxStorageBufferRange;
   const uint64_t bytes = o.buffer_bytes ? o.buffer_bytes : std::min<uint64_t>(64ull << 20, limit);
@@ -289,19 +294,16 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
     gbuffer_pass_.record(cmd, gpu_scene_, gbuffer_);
     rt_passes_->record_prepare(cmd);
   });
-  auto run_pass = [&](bool shadows) {
-    const char* name = shadows ? "shadows" : "reflections";
-    const bool traced = shadows ? o.shadows : o.reflections;
-    if (!traced) {
-      ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
-        shadows ? rt_passes_->record_shadows(cmd) : rt_passes_->record_reflections(cmd);
-      });
-      return;
-    }
-    const glm::uvec2 wg = rt_passes_->workgroups(shadows);
+  using Traced = RayTracingPasses::Traced;
+  // Captures one pass in slices of workgroup rows (a row of groups for the 1D consume pass). `save` runs
+  // before each slice and `restore` after an overflow, for passes whose writes are not idempotent (the
+  // compaction's atomic append).
+  auto capture = [&](const char* name, Traced pass, glm::uvec2 wg, uint32_t group_w, uint32_t group_h,
+                     const std::function<void()>& save, const std::function<void()>& restore) {
     trace::PassInfo info;
     info.name = name;
-    info.dispatch.workgroup_size[0] = info.dispatch.workgroup_size[1] = 8;
+    info.dispatch.workgroup_size[0] = group_w;
+    info.dispatch.workgroup_size[1] = group_h;
     info.dispatch.workgroup_count[0] = wg.x;
     info.dispatch.workgroup_count[1] = wg.y;
     const uint32_t pass_index = writer.begin_pass(info);
@@ -309,36 +311,73 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
     cp.pass = name;
     cp.workgroups = uint64_t(wg.x) * wg.y;
     for (uint64_t w = 0; w < cp.workgroups; ++w) cp.sampled_workgroups += (w % o.sample_every) == 0;
-    uint32_t rows = wg.y;  // first try: the whole pass in one slice
-    for (uint32_t row = 0; row < wg.y;) {
-      const uint32_t n = std::min(rows, wg.y - row);
+    // 2D passes slice rows of wg.x groups; the 1D consume pass slices its single row group by group.
+    const bool one_d = pass == Traced::consume;
+    const uint32_t units = one_d ? wg.x : wg.y;
+    const uint64_t groups_per_unit = one_d ? 1 : wg.x;
+    uint32_t step = units;  // first try: the whole pass in one slice
+    for (uint32_t unit = 0; unit < units;) {
+      const uint32_t n = std::min(step, units - unit);
+      if (save) save();
       head->count = 0;
       head->capacity = capacity;
       head->pass_id = pass_index;
-      rt_passes_->set_slice(row, o.sample_every);
-      ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_traced_slice(cmd, shadows, row, n); });
+      rt_passes_->set_slice(unit, o.sample_every);
+      ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_traced_slice(cmd, pass, unit, n); });
       const uint32_t count = head->count;
       if (count > capacity) {
         if (n == 1) {
-          throw InputError(std::string("trace: one workgroup row of the ") + name + " pass makes " +
-                           std::to_string(count) + " records, over the trace buffer's capacity of " +
+          throw InputError(std::string("trace: one workgroup ") + (one_d ? "" : "row ") + "of the " + name +
+                           " pass makes " + std::to_string(count) + " records, over the trace buffer's capacity of " +
                            std::to_string(capacity) + " (raise the trace buffer size, or sample workgroups)");
         }
-        rows = std::max(1u, n / 2);  // re-run this slice smaller: its image writes are idempotent
+        if (restore) restore();
+        step = std::max(1u, n / 2);  // re-run this slice smaller
         ++cp.reruns;
         continue;
       }
-      writer.write_records(pass_index, std::span<const gpu::TraceRecord>(recs, count), uint64_t(row) * wg.x,
-                           uint64_t(row + n) * wg.x);
+      writer.write_records(pass_index, std::span<const gpu::TraceRecord>(recs, count), unit * groups_per_unit,
+                           (unit + n) * groups_per_unit);
       cp.records += count;
       ++cp.slices;
-      row += n;
+      unit += n;
     }
     rt_passes_->set_slice(0, 0);
     out.push_back(cp);
   };
-  if (settings_.rt.shadows) run_pass(true);
-  if (settings_.rt.reflections) run_pass(false);
+  if (settings_.rt.shadows) {
+    if (o.shadows) {
+      capture("shadows", Traced::shadows, rt_passes_->workgroups(Traced::shadows), 8, 8, nullptr, nullptr);
+    } else {
+      ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_shadows(cmd); });
+    }
+  }
+  if (settings_.rt.reflections && settings_.rt.reflection_path == ReflectionPath::compact) {
+    if (o.reflections) {
+      // The append is not idempotent: a slice re-run after an overflow restarts from the saved count.
+      uint32_t saved = 0;
+      ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_reset_count(cmd, 0); });
+      capture("compact", Traced::compact, rt_passes_->workgroups(Traced::compact), 8, 8,
+              [&] { saved = rt_passes_->read_compacted_count(ctx_); },
+              [&] { ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_reset_count(cmd, saved); }); });
+      ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_args_and_sort(cmd); });
+      const uint32_t rays = rt_passes_->read_compacted_count(ctx_);
+      capture("consume", Traced::consume, rt_passes_->workgroups(Traced::consume, rays), 64, 1, nullptr, nullptr);
+    } else {
+      ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
+        rt_passes_->record_compact(cmd);
+        rt_passes_->record_sort(cmd);
+        rt_passes_->record_consume(cmd);
+      });
+    }
+  } else if (settings_.rt.reflections) {
+    if (o.reflections) {
+      capture("reflections", Traced::reflections, rt_passes_->workgroups(Traced::reflections), 8, 8, nullptr,
+              nullptr);
+    } else {
+      ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_reflections(cmd); });
+    }
+  }
   ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
     if (settings_.rt.reflections) rt_passes_->record_accumulate(cmd);
     composite_pass_->record(cmd, color_);

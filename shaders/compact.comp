@@ -48,15 +48,24 @@ uint sort_key(vec3 o, vec3 d, int mode) {
 }
 
 void main() {
-  ivec2 q = ivec2(gl_GlobalInvocationID.xy);
+  // rt.frame.z offsets the workgroup rows when the traced variant is dispatched in slices (0 otherwise).
+  uvec2 wg = gl_WorkGroupID.xy + uvec2(0u, rt.frame.z);
+  ivec2 q = ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy);
   if (q.x >= int(rt.grid.x) || q.y >= int(rt.grid.y)) return;
+  HP_TRACE_BEGIN(wg, gl_NumWorkGroups.x, rt.frame.w);
   uint cell = uint(q.y) * rt.grid.x + uint(q.x);
   // Cleared here; the consume pass writes the reflective cells.
+  HP_REC_STORE(HP_TBUF_REFLECTION, cell * 16u, 16u);
   imageStore(reflection_image, q, vec4(0.0));
   vec3 o, d;
   if (!hp_reflection_ray(q, cell, o, d)) return;
+  HP_REC_ATOMIC(HP_TBUF_RAY_COUNT, 0u, 4u);
   uint i = atomicAdd(ray_count, 1u);
+  HP_REC_STORE(HP_TBUF_COMPACT_RAYS, i * 32u, 16u);
+  HP_REC_STORE(HP_TBUF_COMPACT_RAYS, i * 32u + 16u, 16u);
   compact_rays[i] = CompactRay(vec4(o, uintBitsToFloat(cell)), vec4(d, 0.0));
+  HP_REC_STORE(HP_TBUF_SORT_KEYS, i * 4u, 4u);
   sort_keys[i] = sort_key(o, d, int(rt.bounds_min.w));
+  HP_REC_STORE(HP_TBUF_SORT_VALUES, i * 4u, 4u);
   sort_values[i] = i;
 }

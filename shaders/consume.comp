@@ -9,9 +9,17 @@
 layout(local_size_x = 64) in;
 
 void main() {
-  uint i = gl_GlobalInvocationID.x;
+  // rt.frame.z offsets the workgroups when the traced variant is dispatched in slices (0 otherwise).
+  uint group = gl_WorkGroupID.x + rt.frame.z;
+  uint i = group * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
+  HP_TRACE_BEGIN(uvec2(group, 0u), 1u, rt.frame.w);
+  HP_REC_LOAD(HP_TBUF_RAY_COUNT, 0u, 4u);
   if (i >= ray_count) return;
-  CompactRay cr = compact_rays[sort_values[i]];
+  HP_REC_LOAD(HP_TBUF_SORT_VALUES, i * 4u, 4u);
+  uint r = sort_values[i];
+  HP_REC_LOAD(HP_TBUF_COMPACT_RAYS, r * 32u, 16u);
+  HP_REC_LOAD(HP_TBUF_COMPACT_RAYS, r * 32u + 16u, 16u);
+  CompactRay cr = compact_rays[r];
   vec3 o = cr.origin_cell.xyz;
   vec3 d = cr.dir.xyz;
   uint cell = floatBitsToUint(cr.origin_cell.w);
@@ -30,6 +38,7 @@ void main() {
     target = uint(g.y) * rt.grid.x + uint(g.x);
     if (target != cell && (rt.grid.w & HP_RT_COUNTERS) != 0u) hp_counter_add(HP_COUNTER_REPROJECT_MISPLACED, 1u);
   }
+  HP_REC_STORE(HP_TBUF_REFLECTION, target * 16u, 16u);
   imageStore(reflection_image, ivec2(target % rt.grid.x, target / rt.grid.x), vec4(color, 1.0));
   hp_count_reflection(was_cast, st, shadow_rays);
 }

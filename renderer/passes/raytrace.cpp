@@ -6,6 +6,8 @@
 #include "shaders/accumulate_comp.h"
 #include "shaders/compact_args_comp.h"
 #include "shaders/compact_comp.h"
+#include "shaders/compact_traced_comp.h"
+#include "shaders/consume_traced_comp.h"
 #include "shaders/consume_comp.h"
 #include "shaders/reflections_comp.h"
 #include "shaders/reflections_traced_comp.h"
@@ -243,8 +245,12 @@ void RayTracingPasses::set_slice(uint32_t first_row, uint32_t sample_every) {
   std::memcpy(params_.mapped(), &params_cache_, sizeof(params_cache_));
 }
 
-glm::uvec2 RayTracingPasses::workgroups(bool shadows) const {
-  return shadows ? glm::uvec2((width_ + 7) / 8, (height_ + 7) / 8) : glm::uvec2((grid_w_ + 7) / 8, (grid_h_ + 7) / 8);
+glm::uvec2 RayTracingPasses::workgroups(Traced pass, uint32_t rays) const {
+  switch (pass) {
+    case Traced::shadows: return {(width_ + 7) / 8, (height_ + 7) / 8};
+    case Traced::consume: return {(rays + 63) / 64, 1u};
+    default: return {(grid_w_ + 7) / 8, (grid_h_ + 7) / 8};
+  }
 }
 
 void RayTracingPasses::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer) {
@@ -252,20 +258,30 @@ void RayTracingPasses::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& t
   if (options_.shadows && !shadow_traced_.handle()) {
     shadow_traced_ = specialized_pipeline(ctx, shadows_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
   }
-  if (options_.reflections && !reflection_traced_.handle()) {
+  const bool compact = options_.reflections && options_.reflection_path == ReflectionPath::compact;
+  if (options_.reflections && !compact && !reflection_traced_.handle()) {
     reflection_traced_ =
         specialized_pipeline(ctx, reflections_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
   }
+  if (compact && !compact_traced_.handle()) {
+    compact_traced_ = specialized_pipeline(ctx, compact_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
+    consume_traced_ = specialized_pipeline(ctx, consume_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
+  }
 }
 
-void RayTracingPasses::record_traced_slice(VkCommandBuffer cmd, bool shadows, uint32_t first_row, uint32_t rows) {
-  const vk::Pipeline& p = shadows ? shadow_traced_ : reflection_traced_;
+void RayTracingPasses::record_traced_slice(VkCommandBuffer cmd, Traced pass, uint32_t first_row, uint32_t rows) {
+  const vk::Pipeline* pipelines[] = {&shadow_traced_, &reflection_traced_, &compact_traced_, &consume_traced_};
+  const vk::Pipeline& p = *pipelines[int(pass)];
   if (!p.handle()) throw std::logic_error("record_traced_slice: attach_trace_buffer first (pass enabled?)");
-  const glm::uvec2 wg = workgroups(shadows);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.handle());
   VkDescriptorSet set = descriptors_.set();
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
-  vkCmdDispatch(cmd, wg.x, std::min(rows, wg.y - first_row), 1);
+  if (pass == Traced::consume) {
+    vkCmdDispatch(cmd, rows, 1, 1);  // a slice of the one row of consume groups, offset by frame.z
+  } else {
+    const glm::uvec2 wg = workgroups(pass);
+    vkCmdDispatch(cmd, wg.x, std::min(rows, wg.y - first_row), 1);
+  }
   vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT | VK_PIPELINE_STAGE_2_HOST_BIT,
                      VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
@@ -332,6 +348,24 @@ void RayTracingPasses::record_compact(VkCommandBuffer cmd) const {
   vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
                      VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                      VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+}
+
+void RayTracingPasses::record_args_and_sort(VkCommandBuffer cmd) {
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, args_pipeline_.handle());
+  VkDescriptorSet set = descriptors_.set();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
+  vkCmdDispatch(cmd, 1, 1, 1);
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
+                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_TRANSFER_READ_BIT);
+  record_sort(cmd);
+}
+
+void RayTracingPasses::record_reset_count(VkCommandBuffer cmd, uint32_t count) const {
+  vkCmdUpdateBuffer(cmd, ray_count_.handle(), 0, sizeof(count), &count);
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT | VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
 }
 
 void RayTracingPasses::record_sort(VkCommandBuffer cmd) {

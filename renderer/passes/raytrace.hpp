@@ -97,10 +97,16 @@ class RayTracingPasses {
   void attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer);
   /// Records one slice of a traced pass: workgroup rows [first_row, first_row + rows) of the full
   /// dispatch; every `sample_every`-th workgroup (in dispatch order) records its accesses.
-  void record_traced_slice(VkCommandBuffer cmd, bool shadows, uint32_t first_row, uint32_t rows);
+  enum class Traced { shadows, reflections, compact, consume };
+  void record_traced_slice(VkCommandBuffer cmd, Traced pass, uint32_t first_row, uint32_t rows);
   void set_slice(uint32_t first_row, uint32_t sample_every);
-  /// Workgroups of a pass's full dispatch, x and y (8x8 invocations each).
-  glm::uvec2 workgroups(bool shadows) const;
+  /// Workgroups of a pass's full dispatch, x and y: 8x8 invocations each, except the consume pass
+  /// (64 x 1, one row of ceil(rays / 64) groups; `rays` is read back by the caller).
+  glm::uvec2 workgroups(Traced pass, uint32_t rays = 0) const;
+  /// Records the compaction path's untraced middle: the consume dispatch arguments and the sort.
+  void record_args_and_sort(VkCommandBuffer cmd);
+  /// Sets the compacted ray count (capture: restart an overflowed compaction slice).
+  void record_reset_count(VkCommandBuffer cmd, uint32_t count) const;
 
   RayCounters read_counters(vk::Context& ctx) const;
   std::vector<gpu::RayDump> read_shadow_dump(vk::Context& ctx) const;
@@ -119,6 +125,7 @@ class RayTracingPasses {
   vk::Pipeline shadow_pipeline_, reflection_pipeline_, accumulate_pipeline_;
   vk::Pipeline shadow_traced_, reflection_traced_;
   vk::Pipeline compact_pipeline_, args_pipeline_, consume_pipeline_;
+  vk::Pipeline compact_traced_, consume_traced_;
   vk::Buffer compact_rays_, sort_keys_, sort_values_, ray_count_;
   std::unique_ptr<RadixSort> sorter_;
   Aabb bounds_;

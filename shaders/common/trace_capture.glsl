@@ -36,10 +36,12 @@ void hp_rec(uint buffer_id, uint kind, uint offset, uint size) {
 }
 #define HP_REC_LOAD(buf, off, size) hp_rec((buf), HP_TRACE_LOAD, uint(off), uint(size))
 #define HP_REC_STORE(buf, off, size) hp_rec((buf), HP_TRACE_STORE, uint(off), uint(size))
+#define HP_REC_ATOMIC(buf, off, size) hp_rec((buf), HP_TRACE_ATOMIC, uint(off), uint(size))
 #define HP_TRACE_BEGIN(wg, wgx, k) hp_trace_begin((wg), (wgx), (k), gl_WorkGroupSize.x * gl_WorkGroupSize.y)
 #else
 #define HP_REC_LOAD(buf, off, size)
 #define HP_REC_STORE(buf, off, size)
+#define HP_REC_ATOMIC(buf, off, size)
 #define HP_TRACE_BEGIN(wg, wgx, k)
 #endif
 

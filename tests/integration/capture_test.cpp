@@ -182,3 +182,52 @@ TEST(Capture, OneRowThatCannotFitIsAClearError) {
 
 }  // namespace
 }  // namespace hp
+
+namespace hp {
+namespace {
+
+// The compaction path traced: the compaction and consume sub-passes get their own records (the study's
+// second table), an overflowed compaction slice restarts from its saved ray count (its append is not
+// idempotent), and the image equals the untraced one.
+TEST(Capture, CompactionSubPassesAreTracedWithoutLosingRays) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = small(96, 112);
+  s.rt.shadows = false;
+  s.rt.reflection_path = ReflectionPath::compact;
+  s.rt.sort = SortKey::octant;
+  Frame plain(*ctx, scene, scene.camera, s);
+  plain.render();
+  const Image4f untraced = plain.read_color();
+  const uint32_t rays = plain.rt_passes()->read_compacted_count(*ctx);
+  ASSERT_GT(rays, 500u);
+
+  const Captured big = capture(*ctx, scene, s, CaptureOptions{}, "compact_big");
+  ASSERT_EQ(big.passes.size(), 2u);
+  EXPECT_EQ(big.passes[0].pass, "compact");
+  EXPECT_EQ(big.passes[1].pass, "consume");
+  EXPECT_EQ(big.passes[1].workgroups, (rays + 63) / 64) << "one consume thread per compacted ray";
+  EXPECT_EQ(std::memcmp(big.image.rgba.data(), untraced.rgba.data(), untraced.rgba.size() * 4), 0);
+
+  CaptureOptions o;
+  const uint64_t least = std::min(big.passes[0].records, big.passes[1].records);
+  o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (least * 3 / 4);
+  const Captured tiny = capture(*ctx, scene, s, o, "compact_tiny");
+  ASSERT_EQ(tiny.passes.size(), 2u);
+  EXPECT_GT(tiny.passes[0].reruns, 0u) << "the compaction's first slice must overflow";
+  EXPECT_EQ(tiny.passes[0].records, big.passes[0].records);
+  EXPECT_EQ(tiny.passes[1].workgroups, big.passes[1].workgroups) << "a re-run slice appended its rays twice";
+  EXPECT_EQ(tiny.passes[1].records, big.passes[1].records);
+  EXPECT_EQ(std::memcmp(tiny.image.rgba.data(), untraced.rgba.data(), untraced.rgba.size() * 4), 0);
+  trace::TraceReader r(big.file);
+  std::set<uint32_t> buffers;
+  for (const auto& rec : r.read_pass(0)) buffers.insert(gpu::trace_buffer(rec.info));
+  for (uint32_t b : {HP_TBUF_COMPACT_RAYS, HP_TBUF_SORT_KEYS, HP_TBUF_SORT_VALUES, HP_TBUF_RAY_COUNT}) {
+    EXPECT_TRUE(buffers.count(b)) << "compaction never touched buffer " << b;
+  }
+  fs::remove(big.file);
+  fs::remove(tiny.file);
+}
+
+}  // namespace
+}  // namespace hp
