@@ -25,7 +25,10 @@ FrameSample to_frame_sample(const FrameTiming& timing, const RayCounters* c) {
     s.counters.set("reflections", "shadow_rays_at_hits", c->reflection_shadow_rays);
     s.counters.set("reflections", counter::nodes_visited, c->reflection_nodes);
     s.counters.set("reflections", counter::triangles_tested, c->reflection_tris);
-    if (c->reprojected) s.counters.set("reflections", "reprojection_misplaced", c->reprojection_misplaced);
+    if (c->reprojected) {
+      s.counters.set("reflections", "reprojection_misplaced", c->reprojection_misplaced);
+      s.counters.set("reflections", "reprojection_unwritten", c->reprojection_unwritten);
+    }
   }
   return s;
 }

@@ -407,6 +407,20 @@ RayCounters RayTracingPasses::read_counters(vk::Context& ctx) const {
   c.reprojection_misplaced = at(HP_COUNTER_REPROJECT_MISPLACED);
   c.reprojected = options_.reflections && options_.reflection_path == ReflectionPath::compact &&
                   options_.writeback == Writeback::reproject;
+  if (c.reprojected) {
+    // Cells that had a ray but were left unwritten: the compacted rays name their cells, and the
+    // reflection grid's alpha says which cells the consume pass wrote.
+    const uint32_t rays = read_compacted_count(ctx);
+    const auto ray_bytes = vk::read_buffer(ctx, compact_rays_);
+    const auto image = vk::read_image(ctx, reflection_, VK_IMAGE_LAYOUT_GENERAL);
+    const auto* cr = reinterpret_cast<const gpu::CompactRay*>(ray_bytes.data());
+    const auto* px = reinterpret_cast<const float*>(image.data());
+    for (uint32_t i = 0; i < rays; ++i) {
+      uint32_t cell;
+      std::memcpy(&cell, &cr[i].origin_cell.w, 4);
+      c.reprojection_unwritten += px[size_t(cell) * 4 + 3] < 0.5f;
+    }
+  }
   return c;
 }
 

@@ -59,7 +59,8 @@ struct RayCounters {
   uint64_t shadow_rays = 0, shadow_nodes = 0, shadow_tris = 0;
   uint64_t reflection_rays = 0, reflection_nodes = 0, reflection_tris = 0, reflection_shadow_rays = 0;
   uint64_t reprojection_misplaced = 0;  ///< compact path, write-back by reprojection: rays written elsewhere
-  bool reprojected = false;             ///< the frame wrote back by reprojection (the counter above applies)
+  uint64_t reprojection_unwritten = 0;  ///< ... and reflective cells that no ray wrote (read back on the host)
+  bool reprojected = false;             ///< the frame wrote back by reprojection (the counters above apply)
   bool operator==(const RayCounters&) const = default;
 };
 

@@ -297,10 +297,21 @@ TEST(Compaction, ReprojectionWritebackCountsMisplacedRays) {
   Frame frame(*ctx, scene, scene.camera, s);
   frame.render();
   const RayCounters c = frame.read_counters();
-  std::printf("reprojection write-back: %llu of %llu rays written to another cell\n",
-              (unsigned long long)c.reprojection_misplaced, (unsigned long long)c.reflection_rays);
+  std::printf("reprojection write-back: %llu of %llu rays written to another cell, %llu reflective cells unwritten\n",
+              (unsigned long long)c.reprojection_misplaced, (unsigned long long)c.reflection_rays,
+              (unsigned long long)c.reprojection_unwritten);
   EXPECT_GT(c.reprojection_misplaced, 0u);
   EXPECT_LT(c.reprojection_misplaced, c.reflection_rays);
+  EXPECT_GT(c.reprojection_unwritten, 0u);
+  EXPECT_LE(c.reprojection_unwritten, c.reprojection_misplaced) << "only a misplaced ray can leave its cell empty";
+  // With write-back by index nothing is misplaced or left out.
+  s.rt.writeback = Writeback::index;
+  Frame exact(*ctx, scene, scene.camera, s);
+  exact.render();
+  const Image4f r = exact.read_aov(Aov::reflection);
+  size_t written = 0;
+  for (size_t i = 3; i < r.rgba.size(); i += 4) written += r.rgba[i] > 0.5f;
+  EXPECT_EQ(written, exact.rt_passes()->read_compacted_count(*ctx));
 }
 
 }  // namespace
