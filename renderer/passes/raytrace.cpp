@@ -79,24 +79,14 @@ namespace {
 
 constexpr VkShaderStageFlags kCS = VK_SHADER_STAGE_COMPUTE_BIT;
 
+// Every ray-tracing pipeline is specialized by the geometry layout and the BVH granularity
+// (shaders/common/rt_bindings.glsl, constant_id 0 and 1).
 vk::Pipeline specialized_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
                                   uint32_t soup, uint32_t objects) {
   const uint32_t values[2] = {soup, objects};
   const VkSpecializationMapEntry entries[2] = {{0, 0, 4}, {1, 4, 4}};
-  VkSpecializationInfo spec{2, entries, sizeof(values), values};
-  VkShaderModule module = vk::create_shader_module(ctx.device(), spirv);
-  VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-  ci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  ci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-  ci.stage.module = module;
-  ci.stage.pName = "main";
-  ci.stage.pSpecializationInfo = &spec;
-  ci.layout = layout;
-  VkPipeline p = VK_NULL_HANDLE;
-  VkResult r = vkCreateComputePipelines(ctx.device(), VK_NULL_HANDLE, 1, &ci, nullptr, &p);
-  vkDestroyShaderModule(ctx.device(), module, nullptr);
-  HP_VK(r);
-  return vk::Pipeline(ctx.device(), p);
+  const VkSpecializationInfo spec{2, entries, sizeof(values), values};
+  return vk::create_compute_pipeline(ctx, spirv, layout, &spec);
 }
 
 // Halton (2, 3) point i, the shared jitter of frame i: the same sequence the per-thread mode rotates.
@@ -273,9 +263,7 @@ void RayTracingPasses::record_traced_slice(VkCommandBuffer cmd, Traced pass, uin
   const vk::Pipeline* pipelines[] = {&shadow_traced_, &reflection_traced_, &compact_traced_, &consume_traced_};
   const vk::Pipeline& p = *pipelines[int(pass)];
   if (!p.handle()) throw std::logic_error("record_traced_slice: attach_trace_buffer first (pass enabled?)");
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.handle());
-  VkDescriptorSet set = descriptors_.set();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
+  bind(cmd, p);
   if (pass == Traced::consume) {
     vkCmdDispatch(cmd, rows, 1, 1);  // a slice of the one row of consume groups, offset by frame.z
   } else {
@@ -308,10 +296,14 @@ void RayTracingPasses::record_prepare(VkCommandBuffer cmd) {
                      VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
 }
 
-void RayTracingPasses::dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h) const {
+void RayTracingPasses::bind(VkCommandBuffer cmd, const vk::Pipeline& p) const {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.handle());
   VkDescriptorSet set = descriptors_.set();
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
+}
+
+void RayTracingPasses::dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h) const {
+  bind(cmd, p);
   vkCmdDispatch(cmd, (w + 7) / 8, (h + 7) / 8, 1);
   vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
@@ -341,23 +333,22 @@ void RayTracingPasses::record_compact(VkCommandBuffer cmd) const {
                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                      VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
   dispatch(cmd, compact_pipeline_, grid_w_, grid_h_);
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, args_pipeline_.handle());
-  VkDescriptorSet set = descriptors_.set();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
+  record_args(cmd);
+}
+
+void RayTracingPasses::record_args(VkCommandBuffer cmd) const {
+  bind(cmd, args_pipeline_);
   vkCmdDispatch(cmd, 1, 1, 1);
+  // Read as indirect arguments (the frame), by shaders and by a host readback (the capture).
   vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                     VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                     VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+                     VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT |
+                         VK_PIPELINE_STAGE_2_COPY_BIT,
+                     VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_READ_BIT |
+                         VK_ACCESS_2_TRANSFER_READ_BIT);
 }
 
 void RayTracingPasses::record_args_and_sort(VkCommandBuffer cmd) {
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, args_pipeline_.handle());
-  VkDescriptorSet set = descriptors_.set();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
-  vkCmdDispatch(cmd, 1, 1, 1);
-  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
-                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_TRANSFER_READ_BIT);
+  record_args(cmd);
   record_sort(cmd);
 }
 
@@ -374,9 +365,7 @@ void RayTracingPasses::record_sort(VkCommandBuffer cmd) {
 }
 
 void RayTracingPasses::record_consume(VkCommandBuffer cmd) const {
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, consume_pipeline_.handle());
-  VkDescriptorSet set = descriptors_.set();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
+  bind(cmd, consume_pipeline_);
   vkCmdDispatchIndirect(cmd, ray_count_.handle(), 4);  // consume_groups_x/y/z follow the count
   vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,

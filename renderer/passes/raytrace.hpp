@@ -114,7 +114,9 @@ class RayTracingPasses {
   std::vector<gpu::RayDump> read_reflection_dump(vk::Context& ctx) const;
 
  private:
+  void bind(VkCommandBuffer cmd, const vk::Pipeline& p) const;
   void dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h) const;
+  void record_args(VkCommandBuffer cmd) const;
 
   RayTracingOptions options_;
   uint32_t width_, height_, grid_w_, grid_h_;

@@ -58,7 +58,9 @@ class Pipeline {
   VkPipeline pipeline_ = VK_NULL_HANDLE;
 };
 
-Pipeline create_compute_pipeline(Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout);
+/// A compute pipeline from SPIR-V; `specialization` (optional) sets the shader's specialization constants.
+Pipeline create_compute_pipeline(Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
+                                 const VkSpecializationInfo* specialization = nullptr);
 
 /// A nearest-filtering, clamp-to-edge sampler (texelFetch ignores it, but sampled images need one).
 class Sampler {
