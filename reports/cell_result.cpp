@@ -55,6 +55,16 @@ CellResult parse_cell(const json& line, const std::string& where) {
     if (!line["cache"].is_object()) throw InputError(where + ": field 'cache' is not an object");
     c.cache = line["cache"];
   }
+  if (line.contains("report") && !line["report"].is_null()) {
+    if (!line["report"].is_object()) throw InputError(where + ": field 'report' is not an object");
+    c.report = line["report"];
+  }
+  if (line.contains("error") && !line["error"].is_null()) {
+    if (!line["error"].is_object()) throw InputError(where + ": field 'error' is not an object");
+    c.error = line["error"];
+  }
+  c.line = line;
+  c.line.erase("result");
   return c;
 }
 
@@ -142,6 +152,20 @@ std::map<std::string, double> deterministic_metrics(const CellResult& c) {
 std::string match_key(const CellResult& c) {
   json k = c.config;
   if (k.is_object()) k.erase("inject");
+  return c.matrix + "|" + c.name + "|" + k.dump();
+}
+
+std::string match_key_ignoring(const CellResult& c, const std::vector<std::string>& pointers) {
+  json k = c.config;
+  if (k.is_object()) {
+    k.erase("inject");
+    for (const std::string& p : pointers) {
+      const json::json_pointer ptr(p);
+      if (!k.contains(ptr)) continue;
+      json& parent = k[ptr.parent_pointer()];
+      if (parent.is_object()) parent.erase(ptr.back());
+    }
+  }
   return c.matrix + "|" + c.name + "|" + k.dump();
 }
 

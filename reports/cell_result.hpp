@@ -28,6 +28,15 @@ struct CellResult {
   /// writes them: {preset, passes: [{pass, l1: {requests, hits, misses, hit_rate, ...}, l2: {...},
   /// buffers: {name: {l1_requests, l1_misses, l2_requests, l2_misses, ...}}, mrc, heatmaps}]}.
   nlohmann::json cache;
+  /// The matrix file's "report" object (the runner copies it into every line), or null.
+  nlohmann::json report;
+  /// Error against a reference render, when the scenario asked for it (null otherwise):
+  /// {reference: {id, samples, render_s, cached}, frames, image: {pixels, mse, relmse, relmse_eps,
+  /// psnr_db (null: infinite), psnr_peak, max_abs, over_threshold, threshold, non_finite, flip_mean?},
+  /// shadow?: {compared, acne, leaks, coverage_mismatch}, depth?: {pixels, mean_rel, max_rel, bins: [...]}}.
+  nlohmann::json error;
+  /// The whole line without its "result" (timing) object: what JSON-pointer metrics read.
+  nlohmann::json line = nlohmann::json::object();
   std::string where;  ///< "DIR/results.jsonl:LINE", for messages
 };
 
@@ -52,6 +61,8 @@ std::map<std::string, double> deterministic_metrics(const CellResult& cell);
 /// Which cells two runs pair up: the canonical config without the gate-validation knob `inject`
 /// (that knob stands in for a code change, so it must not make the cells different cells).
 std::string match_key(const CellResult& cell);
+/// As match_key, and the config values at these JSON pointers ("/trace/sample_every") left out too.
+std::string match_key_ignoring(const CellResult& cell, const std::vector<std::string>& pointers);
 
 /// A readable value of an axis: strings as they are, [128,72] as "128x72", other JSON dumped.
 std::string axis_value_text(const nlohmann::json& value);

@@ -3,6 +3,7 @@
 #include "error.hpp"
 #include "svg_chart.hpp"
 #include "timing/stats.hpp"
+#include "tradeoff.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -183,7 +184,11 @@ std::string cache_tables(const CellResult& c) {
   const std::vector<CachePass> passes = cache_passes(c);
   if (passes.empty()) return "";
   std::string s = "\nCache simulation (preset " + c.cache.value("preset", std::string("?")) +
-                  ", one traced frame), in the study's form:\n\n| pass | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate | L2 hit rate |\n|---|---|---|---|---|---|---|\n";
+                  ", one traced frame" +
+                  (c.cache.contains("simulation_s") && c.cache["simulation_s"].is_number()
+                       ? ", simulated in " + fmt("%.2f", c.cache["simulation_s"].get<double>()) + " s"
+                       : std::string()) +
+                  "), in the study's form:\n\n| pass | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate | L2 hit rate |\n|---|---|---|---|---|---|---|\n";
   std::string buffers, heatmaps;
   for (const CachePass& p : passes) {
     s += "| " + p.pass + " | " + count_text(p.l1_hits) + " | " + count_text(p.l1_misses) + " | " + count_text(p.l2_hits) + " | " +
@@ -230,8 +235,8 @@ std::string cell_section(const CellResult& c) {
       if (!has_pass(k, p.pass) || k.get(p.pass, counter::rays_cast) == 0) continue;
       const double rays = double(k.get(p.pass, counter::rays_cast));
       s += "| " + p.pass + " | " + count_text(rays / frames) + " | " +
-           fmt("%.2f", double(k.get(p.pass, counter::nodes_visited)) / rays) + " | " +
-           fmt("%.2f", double(k.get(p.pass, counter::triangles_tested)) / rays) + " | " +
+           fmt("%.2f", per_ray(k, p.pass, counter::nodes_visited).value_or(0.0)) + " | " +
+           fmt("%.2f", per_ray(k, p.pass, counter::triangles_tested).value_or(0.0)) + " | " +
            fmt("%.2f", p.summary.median > 0 ? rays / frames / p.summary.median * 1e3 : 0.0) + " |\n";
     }
   }
@@ -244,6 +249,7 @@ std::string cell_section(const CellResult& c) {
     s += "\nScene: " + count_text(double(*c.triangles)) + " triangles (no BVH: no rays traced).\n";
   }
   s += cache_tables(c);
+  s += error_table(c);
   if (c.images.is_object() && !c.images.empty()) {
     s += "\n";
     for (const auto& [kind, path] : c.images.items()) {
@@ -534,6 +540,8 @@ Report build_report(const std::vector<CellResult>& cells) {
        "below 6 frames), and the coefficient of variation (CV = standard deviation / mean) of the frames.\n\n";
   s += environment_section(cells) + "\n";
   charts_section(cells, r, s);
+  s += error_metrics_section(cells);
+  s += tradeoff_sections(cells, r.charts);
   s += "## Cells\n\n";
   for (const CellResult& c : cells) s += cell_section(c);
   comparisons_section(cells, s);

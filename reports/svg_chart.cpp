@@ -27,14 +27,44 @@ void check_finite(double v, const char* what) {
 struct Frame {
   double width, height;
   double left = 70, right = 20, top = 40, bottom = 90;
-  double y0 = 0, y1 = 1;  // data range of the y axis (the first and last tick)
-  double x0 = 0, x1 = 1;  // data range of the x axis (line charts)
+  double y0 = 0, y1 = 1;  // data range of the y axis (the first and last tick; log10 of them on a log axis)
+  double x0 = 0, x1 = 1;  // data range of the x axis (line and scatter charts)
+  bool log_x = false, log_y = false;
 
   double plot_w() const { return width - left - right; }
   double plot_h() const { return height - top - bottom; }
-  double py(double y) const { return top + plot_h() * (1.0 - (y - y0) / (y1 - y0)); }
-  double px(double x) const { return left + plot_w() * (x - x0) / (x1 - x0); }
+  double py(double y) const { return top + plot_h() * (1.0 - ((log_y ? std::log10(y) : y) - y0) / (y1 - y0)); }
+  double px(double x) const { return left + plot_w() * ((log_x ? std::log10(x) : x) - x0) / (x1 - x0); }
+  void set_x(const std::vector<double>& ticks) {
+    x0 = log_x ? std::log10(ticks.front()) : ticks.front();
+    x1 = log_x ? std::log10(ticks.back()) : ticks.back();
+  }
+  void set_y(const std::vector<double>& ticks) {
+    y0 = log_y ? std::log10(ticks.front()) : ticks.front();
+    y1 = log_y ? std::log10(ticks.back()) : ticks.back();
+  }
 };
+
+// The ticks of one axis over [lo, hi]: log ticks, or nice ticks (from zero when `from_zero`).
+std::vector<double> axis_ticks(bool log, double lo, double hi, bool from_zero) {
+  if (log) return log_ticks(lo, hi);
+  return nice_ticks(from_zero ? std::min(0.0, lo) : lo, hi);
+}
+
+void check_log(bool log, double v, const char* what) {
+  if (log && !(v > 0.0)) throw std::invalid_argument(std::string("svg chart: ") + what + " <= 0 on a log axis");
+}
+
+std::string x_axis(const Frame& f, const std::vector<double>& ticks, const std::string& label) {
+  std::string s = "<g class=\"x-axis\">\n";
+  for (double t : ticks) {
+    s += "<text class=\"tick\" x=\"" + num(f.px(t)) + "\" y=\"" + num(f.top + f.plot_h() + 16) + "\" text-anchor=\"middle\">" +
+         escape(tick_label(t)) + "</text>\n";
+  }
+  s += "<text class=\"axis-label\" x=\"" + num(f.left + f.plot_w() / 2) + "\" y=\"" + num(f.top + f.plot_h() + 36) +
+       "\" text-anchor=\"middle\">" + escape(label) + "</text>\n</g>\n";
+  return s;
+}
 
 std::string header(const Frame& f, const std::string& title) {
   std::string s = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
@@ -130,6 +160,34 @@ std::vector<double> nice_ticks(double lo, double hi, int target) {
   return ticks;
 }
 
+std::vector<double> log_ticks(double lo, double hi) {
+  check_finite(lo, "axis bound");
+  check_finite(hi, "axis bound");
+  if (lo > hi) std::swap(lo, hi);
+  if (!(lo > 0.0)) throw std::invalid_argument("svg chart: a log axis needs values > 0");
+  int e0 = int(std::floor(std::log10(lo) + 1e-9)), e1 = int(std::ceil(std::log10(hi) - 1e-9));
+  if (e1 <= e0) e1 = e0 + 1;
+  auto p10 = [](int e) { return std::pow(10.0, double(e)); };
+  std::vector<double> ticks;
+  if (e1 - e0 <= 2) {
+    std::vector<double> all;
+    for (int e = e0; e <= e1; ++e)
+      for (double m : {1.0, 2.0, 5.0}) all.push_back(m * p10(e));
+    size_t first = 0, last = all.size() - 1;
+    for (size_t i = 0; i < all.size(); ++i)
+      if (all[i] <= lo * (1 + 1e-12)) first = i;
+    for (size_t i = all.size(); i-- > 0;)
+      if (all[i] >= hi * (1 - 1e-12)) last = i;
+    ticks.assign(all.begin() + std::ptrdiff_t(first), all.begin() + std::ptrdiff_t(last) + 1);
+  } else {
+    const int step = (e1 - e0 + 7) / 8;
+    int e = e0;
+    for (; e < e1; e += step) ticks.push_back(p10(e));
+    ticks.push_back(p10(e));
+  }
+  return ticks;
+}
+
 std::string tick_label(double v) {
   char buf[32];
   if (v != 0.0 && (std::abs(v) >= 1e6 || std::abs(v) < 1e-3)) std::snprintf(buf, sizeof(buf), "%.3g", v);
@@ -188,33 +246,32 @@ std::string render(const BarChart& c) {
 
 std::string render(const LineChart& c) {
   if (c.lines.empty()) throw std::invalid_argument("svg chart: a line chart needs lines");
-  double xlo = INFINITY, xhi = -INFINITY, yhi = 0.0;
+  double xlo = INFINITY, xhi = -INFINITY, ylo = INFINITY, yhi = 0.0;
   for (const Line& l : c.lines) {
     if (l.x.empty()) throw std::invalid_argument("svg chart: line '" + l.name + "' has no points");
     check_bars(l.y, l.low, l.high, l.x.size());
     for (double x : l.x) {
       check_finite(x, "x");
+      check_log(c.log_x, x, "x");
       xlo = std::min(xlo, x);
       xhi = std::max(xhi, x);
     }
-    for (double y : l.y) yhi = std::max(yhi, y);
-    for (double y : l.high) yhi = std::max(yhi, y);
+    for (const auto* v : {&l.y, &l.low, &l.high}) {
+      for (double y : *v) {
+        check_log(c.log_y, y, "y");
+        ylo = std::min(ylo, y);
+        yhi = std::max(yhi, y);
+      }
+    }
   }
   Frame f{640, 400};
   f.bottom = 70;
-  const std::vector<double> yt = nice_ticks(0.0, yhi), xt = nice_ticks(xlo, xhi);
-  f.y0 = yt.front();
-  f.y1 = yt.back();
-  f.x0 = xt.front();
-  f.x1 = xt.back();
-  std::string s = header(f, c.title) + y_axis(f, yt, c.y_label);
-  s += "<g class=\"x-axis\">\n";
-  for (double t : xt) {
-    s += "<text class=\"tick\" x=\"" + num(f.px(t)) + "\" y=\"" + num(f.top + f.plot_h() + 16) + "\" text-anchor=\"middle\">" +
-         escape(tick_label(t)) + "</text>\n";
-  }
-  s += "<text class=\"axis-label\" x=\"" + num(f.left + f.plot_w() / 2) + "\" y=\"" + num(f.top + f.plot_h() + 36) +
-       "\" text-anchor=\"middle\">" + escape(c.x_label) + "</text>\n</g>\n";
+  f.log_x = c.log_x;
+  f.log_y = c.log_y;
+  const std::vector<double> yt = c.log_y ? log_ticks(ylo, yhi) : nice_ticks(0.0, yhi), xt = axis_ticks(c.log_x, xlo, xhi, false);
+  f.set_y(yt);
+  f.set_x(xt);
+  std::string s = header(f, c.title) + y_axis(f, yt, c.y_label) + x_axis(f, xt, c.x_label);
   std::vector<std::string> names;
   for (size_t i = 0; i < c.lines.size(); ++i) {
     const Line& l = c.lines[i];
@@ -234,6 +291,64 @@ std::string render(const LineChart& c) {
     }
     s += "</g>\n";
   }
+  return s + legend(f, names) + "</svg>\n";
+}
+
+std::string render(const ScatterChart& c) {
+  if (c.points.empty()) throw std::invalid_argument("svg chart: a scatter chart needs points");
+  double xlo = INFINITY, xhi = -INFINITY, ylo = INFINITY, yhi = -INFINITY;
+  for (const ScatterPoint& p : c.points) {
+    check_finite(p.x, "x");
+    check_finite(p.y, "y");
+    check_log(c.log_x, p.x, "x");
+    check_log(c.log_y, p.y, "y");
+    xlo = std::min(xlo, p.x);
+    xhi = std::max(xhi, p.x);
+    ylo = std::min(ylo, p.y);
+    yhi = std::max(yhi, p.y);
+  }
+  Frame f{640, 420};
+  f.bottom = 70;
+  f.right = 120;  // room for the labels of the rightmost points
+  f.log_x = c.log_x;
+  f.log_y = c.log_y;
+  const std::vector<double> xt = axis_ticks(c.log_x, xlo, xhi, false), yt = axis_ticks(c.log_y, ylo, yhi, false);
+  f.set_x(xt);
+  f.set_y(yt);
+  std::string s = header(f, c.title) + y_axis(f, yt, c.y_label) + x_axis(f, xt, c.x_label);
+
+  // The front as a step line: from each front point right to the next one's x, then down to it.
+  std::vector<const ScatterPoint*> front;
+  for (const ScatterPoint& p : c.points)
+    if (p.front) front.push_back(&p);
+  std::sort(front.begin(), front.end(), [](const ScatterPoint* a, const ScatterPoint* b) {
+    return a->x != b->x ? a->x < b->x : a->y > b->y;
+  });
+  if (!front.empty()) {
+    std::string pts = num(f.px(front[0]->x)) + "," + num(f.py(front[0]->y));
+    for (size_t i = 1; i < front.size(); ++i) {
+      pts += " " + num(f.px(front[i]->x)) + "," + num(f.py(front[i - 1]->y));
+      pts += " " + num(f.px(front[i]->x)) + "," + num(f.py(front[i]->y));
+    }
+    s += "<polyline class=\"pareto\" fill=\"none\" stroke-width=\"2\" stroke-dasharray=\"6 3\" stroke=\"" +
+         std::string(colour(1)) + "\" points=\"" + pts + "\"/>\n";
+  }
+  s += "<g class=\"points\">\n";
+  for (const ScatterPoint& p : c.points) {
+    const double x = f.px(p.x), y = f.py(p.y);
+    const std::string tip =
+        p.tooltip.empty() ? (p.label.empty() ? "" : p.label + ": ") + tick_label(p.x) + ", " + tick_label(p.y) : p.tooltip;
+    s += std::string("<circle class=\"") + (p.front ? "point front" : "point") + "\" cx=\"" + num(x) + "\" cy=\"" + num(y) +
+         "\" r=\"" + (p.front ? "5" : "4") + "\" fill=\"" + (p.front ? colour(1) : colour(0)) + "\" stroke=\"black\"><title>" +
+         escape(tip) + "</title></circle>\n";
+    if (!p.label.empty()) {
+      s += "<text class=\"point-label\" x=\"" + num(x + 7) + "\" y=\"" + num(y - 7) + "\" font-size=\"10\">" + escape(p.label) +
+           "</text>\n";
+    }
+  }
+  s += "</g>\n";
+  std::vector<std::string> names = {"cells"};
+  if (!front.empty()) names.push_back("Pareto front (lower is better on both axes)");
   return s + legend(f, names) + "</svg>\n";
 }
 

@@ -1,8 +1,9 @@
-// A small SVG chart writer: axes with "nice" ticks, labels, grouped bars with error bars, lines
-// with markers and error bars, and a legend. No plotting library is packaged for C++ on Debian 12,
-// and the report needs only these two chart kinds. Output is plain SVG 1.1 that browsers and
-// GitHub's markdown viewer render; every element carries a class ("bar", "errorbar", "series",
-// "tick", "legend") so tests and stylesheets can find it.
+// A small SVG chart writer: axes with "nice" ticks (linear or log10), labels, grouped bars with error
+// bars, lines with markers and error bars, labelled scatter points with a highlighted Pareto front,
+// and a legend. No plotting library is packaged for C++ on Debian 12, and the report needs only
+// these three chart kinds. Output is plain SVG 1.1 that browsers and GitHub's markdown viewer render;
+// every element carries a class ("bar", "errorbar", "series", "point", "point front", "pareto",
+// "point-label", "tick", "legend") so tests and stylesheets can find it.
 #pragma once
 
 #include <string>
@@ -30,11 +31,33 @@ struct Line {
 struct LineChart {
   std::string title, x_label, y_label;
   std::vector<Line> lines;
+  /// Log10 axes: every value (and error bar) on that axis must then be > 0. A linear y axis starts at 0.
+  bool log_x = false, log_y = false;
+};
+
+/// One point of a scatter chart.
+struct ScatterPoint {
+  double x = 0, y = 0;
+  std::string label;    ///< drawn beside the point (empty: none)
+  std::string tooltip;  ///< the point's <title> (empty: the label and the coordinates)
+  bool front = false;   ///< on the Pareto front: drawn highlighted ("point front") and joined by the front line
+};
+/// Points with labels and tooltips; the front points are joined, in x order, by a step line
+/// (class "pareto") that bounds the region they dominate when both axes are minimised.
+struct ScatterChart {
+  std::string title, x_label, y_label;
+  std::vector<ScatterPoint> points;
+  bool log_x = false, log_y = false;  ///< log10 axes (values must then be > 0)
 };
 
 /// Ticks covering [lo, hi] at a step of 1, 2 or 5 times a power of ten, about `target` of them.
 /// The first tick is <= lo and the last >= hi. lo == hi gives a range around that value.
 std::vector<double> nice_ticks(double lo, double hi, int target = 5);
+
+/// Ticks for a log10 axis covering [lo, hi] (both > 0): powers of ten, with 2 and 5 times them when
+/// the range spans two decades or less, and every n-th power when it spans more than eight.
+/// The first tick is <= lo and the last >= hi. Throws std::invalid_argument unless 0 < lo.
+std::vector<double> log_ticks(double lo, double hi);
 
 /// A tick label without trailing zeros ("0.5", "12", "1e+06" for large magnitudes).
 std::string tick_label(double v);
@@ -45,5 +68,6 @@ std::string escape(const std::string& text);
 /// The SVG document. Throws std::invalid_argument when sizes disagree or a value is not finite.
 std::string render(const BarChart& chart);
 std::string render(const LineChart& chart);
+std::string render(const ScatterChart& chart);
 
 }  // namespace hp::svg

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <stdexcept>
@@ -117,6 +118,125 @@ TEST(SvgChart, LineChartHasOnePolylinePerLine) {
       ++p;
     }
   }
+}
+
+// The coordinates of a polyline's points.
+std::vector<std::pair<double, double>> polyline_points(const Element& e) {
+  std::vector<std::pair<double, double>> out;
+  const std::string pts = e.attrs.at("points");
+  size_t p = 0;
+  while (p < pts.size()) {
+    const size_t comma = pts.find(',', p);
+    const size_t space = pts.find(' ', comma);
+    out.push_back({std::stod(pts.substr(p, comma - p)), std::stod(pts.substr(comma + 1, space - comma - 1))});
+    if (space == std::string::npos) break;
+    p = space + 1;
+  }
+  return out;
+}
+
+TEST(SvgChart, ScatterChartHighlightsTheParetoFront) {
+  ScatterChart c;
+  c.title = "time vs error";
+  c.x_label = "ms";
+  c.y_label = "relMSE";
+  // Front: (1, 9), (2, 4), (5, 1); (3, 6) and (6, 8) are dominated.
+  c.points = {{3, 6, "c", "", false}, {1, 9, "a", "", true}, {6, 8, "e <1>", "tip e", false}, {5, 1, "d", "", true}, {2, 4, "b", "", true}};
+  const std::string svg = render(c);
+  const auto els = parse_xml(svg);
+  EXPECT_EQ(count(els, "circle", "point"), 2u);
+  EXPECT_EQ(count(els, "circle", "point front"), 3u);
+  EXPECT_EQ(count(els, "text", "point-label"), 5u);
+  EXPECT_EQ(count(els, "title", ""), 5u);  // one tooltip per point
+  EXPECT_NE(svg.find("<title>tip e</title>"), std::string::npos);
+  EXPECT_NE(svg.find("<title>a: 1, 9</title>"), std::string::npos);  // default tooltip: label and coordinates
+  EXPECT_NE(svg.find("e &lt;1&gt;"), std::string::npos);
+  ASSERT_EQ(count(els, "polyline", "pareto"), 1u);
+  // A step line through the three front points in x order: p0, (x1, y0), p1, (x2, y1), p2.
+  for (const Element& e : els) {
+    if (e.name != "polyline") continue;
+    const auto pts = polyline_points(e);
+    ASSERT_EQ(pts.size(), 5u);
+    for (size_t i = 1; i < pts.size(); ++i) {
+      EXPECT_GE(pts[i].first, pts[i - 1].first);    // x never goes back
+      EXPECT_GE(pts[i].second, pts[i - 1].second);  // y never rises (svg y grows downwards)
+      EXPECT_TRUE(pts[i].first == pts[i - 1].first || pts[i].second == pts[i - 1].second) << "not a step";
+    }
+  }
+  // Without front points there is no front line.
+  for (ScatterPoint& p : c.points) p.front = false;
+  EXPECT_EQ(count(parse_xml(render(c)), "polyline", "pareto"), 0u);
+}
+
+TEST(SvgChart, ScatterChartLogAxes) {
+  ScatterChart c;
+  c.title = "log";
+  c.log_x = c.log_y = true;
+  c.points = {{1e-4, 10, "a", "", true}, {1e-3, 100, "b", "", false}, {1e-2, 1000, "c", "", false}};
+  const std::string svg = render(c);
+  const auto els = parse_xml(svg);
+  for (const char* t : {">0.0001<", ">0.001<", ">0.01<", ">10<", ">100<", ">1000<"}) EXPECT_NE(svg.find(t), std::string::npos) << t;
+  // Equal ratios are equal distances on log axes.
+  std::vector<double> cx, cy;
+  for (const Element& e : els) {
+    if (e.name != "circle") continue;
+    cx.push_back(std::stod(e.attrs.at("cx")));
+    cy.push_back(std::stod(e.attrs.at("cy")));
+  }
+  ASSERT_EQ(cx.size(), 3u);
+  EXPECT_NEAR(cx[1] - cx[0], cx[2] - cx[1], 0.02);
+  EXPECT_NEAR(cy[0] - cy[1], cy[1] - cy[2], 0.02);
+  EXPECT_GT(cx[1] - cx[0], 50.0);
+  c.points.push_back({0.0, 1.0, "zero", "", false});
+  EXPECT_THROW(render(c), std::invalid_argument);  // 0 cannot be on a log axis
+  c.log_x = false;
+  EXPECT_NO_THROW(render(c));
+  c.points.push_back({1.0, std::nan(""), "nan", "", false});
+  EXPECT_THROW(render(c), std::invalid_argument);
+  EXPECT_THROW(render(ScatterChart{}), std::invalid_argument);
+}
+
+TEST(SvgChart, LineChartLogAxes) {
+  LineChart c;
+  c.title = "error vs k";
+  c.log_x = c.log_y = true;
+  c.lines = {{"L1", {2, 4, 8, 16}, {0.1, 0.2, 0.4, 0.8}, {}, {}}};
+  const auto els = parse_xml(render(c));
+  ASSERT_EQ(count(els, "polyline", "line"), 1u);
+  // A power law is a straight line on log-log axes: equal steps in both.
+  std::vector<double> cx, cy;
+  for (const Element& e : els) {
+    if (e.name != "circle") continue;
+    cx.push_back(std::stod(e.attrs.at("cx")));
+    cy.push_back(std::stod(e.attrs.at("cy")));
+  }
+  ASSERT_EQ(cx.size(), 4u);
+  for (size_t i = 2; i < 4; ++i) {
+    EXPECT_NEAR(cx[i] - cx[i - 1], cx[1] - cx[0], 0.02);
+    EXPECT_NEAR(cy[i] - cy[i - 1], cy[1] - cy[0], 0.02);
+  }
+  c.lines[0].y[0] = 0.0;
+  EXPECT_THROW(render(c), std::invalid_argument);
+  c.log_y = false;
+  EXPECT_NO_THROW(render(c));
+}
+
+TEST(SvgChart, LogTicksCoverTheRange) {
+  const auto t = log_ticks(3e-4, 0.07);
+  EXPECT_LE(t.front(), 3e-4);
+  EXPECT_GE(t.back(), 0.07);
+  EXPECT_EQ(t.front(), 1e-4);
+  EXPECT_NEAR(t.back(), 0.1, 1e-12);
+  for (size_t i = 1; i < t.size(); ++i) EXPECT_GT(t[i], t[i - 1]);
+  const auto narrow = log_ticks(3, 40);  // two decades or less: 1-2-5 steps
+  EXPECT_EQ(narrow.front(), 2.0);
+  EXPECT_EQ(narrow.back(), 50.0);
+  EXPECT_NE(std::find(narrow.begin(), narrow.end(), 5.0), narrow.end());
+  const auto wide = log_ticks(1e-12, 1e6);  // 18 decades: every third power at most 9 ticks
+  EXPECT_LE(wide.size(), 10u);
+  EXPECT_LE(wide.front(), 1e-12);
+  EXPECT_GE(wide.back(), 1e6);
+  EXPECT_THROW(log_ticks(0, 1), std::invalid_argument);
 }
 
 TEST(SvgChart, NiceTicksCoverTheRange) {

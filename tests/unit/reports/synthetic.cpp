@@ -64,6 +64,7 @@ json line(const SynthCell& c) {
   const FrameTimings timings = FrameTimings::from_measured(2, TimingSource::GpuTimestamps, frames, std::nullopt);
   json config = {{"scene", "builtin:pica"}, {"frames", n}, {"inject", {{"pass", "shadows"}, {"fraction", c.inject_fraction}}}};
   for (const auto& [k, v] : c.axes.items()) config[k] = v;
+  if (!c.config_patch.is_null()) config.merge_patch(c.config_patch);
   json j;
   j["schema"] = "hybridprof.cell";
   j["version"] = 1;
@@ -79,8 +80,36 @@ json line(const SynthCell& c) {
   j["images"] = {{"color", "cells/" + j["id"].get<std::string>() + "/color.png"},
                  {"shadow", "cells/" + j["id"].get<std::string>() + "/shadow.png"}};
   if (!c.cache.is_null()) j["cache"] = c.cache;
+  if (!c.report.is_null()) j["report"] = c.report;
+  if (!c.error.is_null()) j["error"] = c.error;
   j["wall_s"] = 1.0;
   return j;
+}
+
+json error_json(double relmse, std::optional<double> psnr_db, int frames, double depth_scale) {
+  json bins = json::array();
+  for (double near : {0.5, 1.0, 2.0, 4.0, 8.0}) {
+    bins.push_back({{"near", near}, {"far", near * 2}, {"pixels", 1000}, {"mean_rel", depth_scale * 1e-7 * near}, {"max_rel", depth_scale * 1e-6 * near}});
+  }
+  return {{"reference", {{"id", "0123456789abcdef"}, {"samples", 256}, {"render_s", 12.3}, {"cached", true}}},
+          {"frames", frames},
+          {"image",
+           {{"pixels", 921600}, {"mse", relmse / 20}, {"relmse", relmse}, {"relmse_eps", 0.01},
+            {"psnr_db", psnr_db ? json(*psnr_db) : json(nullptr)}, {"psnr_peak", 1.0}, {"max_abs", 0.8},
+            {"over_threshold", 120}, {"threshold", 0.1}, {"non_finite", 0}, {"flip_mean", 0.05}}},
+          {"shadow", {{"compared", 800000}, {"acne", 12}, {"leaks", 3}, {"coverage_mismatch", 40}}},
+          {"depth", {{"pixels", 900000}, {"mean_rel", depth_scale * 1e-6}, {"max_rel", depth_scale * 1e-4}, {"bins", bins}}}};
+}
+
+json cache_json(const std::string& pass, double l1_hits, double l1_misses, double l2_hits, double l2_misses,
+                double buffer_requests, double buffer_misses, double simulation_s) {
+  return {{"preset", "vega56"},
+          {"simulation_s", simulation_s},
+          {"passes",
+           {{{"pass", pass},
+             {"l1", {{"requests", l1_hits + l1_misses}, {"hits", l1_hits}, {"misses", l1_misses}}},
+             {"l2", {{"requests", l2_hits + l2_misses}, {"hits", l2_hits}, {"misses", l2_misses}}},
+             {"buffers", {{"bvh_nodes", {{"l1_requests", buffer_requests}, {"l1_misses", buffer_misses}, {"l2_requests", buffer_misses}, {"l2_misses", 7}}}}}}}}};
 }
 
 CellResult cell(const SynthCell& c) { return parse_cell(line(c), "synthetic"); }

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -30,7 +31,20 @@ struct SynthCell {
   nlohmann::json bvh = {{"build_ms", 28.0}, {"nodes", 69227}, {"leaves", 34614}, {"max_depth", 19}, {"sah_cost", 5.957}};
   nlohmann::json cache;  ///< null: none
   double inject_fraction = 0.0;
+  nlohmann::json config_patch;  ///< merged into the canonical config (RFC 7386), e.g. {"trace": {"sample_every": 4}}
+  nlohmann::json report;        ///< the matrix's "report" spec copied into the line; null: none
+  nlohmann::json error;         ///< the "error" object; null: none
 };
+
+/// An "error" object as the runner writes it: image metrics with this relMSE and PSNR (nullopt:
+/// identical images, written as null), a shadow block, and a depth block whose bins' mean errors are
+/// `depth_scale` times a fixed profile rising with distance.
+nlohmann::json error_json(double relmse, std::optional<double> psnr_db, int frames = 16, double depth_scale = 1.0);
+
+/// A "cache" object with one traced pass: L1/L2 hits and misses, one buffer (bvh_nodes) with these
+/// L1 requests/misses, and the simulator's wall time.
+nlohmann::json cache_json(const std::string& pass, double l1_hits, double l1_misses, double l2_hits, double l2_misses,
+                          double buffer_requests, double buffer_misses, double simulation_s);
 
 /// `n` durations around `median_ns`: median_ns * (1 + spread * u), u spread evenly over [-1, 1] in a
 /// seed-dependent shuffled order (so two seeds give different but identically distributed samples).
