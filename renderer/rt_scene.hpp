@@ -2,9 +2,7 @@
 // leaf order, in one of two layouts. Only what the passes read is uploaded.
 #pragma once
 
-#include "bvh/bvh.hpp"
-#include "bvh/traverse.hpp"
-#include "scene/scene.hpp"
+#include "rt_geometry.hpp"
 #include "vk/resources.hpp"
 
 #include <string>
@@ -17,16 +15,6 @@ enum class GeometryLayout {
 };
 GeometryLayout parse_geometry_layout(const std::string& name);  // throws InputError
 const char* to_string(GeometryLayout g);
-
-/// The CPU side: world geometry, the tree and the leaf-order triangles the reference traversal uses.
-struct RtGeometry {
-  WorldGeometry world;
-  std::vector<bvh::Triangle> triangles;  ///< scene order
-  bvh::Bvh bvh;
-  bvh::LeafOrderTriangles leaf;
-  double build_ms = 0.0;
-};
-RtGeometry build_rt_geometry(const Scene& scene, const bvh::BuildOptions& options);
 
 class RtScene {
  public:

@@ -3,6 +3,7 @@
 #include "cache_analysis.hpp"
 #include "error.hpp"
 #include "frame_profiler.hpp"
+#include "reference/compare.hpp"
 #include "scene/load.hpp"
 #include "timing/result_json.hpp"
 
@@ -48,6 +49,62 @@ void append_line(const fs::path& path, const std::string& line) {
                   std::fflush(f) == 0 && ::fsync(::fileno(f)) == 0;
   std::fclose(f);
   if (!ok) throw InputError(path.string() + ": write failed");
+}
+
+// The cache folder of reference images: $HP_REFERENCE_CACHE, else OUT/references.
+fs::path reference_cache(const fs::path& out) {
+  const char* env = std::getenv("HP_REFERENCE_CACHE");
+  return env && *env ? fs::path(env) : out / "references";
+}
+
+// Renders `s.error_frames` accumulated frames, compares them with the (cached) CPU reference of the
+// untransformed scene and writes the reference and an error map into the cell folder.
+json measure_error(Frame& frame, const Scenario& s, const Scene& ref_scene, const Camera& ref_camera,
+                   const Camera& camera, const fs::path& out, const fs::path& cell_dir, json& images,
+                   const std::string& id) {
+  ReferenceSettings rs;
+  rs.width = s.frame.width;
+  rs.height = s.frame.height;
+  rs.shadows = s.frame.rt.shadows;
+  rs.reflections = s.frame.rt.reflections;
+  rs.reflection_shadows = s.frame.rt.reflection_shadows;
+  rs.roughness_threshold = s.frame.rt.roughness_threshold;
+  rs.samples = s.reference_samples;
+  const std::string ref_id = reference_id(s.scene, ref_scene, ref_camera, rs);
+  const fs::path cache = reference_cache(out);
+  ReferenceImage ref;
+  const bool cached = load_reference(cache.string(), ref_id, rs.width, rs.height, ref);
+  if (!cached) {
+    ref = render_reference(ref_scene, ref_camera, rs);
+    save_reference(cache.string(), ref_id, ref);
+  }
+
+  frame.reset_accumulation();
+  for (uint32_t i = 0; i < s.error_frames; ++i) frame.render(false);
+  FrameReadback gpu;
+  gpu.color = frame.read_color();
+  if (s.frame.rt.shadows) gpu.shadow = frame.read_aov(Aov::shadow);
+  gpu.normal = frame.read_aov(Aov::normal);
+  gpu.depth = frame.read_depth();
+  gpu.view = frame.view();
+  gpu.camera_position = camera.position;
+  CompareOptions co;
+  co.image.threshold = s.error_threshold;
+  co.image.flip = s.error_flip;
+  json e = compare_with_reference(gpu, ref, WorldTransform{s.world_scale, s.world_translate}, co);
+  e["frames"] = s.error_frames;
+  e["reference"] = {{"id", ref_id},
+                    {"samples", rs.samples},
+                    {"cached", cached},
+                    {"render_s", cached ? json(nullptr) : json(ref.render_s)},
+                    {"rays", cached ? json(nullptr) : json(ref.rays)}};
+  write_image((cell_dir / "reference.png").string(), ref.color);
+  images["reference"] = "cells/" + id + "/reference.png";
+  if (s.error_flip) {
+    write_image((cell_dir / "flip.png").string(), flip_error_map(gpu.color, ref.color, co.image.flip_ppd));
+    images["flip"] = "cells/" + id + "/flip.png";
+  }
+  return e;
 }
 
 }  // namespace
@@ -130,7 +187,12 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     Scene scene = it->second;
     if (s.light_direction) scene.light.direction = glm::normalize(*s.light_direction);
     if (s.light_intensity) scene.light.intensity = *s.light_intensity;
-    const Camera camera = camera_for(s, scene);
+    Camera camera = camera_for(s, scene);
+    const Scene ref_scene = s.error ? scene : Scene{};  // the reference sees the untransformed world
+    const Camera ref_camera = camera;
+    if (s.world_scale != 1.0 || s.world_translate != glm::dvec3(0.0)) {
+      transform_world(scene, camera, s.world_scale, s.world_translate);
+    }
     Frame frame(ctx, scene, camera, s.frame);
     ProfileOptions po;
     po.warmup = s.warmup;
@@ -180,7 +242,9 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       CacheAnalysisOptions ao;
       ao.preset = s.cache_preset;
       ao.heatmap_dir = cell_dir.string();
+      const auto t_sim = std::chrono::steady_clock::now();
       json cache = analyse_trace(trace_path.string(), ao);
+      cache["simulation_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_sim).count();
       for (auto& p : cache["passes"]) {
         for (auto& [k, v] : p["heatmaps"].items()) {
           v = fs::relative(fs::path(v.get<std::string>()), out).string();
@@ -199,6 +263,8 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       }
       line["cache"] = cache;
     }
+    if (s.error) line["error"] = measure_error(frame, s, ref_scene, ref_camera, camera, out, cell_dir, images, id);
+    if (!m.report.is_null()) line["report"] = m.report;
     line["images"] = images;
     line["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cell).count();
     append_line(results, line.dump());

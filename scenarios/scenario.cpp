@@ -1,6 +1,7 @@
 #include "scenario.hpp"
 
 #include "error.hpp"
+#include "stable_id.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -105,20 +106,11 @@ const std::set<std::string> kTopKeys = {"name", "scene", "camera", "light", "res
                                         "geometry", "jitter", "shadow_offset", "bias", "reflection_scale",
                                         "roughness_threshold", "reflection_shadows", "bvh", "frames", "warmup",
                                         "counters", "seed", "cache_preset", "inject", "trace",
-                                        "reflection_path", "sort", "writeback"};
+                                        "reflection_path", "sort", "writeback", "transform", "error"};
 
 json vec_json(const std::optional<glm::vec3>& v) {
   if (!v) return nullptr;
   return json::array({(*v).x, (*v).y, (*v).z});
-}
-
-uint64_t fnv1a(const std::string& s) {
-  uint64_t h = 1469598103934665603ull;
-  for (unsigned char c : s) {
-    h ^= c;
-    h *= 1099511628211ull;
-  }
-  return h;
 }
 
 void set_path(json& j, const std::string& path, const json& value) {
@@ -231,6 +223,22 @@ Scenario parse_scenario(const json& j, const std::string& file, const std::strin
   }
   if (s.inject_fraction > 0.0f && !f.rt.shadows) fail(file, r.where("inject"), "injects work into shadows, which are off");
   f.rt.inject_shadow_fraction = s.inject_fraction;
+  if (const json* t = r.object("transform", {"scale", "translate"})) {
+    Reader tr{*t, file, r.where("transform")};
+    s.world_scale = tr.number("scale", 1.0, 1e-6, 1e6);
+    if (const auto v = tr.vec3("translate")) {
+      s.world_translate = glm::dvec3(*v);
+      if (glm::length(s.world_translate) > 1e7) fail(file, tr.where("translate"), "farther than 1e7 from the origin");
+    }
+  }
+  if (const json* e = r.object("error", {"frames", "reference_samples", "threshold", "flip"})) {
+    Reader er{*e, file, r.where("error")};
+    s.error = true;
+    s.error_frames = uint32_t(er.integer("frames", 16, 1, 4096));
+    s.reference_samples = uint32_t(er.integer("reference_samples", 256, 1, 1 << 16));
+    s.error_threshold = er.number("threshold", 0.1, 0.0, 1e6);
+    s.error_flip = er.boolean("flip", true);
+  }
   for (const std::string& p : s.trace_passes) {
     if ((p == "shadows" && !f.rt.shadows) || (p == "reflections" && !f.rt.reflections)) {
       fail(file, r.where("trace.passes"), "traces the " + p + " pass, which is off");
@@ -278,13 +286,21 @@ json Scenario::canonical() const {
   j["trace"] = {{"passes", trace_passes},
                 {"sample_every", trace_sample_every},
                 {"image_layout", trace_tiled_images ? "tiled" : "linear"}};  // keep: where files go, not what runs
+  // Like the compaction keys, a transform and error metrics enter only when set, so the ids of the
+  // scenarios without them stay as they were.
+  if (world_scale != 1.0 || world_translate != glm::dvec3(0.0)) {
+    j["transform"] = {{"scale", world_scale},
+                      {"translate", {world_translate.x, world_translate.y, world_translate.z}}};
+  }
+  if (error) {
+    j["error"] = {{"frames", error_frames}, {"reference_samples", reference_samples},
+                  {"threshold", error_threshold}, {"flip", error_flip}};
+  }
   return j;  // nlohmann::json objects are key-sorted: dump() is canonical
 }
 
 std::string Scenario::id() const {
-  char buf[17];
-  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(fnv1a(canonical().dump())));
-  return buf;
+  return stable_id(canonical().dump());
 }
 
 Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<std::string>& axis_order) {
@@ -298,8 +314,12 @@ Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<
     m.cell_axis_values.push_back(json::object());
     return m;
   }
-  only_keys(doc, {"name", "base", "axes", "exclude"}, file, "");
+  only_keys(doc, {"name", "base", "axes", "exclude", "report"}, file, "");
   m.name = doc.value("name", "");
+  if (doc.contains("report")) {
+    if (!doc["report"].is_object()) fail(file, "report", "expected an object of report sections");
+    m.report = doc["report"];
+  }
   const json base = doc.value("base", json::object());
   parse_scenario(base, file, "base");  // validate the base alone first: clearer errors
   const json axes = doc.value("axes", json::object());

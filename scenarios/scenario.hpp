@@ -38,6 +38,17 @@ struct Scenario {
   /// (the shadow pass re-traces the first `inject_fraction` of the image rows). 0 = off.
   std::string inject_pass = "shadows";
   float inject_fraction = 0.0f;
+  /// The whole world (geometry, camera, clip planes) scaled about the origin, then translated: the same
+  /// image at another scale or far from the origin (numerical hard cases). The reference stays unscaled.
+  double world_scale = 1.0;
+  glm::dvec3 world_translate{0.0};
+  /// Speed against error: after the timed frames, accumulation restarts and `error_frames` frames are
+  /// rendered; that image is compared with the CPU reference (reference/compare.hpp).
+  bool error = false;
+  uint32_t error_frames = 16;
+  uint32_t reference_samples = 256;
+  double error_threshold = 0.1;
+  bool error_flip = true;
 
   /// The canonical configuration: every field, defaults filled, keys sorted; the id hashes it.
   nlohmann::json canonical() const;
@@ -54,6 +65,9 @@ struct Matrix {
   std::vector<std::string> axes;   ///< axis key paths, in file order
   std::vector<Scenario> cells;     ///< expanded, excludes removed, in deterministic order
   std::vector<nlohmann::json> cell_axis_values;  ///< per cell: {"axis": value} of its coordinates
+  /// The matrix's "report" object (trade-off sections of the report; README "Speed against error"), copied
+  /// into every result line. Null when absent.
+  nlohmann::json report;
 };
 
 /// Expands a matrix (or single scenario) document. `axis_order` lists the axes in file order (nlohmann::json

@@ -90,4 +90,21 @@ WorldGeometry world_geometry(const Scene& scene) {
   return g;
 }
 
+void transform_world(Scene& scene, Camera& camera, double scale, const glm::dvec3& translate) {
+  glm::dmat4 m(scale);
+  m[3] = glm::dvec4(translate, 1.0);
+  for (Instance& inst : scene.instances) inst.world = glm::mat4(m * glm::dmat4(inst.world));
+  const auto move = [&](const glm::vec3& p) { return glm::vec3(glm::dvec3(p) * scale + translate); };
+  camera.position = move(camera.position);
+  camera.target = move(camera.target);
+  camera.znear = float(camera.znear * scale);
+  camera.zfar = float(camera.zfar * scale);
+  if (scene.has_camera) {
+    scene.camera.position = move(scene.camera.position);
+    scene.camera.target = move(scene.camera.target);
+    scene.camera.znear = float(scene.camera.znear * scale);
+    scene.camera.zfar = float(scene.camera.zfar * scale);
+  }
+}
+
 }  // namespace hp

@@ -96,6 +96,11 @@ Aabb world_bounds(const Scene& scene);
 /// aspect ratio (width / height).
 Camera auto_frame(const Scene& scene, float aspect);
 
+/// Scales the whole world about the origin by `scale`, then translates it: every instance's transform (in
+/// double, rounded to float once), the camera's position, target and clip planes. The image is the same up
+/// to floating-point precision, which is what the numerical hard cases probe.
+void transform_world(Scene& scene, Camera& camera, double scale, const glm::dvec3& translate);
+
 /// The scene's triangles in world space, in "scene order": instances in order, each instance's triangles in
 /// its mesh's index order. This order is the one `hybridprof bvh --export-triangles` writes and the one
 /// primitive ids refer to everywhere outside the BVH.

@@ -72,7 +72,7 @@ bool hp_reflection_ray(ivec2 q, uint cell, out vec3 o, out vec3 d) {
     precise vec3 dj = reflect(-v, hv);
     if (dot(dj, n) > 0.0) d = dj;  // a sample below the surface falls back to the mirror direction
   }
-  o = int(rt.shadow.y) == HP_OFFSET_ROBUST ? hp_offset_robust(pos, n) : hp_offset_bias(pos, n, rt.shadow.x);
+  o = int(rt.shadow.y) == HP_OFFSET_ROBUST ? hp_offset_gbuffer(p, depth, pos, n) : hp_offset_bias(pos, n, rt.shadow.x);
   return true;
 }
 

@@ -5,6 +5,7 @@
 #define HP_RT_BINDINGS_GLSL
 
 #include "common/shared_types.h"
+#include "common/ray_offset.glsl"
 
 // Geometry layout: 0 = "indexed" (EBO: vertex positions + an index buffer in leaf order),
 // 1 = "soup" (de-indexed: three vertices per triangle in leaf order).
@@ -49,6 +50,23 @@ vec3 hp_world_position(ivec2 p, float depth) {
   precise vec4 h = frame.inv_view_proj * vec4(ndc, depth, 1.0);
   precise vec3 w = h.xyz / h.w;
   return w;
+}
+
+// How far a position reconstructed from the depth buffer can be from the surface: the world distance
+// between the reconstructions at `depth` and 8 depth-buffer ULPs nearer the near plane's value. Wächter &
+// Binder's offset assumes an exact hit point; a G-buffer point is only as exact as its depth (measured:
+// about 1e-5 of the distance with a 32-bit standard-Z buffer), so the robust offset adds this much along
+// the normal (the point lies on the view ray, within this distance of the surface).
+float hp_depth_uncertainty(ivec2 p, float depth, vec3 pos) {
+  uint bits = floatBitsToUint(depth);
+  precise float d2 = uintBitsToFloat(bits > 8u ? bits - 8u : bits + 8u);
+  return distance(hp_world_position(p, d2), pos);
+}
+
+// The robust origin of a ray leaving the G-buffer surface at pixel p.
+vec3 hp_offset_gbuffer(ivec2 p, float depth, vec3 pos, vec3 n) {
+  precise vec3 o = hp_offset_robust(pos, n) + n * hp_depth_uncertainty(p, depth, pos);
+  return o;
 }
 
 bool hp_is_background(float depth) { return depth == (frame.params.x > 0.5 ? 0.0 : 1.0); }
