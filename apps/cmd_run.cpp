@@ -4,6 +4,7 @@
 #include "runner.hpp"
 
 #include <cstdio>
+#include <cstdlib>
 #include <memory>
 
 namespace hp::cli {
@@ -40,6 +41,18 @@ void add_run_command(CLI::App& app) {
     const RunSummary s = run_matrix(m, o);
     std::printf("%s: %zu cells, %zu in shard %u/%u, %zu already done, %zu run -> %s/results.jsonl\n", a->file.c_str(),
                 s.cells, s.in_shard, shard.index, shard.count, s.already_done, s.ran, a->out.c_str());
+    // Cells with expectations (a matrix's "expect", e.g. hard_cases.json): every unmet one is reported,
+    // resumed cells included, and the exit code is 1, as the gate's for a regression.
+    size_t unmet = 0;
+    for (const nlohmann::json& line : read_results(a->out)) {
+      if (!line.contains("expect")) continue;
+      for (const auto& u : line["expect"]["unmet"]) {
+        std::fprintf(stderr, "hybridprof: expectation unmet: %s: %s\n", line.value("name", "").c_str(),
+                     u.get<std::string>().c_str());
+        ++unmet;
+      }
+    }
+    if (unmet > 0) std::exit(1);
   });
 }
 

@@ -97,8 +97,8 @@ Frame::Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const F
 
 void Frame::upload_uniforms() {
   gpu::FrameUniforms u{};
-  u.view_proj = view_.view_proj;
-  u.inv_view_proj = view_.inv_view_proj;
+  u.view_proj = view_.view_proj_rel;  // camera-relative (view.hpp): hp_world_position adds camera_pos
+  u.inv_view_proj = view_.inv_view_proj_rel;
   u.camera_pos = glm::vec4(camera_.position, 1.0f);
   u.light_dir = glm::vec4(glm::normalize(light_.direction), light_.intensity);
   u.light_color = glm::vec4(light_.color, 1.0f);
@@ -135,7 +135,7 @@ void Frame::record_passes(VkCommandBuffer cmd, bool ts) {
     if (count && compute) invocations_.end(cmd);
     if (ts) timestamps_.end(cmd);
   };
-  pass("gbuffer", [&] { gbuffer_pass_.record(cmd, gpu_scene_, gbuffer_); });
+  pass("gbuffer", [&] { gbuffer_pass_.record(cmd, gpu_scene_, gbuffer_, camera_.position); });
   if (rt_passes_) {
     rt_passes_->record_prepare(cmd);
     if (settings_.rt.shadows) pass("shadows", [&] { rt_passes_->record_shadows(cmd); });
@@ -179,7 +179,7 @@ FrameTiming Frame::render(bool with_timestamps) {
       timing.passes.push_back({name, uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(b - t0).count()),
                                uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(e - t0).count())});
     };
-    timed("gbuffer", [&](VkCommandBuffer cmd) { gbuffer_pass_.record(cmd, gpu_scene_, gbuffer_); });
+    timed("gbuffer", [&](VkCommandBuffer cmd) { gbuffer_pass_.record(cmd, gpu_scene_, gbuffer_, camera_.position); });
     if (rt_passes_) {
       ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_prepare(cmd); });
       if (settings_.rt.shadows) timed("shadows", [&](VkCommandBuffer cmd) { rt_passes_->record_shadows(cmd); });
@@ -291,7 +291,7 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
   rt_passes_->begin_frame(sample_index_);
   std::vector<CapturedPass> out;
   ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
-    gbuffer_pass_.record(cmd, gpu_scene_, gbuffer_);
+    gbuffer_pass_.record(cmd, gpu_scene_, gbuffer_, camera_.position);
     rt_passes_->record_prepare(cmd);
   });
   using Traced = RayTracingPasses::Traced;

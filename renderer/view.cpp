@@ -27,17 +27,24 @@ View make_view(const Camera& camera, float aspect, bool reversed_z) {
   v.proj = p;
   v.view_proj = p * v.view;
   v.inv_view_proj = glm::inverse(v.view_proj);
+  v.eye = camera.position;
+  const glm::dvec3 fwd = glm::dvec3(camera.target) - glm::dvec3(camera.position);
+  const glm::dmat4 rot = glm::lookAt(glm::dvec3(0.0), fwd, glm::dvec3(camera.up));
+  const glm::dmat4 vp_rel = glm::dmat4(p) * rot;
+  v.view_proj_rel = glm::mat4(vp_rel);
+  v.inv_view_proj_rel = glm::mat4(glm::inverse(vp_rel));
   return v;
 }
 
 glm::vec3 unproject(const View& view, float px, float py, uint32_t width, uint32_t height, float depth) {
   const glm::vec2 ndc((px + 0.5f) / float(width) * 2.0f - 1.0f, (py + 0.5f) / float(height) * 2.0f - 1.0f);
-  const glm::vec4 h = view.inv_view_proj * glm::vec4(ndc, depth, 1.0f);
-  return glm::vec3(h) / h.w;
+  const glm::vec4 h = view.inv_view_proj_rel * glm::vec4(ndc, depth, 1.0f);
+  return glm::vec3(h) / h.w + view.eye;
 }
 
 float project_depth(const View& view, const glm::vec3& world) {
-  const glm::vec4 c = view.view_proj * glm::vec4(world, 1.0f);
+  const glm::vec3 rel(glm::dvec3(world) - glm::dvec3(view.eye));
+  const glm::vec4 c = view.view_proj_rel * glm::vec4(rel, 1.0f);
   return c.z / c.w;
 }
 

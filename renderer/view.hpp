@@ -13,6 +13,12 @@ struct View {
   glm::mat4 proj{1.0f};
   glm::mat4 view_proj{1.0f};
   glm::mat4 inv_view_proj{1.0f};
+  /// Camera-relative rendering: the same projection of a position taken relative to the eye (view without
+  /// its translation, built in double). The GPU passes use these: a world far from the origin would
+  /// otherwise lose its precision in the translation of view_proj (README "Hard cases").
+  glm::vec3 eye{0.0f};
+  glm::mat4 view_proj_rel{1.0f};
+  glm::mat4 inv_view_proj_rel{1.0f};
   bool reversed_z = false;
   /// The depth-buffer value of the background (the clear value).
   float far_depth() const { return reversed_z ? 0.0f : 1.0f; }
@@ -22,7 +28,8 @@ struct View {
 /// far -> 1; reversed-Z maps near -> 1 and far -> 0 (better float precision far away).
 View make_view(const Camera& camera, float aspect, bool reversed_z);
 
-/// The world-space point of pixel centre (px + 0.5, py + 0.5) at depth-buffer value `depth`.
+/// The world-space point of pixel centre (px + 0.5, py + 0.5) at depth-buffer value `depth`, computed as the
+/// GPU passes do (hp_world_position): camera-relative, then plus the eye.
 glm::vec3 unproject(const View& view, float px, float py, uint32_t width, uint32_t height, float depth);
 
 /// The depth-buffer value of a world-space point (what the raster pass writes there).

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 #include <unistd.h>
 
@@ -32,6 +33,12 @@ Camera camera_for(const Scenario& s, const Scene& scene) {
   if (s.camera_target) cam.target = *s.camera_target;
   if (s.camera_fov_deg) cam.vfov_deg = *s.camera_fov_deg;
   return cam;
+}
+
+std::string format_double(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.4g", v);
+  return buf;
 }
 
 std::string eta(double seconds) {
@@ -109,6 +116,50 @@ json measure_error(Frame& frame, const Scenario& s, const Scene& ref_scene, cons
 
 }  // namespace
 
+CellScene prepare_cell_scene(const Scenario& s, const Scene& loaded) {
+  CellScene c;
+  c.scene = loaded;
+  if (s.light_direction) c.scene.light.direction = glm::normalize(*s.light_direction);
+  if (s.light_intensity) c.scene.light.intensity = *s.light_intensity;
+  c.camera = camera_for(s, c.scene);
+  c.reference_camera = c.camera;
+  if (s.error) c.reference_scene = c.scene;  // the reference sees the untransformed world
+  if (s.world_scale != 1.0 || s.world_translate != glm::dvec3(0.0)) {
+    transform_world(c.scene, c.camera, s.world_scale, s.world_translate);
+  }
+  return c;
+}
+
+std::vector<std::string> unmet_expectations(const json& line, const json& expect) {
+  std::vector<std::string> unmet;
+  const json& e = line.contains("error") ? line["error"] : json();
+  const auto number = [&](const json::json_pointer& p) -> std::optional<double> {
+    if (!e.is_object() || !e.contains(p) || !e[p].is_number()) return std::nullopt;
+    return e[p].get<double>();
+  };
+  const auto check = [&](const char* key, std::optional<double> value, const char* what) {
+    if (!expect.contains(key)) return;
+    const double bound = expect[key].get<double>();
+    if (!value) {
+      unmet.push_back(std::string(what) + " was not measured (" + key + ")");
+    } else if (!(*value <= bound)) {
+      unmet.push_back(std::string(what) + " " + format_double(*value) + " > " + format_double(bound) + " (" + key + ")");
+    }
+  };
+  const auto fraction = [&](const char* num, const char* den) -> std::optional<double> {
+    const auto n = number(json::json_pointer(num)), d = number(json::json_pointer(den));
+    if (!n || !d) return std::nullopt;
+    return *d > 0 ? *n / *d : 0.0;
+  };
+  check("max_non_finite", number(json::json_pointer("/image/non_finite")), "non-finite pixels");
+  check("max_acne_fraction", fraction("/shadow/acne", "/shadow/compared"), "acne fraction");
+  check("max_leak_fraction", fraction("/shadow/leaks", "/shadow/compared"), "leak fraction");
+  check("max_coverage_mismatch_fraction", fraction("/coverage_mismatch", "/image/pixels"), "coverage-mismatch fraction");
+  check("max_relmse", number(json::json_pointer("/image/relmse")), "relMSE");
+  check("max_depth_rel", number(json::json_pointer("/depth/max_rel")), "largest relative position error");
+  return unmet;
+}
+
 std::vector<json> read_results(const std::string& out_dir) {
   std::vector<json> out;
   const fs::path path = fs::path(out_dir) / kResults;
@@ -184,15 +235,11 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     const auto t_cell = std::chrono::steady_clock::now();
     auto it = scenes.find(s.scene);
     if (it == scenes.end()) it = scenes.emplace(s.scene, load_scene(s.scene)).first;
-    Scene scene = it->second;
-    if (s.light_direction) scene.light.direction = glm::normalize(*s.light_direction);
-    if (s.light_intensity) scene.light.intensity = *s.light_intensity;
-    Camera camera = camera_for(s, scene);
-    const Scene ref_scene = s.error ? scene : Scene{};  // the reference sees the untransformed world
-    const Camera ref_camera = camera;
-    if (s.world_scale != 1.0 || s.world_translate != glm::dvec3(0.0)) {
-      transform_world(scene, camera, s.world_scale, s.world_translate);
-    }
+    CellScene cs = prepare_cell_scene(s, it->second);
+    const Scene& scene = cs.scene;
+    const Camera& camera = cs.camera;
+    const Scene& ref_scene = cs.reference_scene;
+    const Camera& ref_camera = cs.reference_camera;
     Frame frame(ctx, scene, camera, s.frame);
     ProfileOptions po;
     po.warmup = s.warmup;
@@ -265,6 +312,12 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     }
     if (s.error) line["error"] = measure_error(frame, s, ref_scene, ref_camera, camera, out, cell_dir, images, id);
     if (!m.report.is_null()) line["report"] = m.report;
+    if (m.expect.is_object() && m.cell_axis_values[i].contains("case")) {
+      const std::string name = m.cell_axis_values[i]["case"].get<std::string>();
+      if (m.expect.contains(name)) {
+        line["expect"] = {{"spec", m.expect[name]}, {"unmet", unmet_expectations(line, m.expect[name])}};
+      }
+    }
     line["images"] = images;
     line["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cell).count();
     append_line(results, line.dump());

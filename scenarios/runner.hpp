@@ -29,6 +29,22 @@ struct RunSummary {
 /// Runs the matrix. Throws hp::InputError / hp::DeviceError as the CLI expects.
 RunSummary run_matrix(const Matrix& matrix, const RunOptions& options);
 
+/// What a cell renders: the loaded scene with the scenario's light, camera and world transform applied,
+/// and the untransformed scene and camera its CPU reference renders.
+struct CellScene {
+  Scene scene;
+  Camera camera;
+  Scene reference_scene;
+  Camera reference_camera;
+};
+CellScene prepare_cell_scene(const Scenario& s, const Scene& loaded);
+
+/// Checks one result line against a cell's expectations (a matrix's "expect" entry): max_non_finite,
+/// max_acne_fraction and max_leak_fraction (of the compared pixels), max_coverage_mismatch_fraction (of all
+/// pixels), max_relmse, max_depth_rel. One sentence per unmet expectation; a missing measurement is unmet.
+/// "gpu_equals_cpu" is checked by the hard-case test (it needs the rays the shaders cast), not here.
+std::vector<std::string> unmet_expectations(const nlohmann::json& line, const nlohmann::json& expect);
+
 /// Reads OUT/results.jsonl: one JSON object per complete line (a partial last line from an interrupted
 /// write is ignored). Throws InputError naming the file and line for a corrupt line.
 std::vector<nlohmann::json> read_results(const std::string& out_dir);

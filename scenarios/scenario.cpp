@@ -307,14 +307,14 @@ Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<
   Matrix m;
   m.file = file;
   if (!doc.is_object()) fail(file, "", std::string("expected an object, got ") + doc.type_name());
-  const bool is_matrix = doc.contains("base") || doc.contains("axes");
+  const bool is_matrix = doc.contains("base") || doc.contains("axes") || doc.contains("cells");
   if (!is_matrix) {
     m.cells.push_back(parse_scenario(doc, file));
     m.name = m.cells[0].name;
     m.cell_axis_values.push_back(json::object());
     return m;
   }
-  only_keys(doc, {"name", "base", "axes", "exclude", "report"}, file, "");
+  only_keys(doc, {"name", "base", "axes", "exclude", "report", "cells", "expect"}, file, "");
   m.name = doc.value("name", "");
   if (doc.contains("report")) {
     if (!doc["report"].is_object()) fail(file, "report", "expected an object of report sections");
@@ -336,12 +336,54 @@ Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<
     ax.emplace_back(k, v);
     m.axes.push_back(k);
   }
+  // "cells": named scenarios merged onto the base (JSON merge patch), a first axis called "case" whose
+  // values are the cells' names: a suite of unlike cases (hard_cases.json) rather than a product.
+  std::vector<json> case_patches;
+  if (doc.contains("cells")) {
+    const json& cells = doc["cells"];
+    if (!cells.is_array() || cells.empty()) fail(file, "cells", "expected a non-empty list of scenario objects");
+    json names = json::array();
+    std::set<std::string> seen;
+    for (size_t c = 0; c < cells.size(); ++c) {
+      const std::string where = "cells[" + std::to_string(c) + "]";
+      if (!cells[c].is_object()) fail(file, where, "expected a scenario object");
+      if (!cells[c].contains("name") || !cells[c]["name"].is_string() || cells[c]["name"].get<std::string>().empty()) {
+        fail(file, where + ".name", "every cell needs a non-empty name");
+      }
+      const std::string name = cells[c]["name"].get<std::string>();
+      if (!seen.insert(name).second) fail(file, where + ".name", "'" + name + "' names an earlier cell too");
+      names.push_back(name);
+      case_patches.push_back(cells[c]);
+    }
+    if (axes.contains("case")) fail(file, "axes.case", "\"case\" is the axis of \"cells\"");
+    ax.insert(ax.begin(), {"case", names});
+    m.axes.insert(m.axes.begin(), "case");
+  }
+  if (doc.contains("expect")) {
+    if (!doc["expect"].is_object()) fail(file, "expect", "expected an object of cell name -> expectations");
+    if (case_patches.empty()) fail(file, "expect", "applies to \"cells\", which this matrix has none of");
+    for (const auto& [k, v] : doc["expect"].items()) {
+      const json& names = ax[0].second;
+      if (std::find(names.begin(), names.end(), json(k)) == names.end()) fail(file, "expect." + k, "names no cell of \"cells\"");
+      if (!v.is_object()) fail(file, "expect." + k, "expected an object");
+      only_keys(v, {"max_non_finite", "max_acne_fraction", "max_leak_fraction", "max_coverage_mismatch_fraction",
+                    "max_relmse", "max_depth_rel", "gpu_equals_cpu"}, file, "expect." + k);
+      for (const auto& [ek, ev] : v.items()) {
+        if (ek == "gpu_equals_cpu" ? !ev.is_boolean() : !(ev.is_number() && ev.get<double>() >= 0.0)) {
+          fail(file, "expect." + k + "." + ek, ek == "gpu_equals_cpu" ? "expected true or false" : "expected a number >= 0");
+        }
+      }
+    }
+    m.expect = doc["expect"];
+  }
   const json excludes = doc.value("exclude", json::array());
   if (!excludes.is_array()) fail(file, "exclude", "expected a list of {axis: value} objects");
   for (size_t e = 0; e < excludes.size(); ++e) {
     if (!excludes[e].is_object() || excludes[e].empty()) fail(file, "exclude[" + std::to_string(e) + "]", "expected a non-empty object");
     for (const auto& [k, v] : excludes[e].items()) {
-      if (!axes.contains(k)) fail(file, "exclude[" + std::to_string(e) + "]." + k, "is not an axis");
+      if (!axes.contains(k) && !(k == "case" && !case_patches.empty())) {
+        fail(file, "exclude[" + std::to_string(e) + "]." + k, "is not an axis");
+      }
     }
   }
   // Checked before each multiplication: many axes would otherwise wrap the product around.
@@ -366,7 +408,11 @@ Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<
     }
     for (size_t a = 0; a < ax.size(); ++a) {
       const json& v = ax[a].second[pick[a]];
-      set_path(cell, ax[a].first, v);
+      if (a == 0 && !case_patches.empty()) {
+        cell.merge_patch(case_patches[pick[a]]);
+      } else {
+        set_path(cell, ax[a].first, v);
+      }
       coords[ax[a].first] = v;
     }
     bool excluded = false;
@@ -403,7 +449,7 @@ Matrix load_matrix(const std::string& path) {
       for (const auto& [k, v] : ordered["axes"].items()) axis_order.push_back(k);
     }
     doc = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e400
     std::string what = e.what();
     for (char& c : what) c = c == '\n' ? ' ' : c;
     throw InputError(path + ": broken JSON: " + what);

@@ -68,6 +68,8 @@ struct Matrix {
   /// The matrix's "report" object (trade-off sections of the report; README "Speed against error"), copied
   /// into every result line. Null when absent.
   nlohmann::json report;
+  /// The matrix's "expect" object: per cell name of "cells", the results a test holds it to (hard cases).
+  nlohmann::json expect;
 };
 
 /// Expands a matrix (or single scenario) document. `axis_order` lists the axes in file order (nlohmann::json

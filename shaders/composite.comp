@@ -17,7 +17,8 @@ layout(set = 0, binding = 6, rgba32f) uniform readonly image2D reflection_accum;
 #define HP_COMPOSITE_SHADOWS 1u
 #define HP_COMPOSITE_REFLECTIONS 2u
 
-vec3 world_position(ivec2 p, float depth) {
+// Relative to the camera (inv_view_proj is camera-relative, view.hpp).
+vec3 relative_position(ivec2 p, float depth) {
   vec2 ndc = (vec2(p) + 0.5) / vec2(frame.extent.xy) * 2.0 - 1.0;
   vec4 h = frame.inv_view_proj * vec4(ndc, depth, 1.0);
   return h.xyz / h.w;
@@ -35,8 +36,7 @@ void main() {
   vec4 nr = texelFetch(g_normal_roughness, p, 0);
   vec4 am = texelFetch(g_albedo_metal, p, 0);
   vec3 n = normalize(nr.xyz);
-  vec3 pos = world_position(p, depth);
-  vec3 v = normalize(frame.camera_pos.xyz - pos);
+  vec3 v = normalize(-relative_position(p, depth));
   vec3 l = frame.light_dir.xyz;
   vec3 light = frame.light_color.rgb * frame.light_dir.w;
   uint flags = frame.extent.w;

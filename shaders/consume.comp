@@ -32,7 +32,7 @@ void main() {
   uint target = cell;
   if (int(rt.bounds_max.w) == HP_WRITEBACK_REPROJECT) {
     // The study wrote results back by projecting the ray origin to the screen.
-    vec4 c = frame.view_proj * vec4(o, 1.0);
+    vec4 c = frame.view_proj * vec4(o - frame.camera_pos.xyz, 1.0);  // camera-relative view_proj
     vec2 px = (c.xy / c.w * 0.5 + 0.5) * vec2(frame.extent.xy);
     ivec2 g = clamp(ivec2(floor(px)) / int(rt.grid.z), ivec2(0), ivec2(rt.grid.xy) - 1);
     target = uint(g.y) * rt.grid.x + uint(g.x);

@@ -2,7 +2,7 @@
 #extension GL_GOOGLE_include_directive : require
 #include "common/shared_types.h"
 
-layout(location = 0) in vec3 v_world_pos;
+layout(location = 0) in vec3 v_rel_pos;  // position relative to the camera
 layout(location = 1) in vec3 v_normal;
 
 layout(set = 0, binding = 0) uniform Frame { FrameUniforms frame; };
@@ -14,8 +14,8 @@ layout(location = 1) out vec4 out_albedo_metal;      // base colour (sRGB target
 void main() {
   // Orient by the geometric normal (from screen-space derivatives), not by the winding: glTF surfaces may
   // be double-sided (foliage cards) and any winding convention then fails for one side.
-  vec3 to_camera = frame.camera_pos.xyz - v_world_pos;
-  vec3 ng = cross(dFdx(v_world_pos), dFdy(v_world_pos));
+  vec3 to_camera = -v_rel_pos;
+  vec3 ng = cross(dFdx(v_rel_pos), dFdy(v_rel_pos));
   if (dot(ng, to_camera) < 0.0) ng = -ng;
   vec3 n = v_normal;
   float len2 = dot(n, n);

@@ -8,12 +8,13 @@ layout(location = 1) in vec3 in_normal;
 layout(set = 0, binding = 0) uniform Frame { FrameUniforms frame; };
 layout(push_constant) uniform Push { GBufferPush pc; };
 
-layout(location = 0) out vec3 v_world_pos;
+layout(location = 0) out vec3 v_rel_pos;  // position relative to the camera
 layout(location = 1) out vec3 v_normal;
 
 void main() {
+  // Camera-relative: pc.world has the eye subtracted and view_proj has no translation (view.hpp).
   vec4 wp = pc.world * vec4(in_position, 1.0);
-  v_world_pos = wp.xyz;
+  v_rel_pos = wp.xyz;
   v_normal = vec3(dot(pc.normal_row0.xyz, in_normal), dot(pc.normal_row1.xyz, in_normal),
                   dot(pc.normal_row2.xyz, in_normal));
   gl_Position = frame.view_proj * wp;

@@ -96,7 +96,7 @@ GBufferPass::GBufferPass(vk::Context& ctx, const vk::Buffer& frame_uniforms, boo
   pipeline_ = vk::Pipeline(dev, p);
 }
 
-void GBufferPass::record(VkCommandBuffer cmd, const GpuScene& scene, const GBuffer& target) const {
+void GBufferPass::record(VkCommandBuffer cmd, const GpuScene& scene, const GBuffer& target, const glm::vec3& eye) const {
   const uint32_t w = target.depth.width(), h = target.depth.height();
   const VkPipelineStageFlags2 prev = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT;
   for (const vk::Image* img : {&target.normal_roughness, &target.albedo_metal}) {
@@ -145,8 +145,10 @@ void GBufferPass::record(VkCommandBuffer cmd, const GpuScene& scene, const GBuff
   for (const Draw& d : scene.draws()) {
     const MeshRange& m = scene.meshes()[d.mesh];
     if (m.index_count == 0) continue;
+    gpu::GBufferPush push = d.push;
+    push.world[3] = glm::vec4(glm::dvec4(d.push.world[3]) - glm::dvec4(glm::dvec3(eye), 0.0));
     vkCmdPushConstants(cmd, descriptors_.pipeline_layout(), VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT,
-                       0, sizeof(d.push), &d.push);
+                       0, sizeof(push), &push);
     vkCmdDrawIndexed(cmd, m.index_count, 1, m.first_index, m.vertex_offset, 0);
   }
   vkCmdEndRendering(cmd);

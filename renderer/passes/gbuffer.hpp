@@ -25,7 +25,8 @@ class GBufferPass {
 
   /// Records the pass. The G-buffer images go from any state to attachment layouts, are cleared and drawn,
   /// and end in SHADER_READ_ONLY_OPTIMAL, visible to compute shaders.
-  void record(VkCommandBuffer cmd, const GpuScene& scene, const GBuffer& target) const;
+  /// Draws camera-relative: each draw's world matrix has `eye` subtracted from its translation (in double).
+  void record(VkCommandBuffer cmd, const GpuScene& scene, const GBuffer& target, const glm::vec3& eye) const;
 
  private:
   bool reversed_z_;

@@ -45,10 +45,12 @@ void hp_counter_add(uint at, uint v) {
 
 // `precise` here and in the ray set-up: the same ray must come out bit for bit in every shader that builds
 // it (direct reflections, compaction, traced variants), whatever the compiler would fuse into FMAs.
+// Camera-relative (view.hpp): inv_view_proj has no translation, so a world far from the origin keeps the
+// precision of its positions near the camera; the eye is added last.
 vec3 hp_world_position(ivec2 p, float depth) {
   precise vec2 ndc = (vec2(p) + 0.5) / vec2(frame.extent.xy) * 2.0 - 1.0;
   precise vec4 h = frame.inv_view_proj * vec4(ndc, depth, 1.0);
-  precise vec3 w = h.xyz / h.w;
+  precise vec3 w = h.xyz / h.w + frame.camera_pos.xyz;
   return w;
 }
 
@@ -63,9 +65,14 @@ float hp_depth_uncertainty(ivec2 p, float depth, vec3 pos) {
   return distance(hp_world_position(p, d2), pos);
 }
 
-// The robust origin of a ray leaving the G-buffer surface at pixel p.
+// The robust origin of a ray leaving the G-buffer surface at pixel p. Besides the depth uncertainty, the
+// offset clears 8 ULPs of the point's largest coordinate: the BVH holds world-space float positions,
+// rounded to that grid, while the camera-relative G-buffer surface is not (far from the origin the two
+// surfaces differ by up to half an ULP of the coordinates).
 vec3 hp_offset_gbuffer(ivec2 p, float depth, vec3 pos, vec3 n) {
-  precise vec3 o = hp_offset_robust(pos, n) + n * hp_depth_uncertainty(p, depth, pos);
+  vec3 a = abs(pos);
+  precise float grid = max(a.x, max(a.y, a.z)) * (1.0 / 1048576.0);
+  precise vec3 o = hp_offset_robust(pos, n) + n * (hp_depth_uncertainty(p, depth, pos) + grid);
   return o;
 }
 

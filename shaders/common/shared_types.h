@@ -51,8 +51,8 @@ HP_CHECK_LAYOUT(BvhNode, prim_axis, 28);
 // ---------------------------------------------------------------------------------------------------------
 // Frame-wide constants (uniform buffer, std140-compatible: only vec4/mat4 members).
 struct FrameUniforms {
-  mat4 view_proj;
-  mat4 inv_view_proj;
+  mat4 view_proj;        // camera-relative: applied to (world - camera_pos) (view.hpp)
+  mat4 inv_view_proj;    // camera-relative: gives (world - camera_pos)
   vec4 camera_pos;       // xyz, w unused
   vec4 light_dir;        // xyz toward the light (normalised), w = intensity
   vec4 light_color;      // rgb, a unused

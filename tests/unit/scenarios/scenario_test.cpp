@@ -146,6 +146,66 @@ TEST(Matrix, NestedAxisPathsAndPlainScenario) {
   EXPECT_EQ(one.cells[0].frame.rt.seed, 5u);
 }
 
+TEST(Scenario, TransformAndErrorKeys) {
+  const Scenario d = parse_scenario(json::object(), "d.json");
+  EXPECT_EQ(d.world_scale, 1.0);
+  EXPECT_FALSE(d.error);
+  EXPECT_FALSE(d.canonical().contains("transform")) << "unset keys must not change existing ids";
+  EXPECT_FALSE(d.canonical().contains("error"));
+  const Scenario s = parse_scenario(json::parse(R"({"transform": {"scale": 0.001, "translate": [100000, 0, 0]},
+      "error": {"frames": 4, "reference_samples": 32, "threshold": 0.05, "flip": false}})"), "s.json");
+  EXPECT_EQ(s.world_scale, 0.001);
+  EXPECT_EQ(s.world_translate, glm::dvec3(1e5, 0, 0));
+  EXPECT_TRUE(s.error);
+  EXPECT_EQ(s.error_frames, 4u);
+  EXPECT_EQ(s.reference_samples, 32u);
+  EXPECT_EQ(s.error_threshold, 0.05);
+  EXPECT_FALSE(s.error_flip);
+  EXPECT_NE(s.id(), d.id());
+  EXPECT_EQ(s.canonical()["transform"]["scale"], 0.001);
+  // An empty "error" object asks for the defaults.
+  const Scenario e = parse_scenario(json::parse(R"({"error": {}})"), "e.json");
+  EXPECT_TRUE(e.error);
+  EXPECT_EQ(e.error_frames, 16u);
+  EXPECT_EQ(e.reference_samples, 256u);
+  EXPECT_NE(error_of(json::parse(R"({"transform": {"scale": 0}})")).find("f.json: transform.scale"), std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"transform": {"translate": [1e8, 0, 0]}})")).find("transform.translate"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"error": {"frames": 0}})")).find("error.frames"), std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"error": {"samples": 3}})")).find("error"), std::string::npos);
+}
+
+TEST(Matrix, CellsAreNamedCasesMergedOntoTheBase) {
+  const Matrix m = parse_matrix(json::parse(R"({"name": "hard", "base": {"resolution": [32, 16], "bias": 0.5},
+      "cells": [{"name": "a", "scene": "builtin:cornell"},
+                {"name": "b", "light": {"direction": [0, 1, 0]}, "bvh": {"granularity": "object"}}],
+      "axes": {"seed": [1, 2]},
+      "expect": {"b": {"max_acne_fraction": 0}},
+      "report": {"depth_error": true}})"), "f.json");
+  ASSERT_EQ(m.axes, (std::vector<std::string>{"case", "seed"}));
+  ASSERT_EQ(m.cells.size(), 4u);
+  EXPECT_EQ(m.cell_axis_values[0], json::parse(R"({"case": "a", "seed": 1})"));
+  EXPECT_EQ(m.cells[0].scene, "builtin:cornell");
+  EXPECT_EQ(m.cells[0].name, "a");
+  EXPECT_EQ(m.cells[2].scene, "builtin:pica");  // not inherited from cell a
+  EXPECT_EQ(m.cells[2].frame.bvh.granularity, bvh::Granularity::object);
+  EXPECT_EQ(m.cells[3].frame.rt.bias, 0.5f);    // from the base
+  EXPECT_EQ(m.expect["b"]["max_acne_fraction"], 0);
+  EXPECT_EQ(m.report["depth_error"], true);
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "cells": [{"scene": "builtin:pica"}]})")).find("cells[0].name"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "cells": [{"name": "x"}, {"name": "x"}]})")).find("cells[1].name"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "cells": [{"name": "x", "bogus": 1}]})")).find("bogus"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "cells": [{"name": "x"}], "expect": {"y": {}}})")).find("expect.y"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "expect": {"y": {}}})")).find("expect"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "cells": [], "axes": {}})")).find("cells"), std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": 3})")).find("report"), std::string::npos);
+}
+
 TEST(Matrix, MissingFileAndBrokenJson) {
   try {
     load_matrix("/nonexistent/x.json");
