@@ -25,6 +25,7 @@ struct TraceArgs {
   std::string out;
   std::string passes = "shadows,reflections";
   uint32_t sample_every = 1;
+  uint32_t sample_block = 1;
   uint32_t buffer_mib = 64;
   uint32_t frames_before = 0;
   std::string image_layout = "tiled";
@@ -57,6 +58,7 @@ void run_trace(const TraceArgs& a) {
   }
   co.tiled_images = a.image_layout == "tiled";
   co.sample_every = a.sample_every;
+  co.sample_block = a.sample_block;
   co.buffer_bytes = uint64_t(a.buffer_mib) << 20;
   // The preset is checked before any work, so a typo costs nothing.
   const cachesim::Preset preset = a.din_out.empty() ? cachesim::Preset{} : cachesim::find_preset(a.preset);
@@ -118,8 +120,11 @@ void add_trace_command(CLI::App& app) {
   a->frame.add_to(cmd);
   cmd->add_option("--out", a->out, "trace file to write (binary, documented in README)");
   cmd->add_option("--passes", a->passes, "passes to trace: shadows, reflections (comma-separated)")->capture_default_str();
-  cmd->add_option("--sample-every", a->sample_every, "record every k-th workgroup (in dispatch order)")
-      ->check(CLI::Range(1u, 1u << 30))
+  cmd->add_option("--sample-every", a->sample_every, "record every k-th workgroup burst (in dispatch order)")
+      ->check(CLI::Range(1u, 0xFFFFFu))
+      ->capture_default_str();
+  cmd->add_option("--sample-block", a->sample_block,
+                  "workgroups per sampled burst (power of two <= 2048): every k-th burst is recorded")
       ->capture_default_str();
   cmd->add_option("--trace-buffer-mib", a->buffer_mib, "GPU trace buffer per slice (bounded by maxStorageBufferRange)")
       ->check(CLI::Range(1u, 4096u))

@@ -1,5 +1,7 @@
 #include "frame.hpp"
 
+#include <bit>
+
 #include "common/trace_buffers.h"
 #include "error.hpp"
 
@@ -269,7 +271,14 @@ trace::TraceHeader Frame::trace_header(bool tiled) const {
 
 std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace::TraceWriter& writer) {
   if (!rt_passes_) throw InputError("trace: no ray-tracing pass is enabled, nothing to trace");
-  if (o.sample_every == 0) throw InputError("trace: --sample-every must be at least 1");
+  if (o.sample_every == 0 || o.sample_every > 0xFFFFFu) {
+    throw InputError("trace: --sample-every must be in 1.." + std::to_string(0xFFFFFu));
+  }
+  if (o.sample_block == 0 || o.sample_block > 2048 || (o.sample_block & (o.sample_block - 1)) != 0) {
+    throw InputError("trace: --sample-block " + std::to_string(o.sample_block) + " must be a power of two in 1..2048");
+  }
+  const uint32_t block_log2 = uint32_t(std::countr_zero(o.sample_block));
+  const uint32_t sampling = o.sample_every | (block_log2 << 20);
   const uint64_t limit = ctx_.properties().limits.maxStorageBufferRange;
   const uint64_t bytes = o.buffer_bytes ? o.buffer_bytes : std::min<uint64_t>(64ull << 20, limit);
   if (bytes > limit) {
@@ -310,7 +319,7 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
     CapturedPass cp;
     cp.pass = name;
     cp.workgroups = uint64_t(wg.x) * wg.y;
-    for (uint64_t w = 0; w < cp.workgroups; ++w) cp.sampled_workgroups += (w % o.sample_every) == 0;
+    for (uint64_t w = 0; w < cp.workgroups; ++w) cp.sampled_workgroups += ((w >> block_log2) % o.sample_every) == 0;
     // 2D passes slice rows of wg.x groups; the 1D consume pass slices its single row group by group.
     const bool one_d = pass == Traced::consume;
     const uint32_t units = one_d ? wg.x : wg.y;
@@ -322,7 +331,7 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
       head->count = 0;
       head->capacity = capacity;
       head->pass_id = pass_index;
-      rt_passes_->set_slice(unit, o.sample_every);
+      rt_passes_->set_slice(unit, sampling);
       ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_traced_slice(cmd, pass, unit, n); });
       const uint32_t count = head->count;
       if (count > capacity) {

@@ -62,7 +62,11 @@ struct FrameTiming {
 struct CaptureOptions {
   bool shadows = true;          ///< trace the shadow pass (when it is enabled)
   bool reflections = true;      ///< trace the reflection pass (when it is enabled)
-  uint32_t sample_every = 1;    ///< record every k-th workgroup (dispatch order); 1 = all
+  uint32_t sample_every = 1;    ///< record every k-th burst of workgroups (dispatch order); 1 = all
+  /// Workgroups per burst, a power of two up to 2048: consecutive workgroups are traced together, so the
+  /// sampled trace keeps the sharing between neighbouring workgroups that the caches see (1 = single
+  /// workgroups, the plain every-k-th sampling).
+  uint32_t sample_block = 1;
   uint64_t buffer_bytes = 0;    ///< trace buffer size; 0 = min(64 MiB, maxStorageBufferRange)
   bool tiled_images = true;     ///< G-buffer and outputs laid out in 8x8-texel tiles (else linear rows)
 };

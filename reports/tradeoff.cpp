@@ -356,7 +356,9 @@ std::map<std::string, LevelRates> cache_rates(const CellResult& c) {
 
 std::string cache_sampling_section(const std::vector<CellResult>& cells, std::vector<ReportFile>& charts) {
   std::string s = "### Cache simulation on sampled traces\n\n";
-  const std::vector<std::string> key_ignore = {"/trace/sample_every"};
+  // The burst length (trace.sample_block) does not matter for a full trace (k = 1): any full cell partners
+  // every burst length, and each burst length is a group of its own.
+  const std::vector<std::string> key_ignore = {"/trace/sample_every", "/trace/sample_block"};
   std::vector<const CellResult*> traced;
   for (const CellResult& c : cells)
     if (c.cache.is_object()) traced.push_back(&c);
@@ -366,6 +368,7 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
   // Groups: a full-trace cell and its sampled partners, in the order the full cells appear.
   struct Group {
     const CellResult* full;
+    double block;
     std::vector<std::pair<double, const CellResult*>> sampled;
   };
   std::vector<Group> groups;
@@ -378,9 +381,11 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
       orphans.push_back(cell_label(*c) + " (sample_every " + general(k) + ")");
       continue;
     }
-    auto g = std::find_if(groups.begin(), groups.end(), [&](const Group& x) { return x.full == it->second; });
+    const double block = number_at(c->config["trace"], "sample_block").value_or(1.0);
+    auto g = std::find_if(groups.begin(), groups.end(),
+                          [&](const Group& x) { return x.full == it->second && x.block == block; });
     if (g == groups.end()) {
-      groups.push_back({it->second, {}});
+      groups.push_back({it->second, block, {}});
       g = groups.end() - 1;
     }
     g->sampled.push_back({k, c});
@@ -388,7 +393,8 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
   if (groups.empty() && orphans.empty()) {
     return s + "No traced cell samples its trace (`trace.sample_every` > 1), so there is nothing to compare with the full trace.\n\n";
   }
-  s += "Each traced cell with `trace.sample_every` k > 1 (the memory accesses of every k-th workgroup, in dispatch order, replayed through the caches) "
+  s += "Each traced cell with `trace.sample_every` k > 1 (the memory accesses of every k-th burst of `trace.sample_block` "
+       "consecutive workgroups, in dispatch order, replayed through the caches) "
        "against the cell with the same configuration traced in full (k = 1). |error| is the absolute difference of the hit "
        "rates in percentage points; the per-buffer column is the largest such difference over the pass's buffers' L1 hit "
        "rates. Simulation time is the cache simulator's wall time for the cell (all traced passes); speed-up = full / sampled.\n\n";
@@ -423,7 +429,9 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
       const auto fr = cache_rates(*g.full);
       const auto fp = fr.find(pass);
       if (fp == fr.end()) continue;
-      const std::string group_label = varying_label(*g.full, all_group_cells, {"sample_every"});
+      std::string group_label = varying_label(*g.full, all_group_cells, {"sample_every", "sample_block"});
+      group_label = (group_label.empty() || group_label == g.full->name ? "" : group_label + ", ") + "bursts of " +
+                    general(g.block) + (g.block == 1.0 ? " workgroup" : " workgroups");
       const auto full_sim = number_at(g.full->cache, "simulation_s");
       s += "| " + md_escape(group_label) + " | 1 | " + pct(fp->second.l1) + " | — | " + pct(fp->second.l2) + " | — | — | " +
            (full_sim ? fmt("%.2f", *full_sim) : "—") + " | 1× |\n";
@@ -466,6 +474,57 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
       s += "(" + std::to_string(zero_points) + " exact point(s), |error| = 0, are not drawn on the log axis.)\n\n";
   } else if (!groups.empty()) {
     s += "Every sampled hit rate equals the full trace's (|error| = 0), so there is no log-scale chart.\n\n";
+  }
+  // Speed against error: each cell's simulator time against its mean |hit-rate error| (L1 and L2 over every
+  // traced pass; the full trace at 0), with the Pareto front.
+  struct Summary {
+    std::string label;
+    double sim, err;
+  };
+  std::vector<Summary> sums;
+  for (const Group& g : groups) {
+    const auto full_sim = number_at(g.full->cache, "simulation_s");
+    if (full_sim && std::none_of(sums.begin(), sums.end(), [&](const Summary& x) { return x.err == 0.0 && x.sim == *full_sim; })) {
+      sums.push_back({"full trace", *full_sim, 0.0});
+    }
+    const auto fr = cache_rates(*g.full);
+    for (const auto& [k, c] : g.sampled) {
+      const auto sim = number_at(c->cache, "simulation_s");
+      if (!sim) continue;
+      double total = 0.0;
+      int n = 0;
+      for (const auto& [pass, r] : cache_rates(*c)) {
+        const auto f = fr.find(pass);
+        if (f == fr.end()) continue;
+        for (const auto& e : {pp(r.l1, f->second.l1), pp(r.l2, f->second.l2)}) {
+          if (e) total += *e, ++n;
+        }
+      }
+      if (n == 0) continue;
+      sums.push_back({"k=" + general(k) + ", bursts of " + general(g.block), *sim, total / n});
+    }
+  }
+  if (sums.size() > 1) {
+    std::vector<std::pair<double, double>> pts;
+    for (const Summary& x : sums) pts.emplace_back(x.sim, x.err);
+    const std::vector<bool> front = pareto_front(pts);
+    std::vector<size_t> order(sums.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return sums[a].sim < sums[b].sim; });
+    svg::ScatterChart sc;
+    sc.title = "Cache simulation: simulator time against the error of the sampled hit rates";
+    sc.x_label = "simulator wall time, s";
+    sc.y_label = "mean |hit-rate error| over passes and levels, pp";
+    s += "Time against error: the simulator's wall time against the mean |hit-rate error| (L1 and L2 of every traced pass, "
+         "percentage points); the Pareto front (both lower is better) is marked.\n\n"
+         "| sampling | simulation (s) | mean \\|error\\| (pp) | Pareto |\n|---|---|---|---|\n";
+    for (size_t i : order) {
+      s += "| " + md_escape(sums[i].label) + " | " + fmt("%.3f", sums[i].sim) + " | " + fmt("%.3f", sums[i].err) + " | " +
+           (front[i] ? "**yes**" : "no") + " |\n";
+      sc.points.push_back({sums[i].sim, sums[i].err, sums[i].label, "", bool(front[i])});
+    }
+    charts.push_back({"charts/cache_sampling_tradeoff.svg", svg::render(sc)});
+    s += "\n![simulator time against hit-rate error](charts/cache_sampling_tradeoff.svg)\n\n";
   }
   if (!orphans.empty()) {
     s += "Without a full-trace partner (no cell with the same configuration and `trace.sample_every` 1), so not compared: " +

@@ -278,6 +278,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       co.shadows = std::find(s.trace_passes.begin(), s.trace_passes.end(), "shadows") != s.trace_passes.end();
       co.reflections = std::find(s.trace_passes.begin(), s.trace_passes.end(), "reflections") != s.trace_passes.end();
       co.sample_every = s.trace_sample_every;
+      co.sample_block = s.trace_sample_block;
       co.tiled_images = s.trace_tiled_images;
       const fs::path trace_path = cell_dir / "trace.hptrace";
       std::vector<CapturedPass> captured;
@@ -299,7 +300,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
         for (const CapturedPass& c : captured) {
           if (c.pass == p["pass"]) {
             p["capture"] = {{"workgroups", c.workgroups}, {"sampled_workgroups", c.sampled_workgroups},
-                            {"sample_every", s.trace_sample_every}, {"slices", c.slices}, {"reruns", c.reruns}};
+                            {"sample_every", s.trace_sample_every}, {"sample_block", s.trace_sample_block}, {"slices", c.slices}, {"reruns", c.reruns}};
           }
         }
       }

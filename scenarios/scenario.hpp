@@ -32,6 +32,7 @@ struct Scenario {
   /// workgroup, whether the trace file is kept beside the results, the image address layout.
   std::vector<std::string> trace_passes;
   uint32_t trace_sample_every = 1;
+  uint32_t trace_sample_block = 1;  ///< workgroups per sampled burst (CaptureOptions::sample_block)
   bool trace_keep = false;
   bool trace_tiled_images = true;
   /// A documented knob for validating the regression gate: the named pass does this much extra work

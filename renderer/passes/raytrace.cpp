@@ -229,9 +229,9 @@ void RayTracingPasses::begin_frame(uint32_t sample_index) {
   std::memcpy(params_.mapped(), &p, sizeof(p));
 }
 
-void RayTracingPasses::set_slice(uint32_t first_row, uint32_t sample_every) {
+void RayTracingPasses::set_slice(uint32_t first_row, uint32_t sampling) {
   params_cache_.frame.z = first_row;
-  params_cache_.frame.w = sample_every;
+  params_cache_.frame.w = sampling;
   std::memcpy(params_.mapped(), &params_cache_, sizeof(params_cache_));
 }
 

@@ -100,7 +100,7 @@ class RayTracingPasses {
   /// dispatch; every `sample_every`-th workgroup (in dispatch order) records its accesses.
   enum class Traced { shadows, reflections, compact, consume };
   void record_traced_slice(VkCommandBuffer cmd, Traced pass, uint32_t first_row, uint32_t rows);
-  void set_slice(uint32_t first_row, uint32_t sample_every);
+  void set_slice(uint32_t first_row, uint32_t sampling);  ///< sampling: k | log2(burst) << 20
   /// Workgroups of a pass's full dispatch, x and y: 8x8 invocations each, except the consume pass
   /// (64 x 1, one row of ceil(rays / 64) groups; `rays` is read back by the caller).
   glm::uvec2 workgroups(Traced pass, uint32_t rays = 0) const;

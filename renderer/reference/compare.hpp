@@ -41,7 +41,7 @@ struct CompareOptions {
   double min_normal_dot = 0.95;
 };
 
-/// {"image": {...metrics...}, "shadow": {compared, acne, leaks, coverage_mismatch} (when `gpu.shadow` is
+/// {"image": {...metrics...}, "shadow": {compared, acne, leaks, wrong = acne + leaks, coverage_mismatch} (when `gpu.shadow` is
 /// not empty), "depth": {pixels, mean_rel, max_rel, bins: [{near, far, pixels, mean_rel, max_rel}]},
 /// "coverage_mismatch": n}. Throws std::invalid_argument when the sizes differ.
 nlohmann::json compare_with_reference(const FrameReadback& gpu, const ReferenceImage& ref, const WorldTransform& t,

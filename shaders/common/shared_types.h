@@ -81,7 +81,8 @@ struct RayParams {
   uvec4 grid;        // x, y = reflection grid size; z = reflection scale divisor (1, 2, 4); w = flags (HP_RT_*)
   vec4 shadow;       // x = normal bias (world units), y = offset mode (HP_OFFSET_*)
   vec4 reflection;   // x = roughness threshold (reflective when roughness < x), y = jitter mode (HP_JITTER_*)
-  uvec4 frame;       // x = sample index (frames since the last reset), y = seed, z = triangles, w = nodes
+  uvec4 frame;       // x = sample index (frames since the last reset), y = seed, z = first workgroup row of a
+                     // traced slice, w = trace sampling (k | log2(burst) << 20, trace_capture.glsl)
   vec4 jitter;       // xy = this frame's shared offset in [0, 1)^2 (HP_JITTER_SHARED)
   vec4 bounds_min;   // xyz: scene bounds (origin sort keys); w = sort key mode (HP_SORT_*)
   vec4 bounds_max;   // xyz: scene bounds; w = write-back mode (HP_WRITEBACK_*)

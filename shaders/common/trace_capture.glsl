@@ -18,10 +18,13 @@ bool hp_trace_on = false;       // this workgroup is sampled
 
 // Call once at the start of main(), with the workgroup's position in the full dispatch. The group size is
 // passed in: this file is included before main's local_size layout, where gl_WorkGroupSize is still 1.
-void hp_trace_begin(uvec2 workgroup, uint workgroups_x, uint sample_every, uint group_invocations) {
+// `sampling`: the low 20 bits are k, the bits above log2 of the burst length B: the workgroups of every k-th
+// burst of B consecutive workgroups (dispatch order) record (B = 1: every k-th workgroup).
+void hp_trace_begin(uvec2 workgroup, uint workgroups_x, uint sampling, uint group_invocations) {
   uint wg_linear = workgroup.y * workgroups_x + workgroup.x;
   hp_trace_invocation = wg_linear * group_invocations + gl_LocalInvocationIndex;
-  hp_trace_on = sample_every <= 1u || (wg_linear % sample_every) == 0u;
+  uint k = sampling & 0xFFFFFu;
+  hp_trace_on = k <= 1u || ((wg_linear >> (sampling >> 20)) % k) == 0u;
 }
 
 void hp_rec(uint buffer_id, uint kind, uint offset, uint size) {

@@ -4,7 +4,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <limits>
@@ -456,20 +455,19 @@ TEST(Flip, MeanUsesOnlyMaskedPixels) {
   EXPECT_EQ(r, 0.0);  // 30+ pixels from the change: beyond every filter's reach
 }
 
-TEST(Flip, Timing1280x720) {
+// A full 720p image runs through (its speed is measured by hp_bench_reference, not here).
+TEST(Flip, HandlesA720pImage) {
   const Image4f a = random_image(1280, 720, 7);
   Image4f b = a;
   std::mt19937 rng(8);
   std::normal_distribution<float> g(0.0f, 0.05f);
   for (std::size_t i = 0; i < b.rgba.size(); i += 4)
     for (int c = 0; c < 3; ++c) b.rgba[i + c] += g(rng);
-  const auto t0 = std::chrono::steady_clock::now();
   const Image4f map = flip_error_map(b, a);
-  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::cout << "[ timing ] LDR-FLIP 1280x720: " << s << " s\n";
-  RecordProperty("flip_1280x720_seconds", std::to_string(s));
+  ASSERT_EQ(map.width, 1280u);
+  ASSERT_EQ(map.height, 720u);
   EXPECT_GT(map_max(map), 0.0f);
-  EXPECT_LT(s, 60.0);  // loose: also runs in sanitizer/debug builds; Release is well under 2 s
+  EXPECT_LE(map_max(map), 1.0f);
 }
 
 }  // namespace

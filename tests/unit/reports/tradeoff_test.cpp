@@ -294,15 +294,24 @@ TEST(CacheSamplingSection, ErrorsAgainstTheFullTrace) {
   const std::string& md = r.markdown;
   ASSERT_NE(md.find("### Cache simulation on sampled traces"), std::string::npos) << md;
   ASSERT_NE(md.find("#### reflections"), std::string::npos);
-  for (const char* s : {"| geometry=indexed | 1 | 90.00% | — | 50.00% | — | — | 10.00 | 1× |",
-                        "| geometry=indexed | 4 | 89.00% | 1.000 | 52.00% | 2.000 | 2.000 | 2.50 | 4.0× |",
-                        "| geometry=indexed | 16 | 85.00% | 5.000 | 60.00% | 10.000 | 10.000 | 1.00 | 10.0× |"})
+  for (const char* s : {"| geometry=indexed, bursts of 1 workgroup | 1 | 90.00% | — | 50.00% | — | — | 10.00 | 1× |",
+                        "| geometry=indexed, bursts of 1 workgroup | 4 | 89.00% | 1.000 | 52.00% | 2.000 | 2.000 | 2.50 | 4.0× |",
+                        "| geometry=indexed, bursts of 1 workgroup | 16 | 85.00% | 5.000 | 60.00% | 10.000 | 10.000 | 1.00 | 10.0× |"})
     EXPECT_NE(md.find(s), std::string::npos) << s << "\n" << md;
-  EXPECT_LT(md.find("| geometry=indexed | 4 |"), md.find("| geometry=indexed | 16 |"));
+  EXPECT_LT(md.find("| geometry=indexed, bursts of 1 workgroup | 4 |"),
+            md.find("| geometry=indexed, bursts of 1 workgroup | 16 |"));
+  // Time against error: mean |error| over L1 and L2, the full trace at 0, every point on the front here.
+  for (const char* s : {"| k=16, bursts of 1 | 1.000 | 7.500 | **yes** |", "| k=4, bursts of 1 | 2.500 | 1.500 | **yes** |",
+                        "| full trace | 10.000 | 0.000 | **yes** |"})
+    EXPECT_NE(md.find(s), std::string::npos) << s << "\n" << md;
+  EXPECT_LT(md.find("| k=16, bursts of 1 |"), md.find("| full trace |"));  // sorted by time
+  const ReportFile* tradeoff = chart(r, "charts/cache_sampling_tradeoff.svg");
+  ASSERT_NE(tradeoff, nullptr);
+  EXPECT_NE(tradeoff->content.find("class=\"pareto\""), std::string::npos);
   // The soup cell has no full-trace partner: listed, not compared.
   EXPECT_NE(md.find("Without a full-trace partner"), std::string::npos);
   EXPECT_NE(md.find("geometry=soup, sample_every=4 (sample_every 4)"), std::string::npos) << md;
-  EXPECT_EQ(md.find("| geometry=soup |"), std::string::npos);
+  EXPECT_EQ(md.find("| geometry=soup"), std::string::npos);
   // The chart: error against k on log axes, one line per level.
   EXPECT_NE(md.find("](charts/cache_sampling.svg)"), std::string::npos);
   const ReportFile* svg = chart(r, "charts/cache_sampling.svg");
