@@ -32,6 +32,7 @@ struct CachesimArgs {
   std::string l1 = "16k:64:4", l2 = "4m:64:16";
   double shards = 1.0;
   uint32_t export_cu = 0;
+  uint32_t scale_model = 1;
   bool per_invocation = false;
 };
 
@@ -77,7 +78,7 @@ void write_atomically(const std::string& path, const std::string& text) {
 }
 
 void run_trace(const CachesimArgs& a) {
-  const Preset preset = find_preset(a.preset);
+  const Preset preset = scale_for_sampling(find_preset(a.preset), a.scale_model);
   trace::TraceReader reader(a.trace_path);
   const auto& header = reader.header();
   SimOptions opt;
@@ -208,6 +209,10 @@ void add_cachesim_command(CLI::App& app) {
   cmd->add_option("--shards", args->shards, "Sample miss-ratio curves at this rate (SHARDS), 1 = exact")
       ->check(CLI::Range(1e-6, 1.0));
   cmd->add_flag("--per-invocation", args->per_invocation, "Include per-invocation L1/L2 miss counts in --out");
+  cmd->add_option("--scale-model", args->scale_model,
+                  "The trace records 1 in K workgroups (trace --sample-every K): replay it on 1/K of the CUs and L2")
+      ->check(CLI::Range(1u, 0xFFFFFu))
+      ->capture_default_str();
   cmd->add_option("--export-din", args->export_din_path, "Write one CU's coalesced L1 load stream as Dinero text");
   cmd->add_option("--export-pass", args->export_pass, "Pass to export (default: the first)");
   cmd->add_option("--export-cu", args->export_cu, "Compute unit to export")->capture_default_str();

@@ -70,7 +70,7 @@ json curve_json(const cachesim::MissRatioCurve& c) {
 }  // namespace
 
 json analyse_trace(const std::string& trace_path, const CacheAnalysisOptions& o) {
-  const cachesim::Preset preset = cachesim::find_preset(o.preset);
+  const cachesim::Preset preset = cachesim::scale_for_sampling(cachesim::find_preset(o.preset), o.scale_for_sampling);
   trace::TraceReader reader(trace_path);
   cachesim::SimOptions so;
   so.per_invocation = !o.heatmap_dir.empty();

@@ -14,6 +14,9 @@ struct CacheAnalysisOptions {
   std::string heatmap_dir;        ///< where heatmaps are written ("" = none)
   std::string heatmap_prefix;     ///< file name prefix, e.g. the cell id
   bool curves = true;             ///< L1 and L2 miss-ratio curves
+  /// > 1: the trace records 1 in this many workgroups; replay it on the preset scaled down by as much
+  /// (cachesim::scale_for_sampling).
+  uint32_t scale_for_sampling = 1;
 };
 
 /// Replays every pass of `trace_path` and returns {"preset", "passes": [...]} (schema in README, "Cache

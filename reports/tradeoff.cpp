@@ -358,7 +358,7 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
   std::string s = "### Cache simulation on sampled traces\n\n";
   // The burst length (trace.sample_block) does not matter for a full trace (k = 1): any full cell partners
   // every burst length, and each burst length is a group of its own.
-  const std::vector<std::string> key_ignore = {"/trace/sample_every", "/trace/sample_block"};
+  const std::vector<std::string> key_ignore = {"/trace/sample_every", "/trace/sample_block", "/trace/scale_model"};
   std::vector<const CellResult*> traced;
   for (const CellResult& c : cells)
     if (c.cache.is_object()) traced.push_back(&c);
@@ -369,6 +369,7 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
   struct Group {
     const CellResult* full;
     double block;
+    std::string key;  // the sampled cells' configuration without k: one group per burst length and model
     std::vector<std::pair<double, const CellResult*>> sampled;
   };
   std::vector<Group> groups;
@@ -382,10 +383,10 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
       continue;
     }
     const double block = number_at(c->config["trace"], "sample_block").value_or(1.0);
-    auto g = std::find_if(groups.begin(), groups.end(),
-                          [&](const Group& x) { return x.full == it->second && x.block == block; });
+    const std::string key = match_key_ignoring(*c, {"/trace/sample_every"});
+    auto g = std::find_if(groups.begin(), groups.end(), [&](const Group& x) { return x.full == it->second && x.key == key; });
     if (g == groups.end()) {
-      groups.push_back({it->second, block, {}});
+      groups.push_back({it->second, block, key, {}});
       g = groups.end() - 1;
     }
     g->sampled.push_back({k, c});
@@ -429,7 +430,8 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
       const auto fr = cache_rates(*g.full);
       const auto fp = fr.find(pass);
       if (fp == fr.end()) continue;
-      std::string group_label = varying_label(*g.full, all_group_cells, {"sample_every", "sample_block"});
+      std::string group_label = g.sampled.empty() ? std::string()
+                                : varying_label(*g.sampled.front().second, all_group_cells, {"sample_every", "sample_block"});
       group_label = (group_label.empty() || group_label == g.full->name ? "" : group_label + ", ") + "bursts of " +
                     general(g.block) + (g.block == 1.0 ? " workgroup" : " workgroups");
       const auto full_sim = number_at(g.full->cache, "simulation_s");
@@ -501,7 +503,10 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
         }
       }
       if (n == 0) continue;
-      sums.push_back({"k=" + general(k) + ", bursts of " + general(g.block), *sim, total / n});
+      const std::string other = varying_label(*c, all_group_cells, {"sample_every", "sample_block"});
+      sums.push_back({"k=" + general(k) + ", bursts of " + general(g.block) +
+                          (other.empty() || other == c->name ? "" : ", " + other),
+                      *sim, total / n});
     }
   }
   if (sums.size() > 1) {

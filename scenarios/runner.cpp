@@ -289,6 +289,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       }
       CacheAnalysisOptions ao;
       ao.preset = s.cache_preset;
+      if (s.trace_scale_model) ao.scale_for_sampling = s.trace_sample_every;  // 1 for a full trace
       ao.heatmap_dir = cell_dir.string();
       const auto t_sim = std::chrono::steady_clock::now();
       json cache = analyse_trace(trace_path.string(), ao);

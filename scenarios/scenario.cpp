@@ -201,7 +201,7 @@ Scenario parse_scenario(const json& j, const std::string& file, const std::strin
   f.rt.counters = r.boolean("counters", true);
   f.rt.seed = uint32_t(r.integer("seed", 1, 0, 0xFFFFFFFFll));
   s.cache_preset = r.string("cache_preset", s.cache_preset);
-  if (const json* t = r.object("trace", {"passes", "sample_every", "sample_block", "keep", "image_layout"})) {
+  if (const json* t = r.object("trace", {"passes", "sample_every", "sample_block", "scale_model", "keep", "image_layout"})) {
     Reader tr{*t, file, r.where("trace")};
     if (const json* ps = tr.get("passes")) {
       if (!ps->is_array()) fail(file, tr.where("passes"), "expected a list of pass names");
@@ -215,6 +215,7 @@ Scenario parse_scenario(const json& j, const std::string& file, const std::strin
     s.trace_sample_every = uint32_t(tr.integer("sample_every", 1, 1, 0xFFFFF));
     s.trace_sample_block = uint32_t(tr.integer("sample_block", 1, 1, 2048));
     if ((s.trace_sample_block & (s.trace_sample_block - 1)) != 0) fail(file, tr.where("sample_block"), "must be a power of two");
+    s.trace_scale_model = tr.boolean("scale_model", true);
     s.trace_keep = tr.boolean("keep", false);
     s.trace_tiled_images = tr.choice("image_layout", "tiled", {"tiled", "linear"}) == "tiled";
   }
@@ -289,6 +290,7 @@ json Scenario::canonical() const {
                 {"sample_every", trace_sample_every},
                 {"image_layout", trace_tiled_images ? "tiled" : "linear"}};  // keep: where files go, not what runs
   if (trace_sample_block != 1) j["trace"]["sample_block"] = trace_sample_block;  // only when set: ids stay
+  if (trace_sample_every > 1) j["trace"]["scale_model"] = trace_scale_model;  // irrelevant to a full trace
   // Like the compaction keys, a transform and error metrics enter only when set, so the ids of the
   // scenarios without them stay as they were.
   if (world_scale != 1.0 || world_translate != glm::dvec3(0.0)) {

@@ -33,6 +33,9 @@ struct Scenario {
   std::vector<std::string> trace_passes;
   uint32_t trace_sample_every = 1;
   uint32_t trace_sample_block = 1;  ///< workgroups per sampled burst (CaptureOptions::sample_block)
+  /// Replay a sampled trace on the cache model scaled down by k (cachesim::scale_for_sampling); measured
+  /// in sweep_cache_sampling.json to cut the L1 hit-rate error of sampled traces several times over.
+  bool trace_scale_model = true;
   bool trace_keep = false;
   bool trace_tiled_images = true;
   /// A documented knob for validating the regression gate: the named pass does this much extra work

@@ -185,4 +185,18 @@ Preset find_preset(std::string_view name_or_path) {
   throw InputError("unknown preset '" + arg + "' (known: " + (known.empty() ? "none found" : known) + ")");
 }
 
+Preset scale_for_sampling(const Preset& p, uint32_t k) {
+  if (k <= 1) return p;
+  Preset s = p;
+  s.name = p.name + "/" + std::to_string(k);
+  s.compute_units = std::max<uint32_t>(1, (p.compute_units + k / 2) / k);
+  CacheConfig& l2 = s.l2;
+  const uint64_t set_bytes = uint64_t(l2.line_bytes) * l2.ways;
+  while (l2.channels > 1 && p.l2.size_bytes / k < set_bytes * l2.channels) l2.channels /= 2;
+  const uint64_t unit = set_bytes * l2.channels;
+  l2.size_bytes = std::max<uint64_t>(unit, (p.l2.size_bytes / k) / unit * unit);
+  if (!check_config(l2).empty()) l2 = p.l2;  // cannot scale: keep the full L2 (stated by the name only)
+  return s;
+}
+
 }  // namespace hp::cachesim

@@ -45,6 +45,12 @@ Preset parse_preset(std::string_view json_text, const std::string& origin);
 Preset load_preset_file(const std::filesystem::path& path);
 // By name (shipped presets) or path; an unknown name lists the known ones.
 Preset find_preset(std::string_view name_or_path);
+
+// The preset scaled down for a trace that records 1 in `k` workgroups: 1/k of the compute units (each
+// keeps its L1 and its occupancy, so a CU still sees as many workgroups, as densely, as in the full
+// frame) and 1/k of the L2 (fewer sets, same ways and lines; channels reduced to fit), so the shared L2
+// sees the traffic of 1/k of the CUs in 1/k of the space. k = 1 returns the preset unchanged.
+Preset scale_for_sampling(const Preset& preset, uint32_t k);
 std::vector<std::string> known_presets();
 std::vector<std::filesystem::path> preset_dirs();
 

@@ -99,5 +99,31 @@ TEST(Preset, FileErrorsNameThePath) {
   EXPECT_THROW(find_preset((dir / "missing.json").string()), InputError);
 }
 
+TEST(Preset, ScaledForSamplingKeepsPerCuResourcesAndShrinksTheShared) {
+  const Preset v = find_preset("vega56");
+  EXPECT_EQ(scale_for_sampling(v, 1).compute_units, v.compute_units);
+  EXPECT_EQ(scale_for_sampling(v, 1).name, v.name);
+  const Preset s = scale_for_sampling(v, 4);
+  EXPECT_EQ(s.compute_units, 14u);              // 56 / 4
+  EXPECT_EQ(s.l1.size_bytes, v.l1.size_bytes);  // each CU keeps its L1 ...
+  EXPECT_EQ(s.max_waves_per_cu, v.max_waves_per_cu);  // ... and its occupancy
+  EXPECT_EQ(s.l2.size_bytes, v.l2.size_bytes / 4);
+  EXPECT_EQ(s.l2.ways, v.l2.ways);
+  EXPECT_EQ(s.l2.line_bytes, v.l2.line_bytes);
+  EXPECT_TRUE(check_config(s.l2).empty()) << check_config(s.l2);
+  EXPECT_EQ(s.name, "vega56/4");
+  // Far past the CU count: one CU, and an L2 that still holds one set per channel.
+  const Preset tiny = scale_for_sampling(v, 1u << 19);
+  EXPECT_EQ(tiny.compute_units, 1u);
+  EXPECT_TRUE(check_config(tiny.l2).empty()) << check_config(tiny.l2);
+  EXPECT_GE(tiny.l2.size_bytes, uint64_t(tiny.l2.line_bytes) * tiny.l2.ways);
+  for (const char* name : {"ga102", "h100"}) {
+    const Preset p = find_preset(name);
+    const Preset q = scale_for_sampling(p, 16);
+    EXPECT_TRUE(check_config(q.l2).empty()) << name;
+    EXPECT_LT(q.l2.size_bytes, p.l2.size_bytes) << name;
+  }
+}
+
 }  // namespace
 }  // namespace hp::cachesim

@@ -175,6 +175,25 @@ TEST(Scenario, TransformAndErrorKeys) {
   EXPECT_NE(error_of(json::parse(R"({"error": {"samples": 3}})")).find("error"), std::string::npos);
 }
 
+TEST(Scenario, TraceSamplingKeys) {
+  const Scenario full = parse_scenario(json::parse(R"({"trace": {"passes": ["shadows"]}})"), "f.json");
+  EXPECT_EQ(full.trace_sample_block, 1u);
+  EXPECT_FALSE(full.canonical()["trace"].contains("sample_block")) << "unset keys must not change existing ids";
+  EXPECT_FALSE(full.canonical()["trace"].contains("scale_model")) << "irrelevant to a full trace";
+  const Scenario s = parse_scenario(
+      json::parse(R"({"trace": {"passes": ["shadows"], "sample_every": 16, "sample_block": 64}})"), "f.json");
+  EXPECT_EQ(s.trace_sample_block, 64u);
+  EXPECT_TRUE(s.trace_scale_model);  // the default for sampled traces
+  EXPECT_EQ(s.canonical()["trace"]["scale_model"], true);
+  const Scenario u = parse_scenario(
+      json::parse(R"({"trace": {"passes": ["shadows"], "sample_every": 16, "scale_model": false}})"), "f.json");
+  EXPECT_NE(u.id(), parse_scenario(json::parse(R"({"trace": {"passes": ["shadows"], "sample_every": 16}})"), "f.json").id());
+  EXPECT_NE(error_of(json::parse(R"({"trace": {"sample_block": 48}})")).find("trace.sample_block: must be a power of two"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"trace": {"sample_block": 4096}})")).find("trace.sample_block"), std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"trace": {"sample_every": 2000000}})")).find("trace.sample_every"), std::string::npos);
+}
+
 TEST(Matrix, CellsAreNamedCasesMergedOntoTheBase) {
   const Matrix m = parse_matrix(json::parse(R"({"name": "hard", "base": {"resolution": [32, 16], "bias": 0.5},
       "cells": [{"name": "a", "scene": "builtin:cornell"},
