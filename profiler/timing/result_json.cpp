@@ -137,7 +137,10 @@ void from_json(const json& j, Counters& c) {
   for (const auto& [pass, counters] : j.items()) {
     if (!counters.is_object()) throw InputError("counters of pass '" + pass + "' must be an object");
     for (const auto& [name, value] : counters.items()) {
-      c.set(pass, name, within(pass, [&] { return get<std::uint64_t>(counters, name.c_str()); }));
+      // Plain references: clang before 16 cannot capture structured bindings in a lambda.
+      const json& pass_counters = counters;
+      const std::string& counter = name;
+      c.set(pass, name, within(pass, [&] { return get<std::uint64_t>(pass_counters, counter.c_str()); }));
     }
   }
 }

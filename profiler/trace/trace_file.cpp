@@ -109,10 +109,28 @@ const BufferInfo* TraceHeader::find_buffer(uint32_t id) const {
 
 // ------------------------------------------------------------------------------------------------ writer
 
+// A constructor that throws runs no destructor: this closes the FILE (and removes the unfinished file)
+// unless disarmed at the end of the constructor.
+namespace {
+struct CloseOnThrow {
+  std::FILE*& file;
+  const std::filesystem::path* remove = nullptr;
+  bool armed = true;
+  ~CloseOnThrow() {
+    if (!armed || !file) return;
+    std::fclose(file);
+    file = nullptr;
+    std::error_code ec;
+    if (remove) std::filesystem::remove(*remove, ec);
+  }
+};
+}  // namespace
+
 TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header)
     : path_(std::move(path)), tmp_path_(path_.string() + ".tmp") {
   file_ = std::fopen(tmp_path_.c_str(), "wb");
   if (!file_) throw InputError(tmp_path_.string() + ": cannot create trace file: " + std::strerror(errno));
+  CloseOnThrow guard{file_, &tmp_path_};
   FileHeader fh{};
   std::memcpy(fh.magic, kTraceMagic, 8);
   fh.version = kTraceVersion;
@@ -135,6 +153,7 @@ TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header)
   }
   put_chunk_header(kTagBuffers, payload.size());
   put(payload.data(), payload.size());
+  guard.armed = false;
 }
 
 TraceWriter::~TraceWriter() {
@@ -207,6 +226,9 @@ void TraceReader::fail(const std::string& what) const { throw InputError(one_lin
 TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
   file_ = std::fopen(path_.c_str(), "rb");
   if (!file_) fail(std::string("cannot open trace file: ") + std::strerror(errno));
+  // Every fail() below throws out of the constructor: without this each rejected file leaked its FILE and
+  // descriptor (fuzzer find: a tool reading many bad traces runs out of descriptors).
+  CloseOnThrow guard{file_};
   std::fseek(file_, 0, SEEK_END);
   const uint64_t file_size = uint64_t(std::ftell(file_));
   std::fseek(file_, 0, SEEK_SET);
@@ -313,6 +335,7 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
   }
   if (!have_buffers) fail("truncated: no buffer table");
   if (!have_end) fail("truncated: no END chunk (the writer did not finish)");
+  guard.armed = false;
 }
 
 TraceReader::~TraceReader() {

@@ -8,6 +8,7 @@
 #include <tiny_gltf.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -96,7 +97,8 @@ std::string_view glb_json_chunk(const std::string& path, const std::vector<unsig
 std::string decode_uri(const std::string& uri) {
   std::string out;
   for (std::size_t i = 0; i < uri.size(); ++i) {
-    if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(uri[i + 1]) && std::isxdigit(uri[i + 2])) {
+    if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
+        std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
       out += static_cast<char>(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
       i += 2;
     } else {
@@ -186,6 +188,14 @@ class ReferenceChecker {
   const std::string& path_;
   const json& root_;
 };
+
+/// tinygltf's own FileExists accepts a directory (or a FIFO, a device), and its ReadWholeFile then sizes its
+/// buffer by tellg(), which is 2^63 - 1 for a directory on ext4 and overlayfs: a buffer or image URI of "."
+/// asked for an 8 EiB allocation. Only regular files exist for tinygltf; a missing image stays a warning.
+bool regular_file_exists(const std::string& path, void*) {
+  std::error_code ec;
+  return fs::is_regular_file(path, ec);
+}
 
 /// Textures are never decoded: the renderer uses material factors only. Accepting every image also means
 /// a referenced image file that is missing (the shared scenes ship without textures) is not an error.
@@ -585,7 +595,7 @@ class Converter {
 bool ends_with_ci(const std::string& s, std::string_view suffix) {
   if (s.size() < suffix.size()) return false;
   return std::equal(suffix.begin(), suffix.end(), s.end() - suffix.size(),
-                    [](char a, char b) { return std::tolower(a) == std::tolower(b); });
+                    [](unsigned char a, unsigned char b) { return std::tolower(a) == std::tolower(b); });
 }
 
 }  // namespace
@@ -601,7 +611,8 @@ Scene load_gltf(const std::string& path) {
   json root;
   try {
     root = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
+    // Not only parse_error: a number too large for a double (1e400) is out_of_range.406 (fuzzer find).
     std::string what = e.what();
     // "[json.exception.parse_error.101] parse error at line 3, column 5: ..." -> drop the library's tag.
     if (const auto close = what.find("] "); what.starts_with("[json.exception") && close != std::string::npos)
@@ -619,12 +630,19 @@ Scene load_gltf(const std::string& path) {
       if (uri.starts_with("data:")) continue;
       const fs::path file = fs::path(base_dir) / decode_uri(uri);
       std::error_code ec;
-      if (!fs::exists(file, ec)) fail(path, idx("buffers", i) + ".uri", "'" + uri + "' not found (" + file.string() + ")");
+      const fs::file_status st = fs::status(file, ec);
+      if (!fs::exists(st)) fail(path, idx("buffers", i) + ".uri", "'" + uri + "' not found (" + file.string() + ")");
+      if (!fs::is_regular_file(st))
+        fail(path, idx("buffers", i) + ".uri",
+             "'" + uri + "' is " + (fs::is_directory(st) ? "a directory" : "not a regular file") + " (" +
+                 file.string() + ")");
     }
   }
 
   tinygltf::TinyGLTF gltf;
   gltf.SetImageLoader(skip_image, nullptr);
+  gltf.SetFsCallbacks(tinygltf::FsCallbacks{regular_file_exists, tinygltf::ExpandFilePath, tinygltf::ReadWholeFile,
+                                            tinygltf::WriteWholeFile, nullptr});
   tinygltf::Model model;
   std::string err, warn;  // warnings are only about textures that are not there, which we never need
   const bool ok = binary ? gltf.LoadBinaryFromMemory(&model, &err, &warn, bytes.data(),

@@ -192,6 +192,26 @@ TEST(TraceFile, WrappingRecordCountIsAnError) {
                                   ": record count does not match the chunk size");
 }
 
+size_t open_descriptors() {
+  size_t n = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator("/proc/self/fd")) ++n;
+  return n;
+}
+
+// Fuzzer find (2026-11-29, libFuzzer "malloc/free mismatch"): every file the reader rejected leaked its FILE
+// and descriptor, because fail() throws out of the constructor and ~TraceReader never runs.
+TEST(TraceFile, RejectedFilesDoNotLeakDescriptors) {
+  if (!fs::exists("/proc/self/fd")) GTEST_SKIP() << "no /proc/self/fd";
+  const auto good = tmp("leak.hptrace");
+  write_trace(good, sample());
+  const auto bytes = bytes_of(good);
+  const auto bad = tmp("leak_bad.hptrace");
+  write_bytes(bad, std::vector<char>(bytes.begin(), bytes.end() - 32));  // no END chunk
+  const size_t before = open_descriptors();
+  for (int i = 0; i < 64; ++i) EXPECT_NE(error_reading(bad).find("no END chunk"), std::string::npos);
+  EXPECT_EQ(open_descriptors(), before);
+}
+
 // Names come from the file; an error quoting one stays on one line.
 TEST(TraceFile, ErrorsQuotingANameStayOnOneLine) {
   Trace t = sample();

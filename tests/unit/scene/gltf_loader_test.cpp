@@ -225,6 +225,18 @@ TEST(GltfErrors, BrokenJson) {
   expect_input_error(path, "JSON", "parse error");
 }
 
+// Fuzzer find (2026-11-29): a number past a double's range is nlohmann's out_of_range.406, not a
+// parse_error, and escaped the loader as a library exception.
+TEST(GltfErrors, NumberTooLargeForADouble) {
+  TempDir dir;
+  QuadGltf q;
+  const std::string path = q.write(dir);
+  std::string text = q.doc.dump(1);
+  text.insert(text.find('{') + 1, "\"extras\": 1e400,");
+  test::write_text(path, text);
+  expect_input_error(path, "JSON", "number overflow");
+}
+
 TEST(GltfErrors, OutOfRangeAccessorIndex) {
   TempDir dir;
   QuadGltf q;
@@ -405,6 +417,31 @@ TEST(GltfErrors, MissingBufferFile) {
   const std::string path = q.write(dir);
   std::filesystem::remove(dir.file("quad.bin"));
   expect_input_error(path, "buffers[0].uri", "not found");
+}
+
+// Fuzzer find (2026-11-29): tinygltf reads a directory as a file of 2^63 - 1 bytes (its tellg() on ext4 and
+// overlayfs), so a buffer URI of "." threw std::bad_alloc (an 8 EiB allocation under ASan).
+TEST(GltfErrors, BufferUriThatIsADirectory) {
+  TempDir dir;
+  QuadGltf q;
+  std::filesystem::create_directories(dir.file("sub"));
+  for (const char* uri : {".", "sub", "sub/"}) {
+    QuadGltf d = q;
+    const std::string path = d.write(dir);
+    d.doc["buffers"][0]["uri"] = uri;
+    test::write_text(path, d.doc.dump(1));
+    expect_input_error(path, "buffers[0].uri", "is a directory");
+  }
+}
+
+TEST(GltfLoader, ImageUriThatIsADirectoryIsAMissingImageNotAnError) {
+  TempDir dir;
+  QuadGltf q;
+  q.doc["materials"] = {{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}};
+  q.doc["textures"] = {{{"source", 0}}};
+  q.doc["images"] = {{{"uri", "."}}};
+  q.doc["meshes"][0]["primitives"][0]["material"] = 0;
+  EXPECT_EQ(triangle_count(load_scene(q.write(dir))), 2u);
 }
 
 TEST(GltfErrors, NodeCycle) {
