@@ -503,10 +503,17 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
         }
       }
       if (n == 0) continue;
-      const std::string other = varying_label(*c, all_group_cells, {"sample_every", "sample_block"});
-      sums.push_back({"k=" + general(k) + ", bursts of " + general(g.block) +
-                          (other.empty() || other == c->name ? "" : ", " + other),
-                      *sim, total / n});
+      // The other axes that differ between the compared cells (e.g. scale_model), if any.
+      std::string other;
+      for (const auto& [axis, v] : c->axes.items()) {
+        const std::string leaf = axis_leaf(axis);
+        if (leaf == "sample_every" || leaf == "sample_block") continue;
+        const bool varies = std::any_of(all_group_cells.begin(), all_group_cells.end(), [&](const CellResult* o) {
+          return !o->axes.contains(axis) || o->axes[axis] != v;
+        });
+        if (varies) other += ", " + leaf + "=" + axis_value_text(v);
+      }
+      sums.push_back({"k=" + general(k) + ", bursts of " + general(g.block) + other, *sim, total / n});
     }
   }
   if (sums.size() > 1) {

@@ -320,6 +320,12 @@ Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<
     return m;
   }
   only_keys(doc, {"name", "base", "axes", "exclude", "report", "cells", "expect"}, file, "");
+  if (doc.contains("name") && !doc["name"].is_string()) {
+    fail(file, "name", std::string("expected a string, got ") + doc["name"].type_name());
+  }
+  if (doc.contains("base") && !doc["base"].is_object()) {
+    fail(file, "base", std::string("expected a scenario object, got ") + doc["base"].type_name());
+  }
   m.name = doc.value("name", "");
   if (doc.contains("report")) {
     if (!doc["report"].is_object()) fail(file, "report", "expected an object of report sections");
@@ -337,6 +343,9 @@ Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<
   for (const std::string& k : order) {
     if (!axes.contains(k)) continue;
     const json& v = axes.at(k);
+    if (k.empty() || k.front() == '.' || k.back() == '.' || k.find("..") != std::string::npos) {
+      fail(file, "axes." + k, "is not a key path (keys joined by '.')");
+    }
     if (!v.is_array() || v.empty()) fail(file, "axes." + k, "expected a non-empty list of values");
     ax.emplace_back(k, v);
     m.axes.push_back(k);
