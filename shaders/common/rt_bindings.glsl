@@ -55,24 +55,26 @@ vec3 hp_world_position(ivec2 p, float depth) {
 }
 
 // How far a position reconstructed from the depth buffer can be from the surface: the world distance
-// between the reconstructions at `depth` and 8 depth-buffer ULPs nearer the near plane's value. Wächter &
-// Binder's offset assumes an exact hit point; a G-buffer point is only as exact as its depth (measured:
-// about 1e-5 of the distance with a 32-bit standard-Z buffer), so the robust offset adds this much along
-// the normal (the point lies on the view ray, within this distance of the surface).
+// between the reconstructions at `depth` and 8 depth-buffer ULPs nearer the near plane's value (measured:
+// about 1e-5 of the distance with a 32-bit standard-Z buffer).
 float hp_depth_uncertainty(ivec2 p, float depth, vec3 pos) {
   uint bits = floatBitsToUint(depth);
   precise float d2 = uintBitsToFloat(bits > 8u ? bits - 8u : bits + 8u);
   return distance(hp_world_position(p, d2), pos);
 }
 
-// The robust origin of a ray leaving the G-buffer surface at pixel p. Besides the depth uncertainty, the
-// offset clears 8 ULPs of the point's largest coordinate: the BVH holds world-space float positions,
-// rounded to that grid, while the camera-relative G-buffer surface is not (far from the origin the two
-// surfaces differ by up to half an ULP of the coordinates).
+// The robust origin of a ray leaving the G-buffer surface at pixel p, moved along the normal only, by what
+// the point's error can be: the depth uncertainty, plus 8 ULPs of the largest world coordinate (the BVH
+// holds world-space floats rounded to that grid; the camera-relative G-buffer surface is not rounded) and
+// of the distance to the camera (rounding in the reconstruction). Wächter & Binder's offset (ray_offset.glsl)
+// is meant for hit points computed by a ray cast; applied here it was measured to fail both ways: its
+// 256-ULP steps per axis are 2 world units at 1e5 from the origin and move the point sideways (3,480 acne
+// pixels of 163,708), and its absolute 2^-16 near the origin is 1.5% of a world scaled by 1e-3 (README
+// "Speed against error").
 vec3 hp_offset_gbuffer(ivec2 p, float depth, vec3 pos, vec3 n) {
   vec3 a = abs(pos);
-  precise float grid = max(a.x, max(a.y, a.z)) * (1.0 / 1048576.0);
-  precise vec3 o = hp_offset_robust(pos, n) + n * (hp_depth_uncertainty(p, depth, pos) + grid);
+  precise float grid = (max(a.x, max(a.y, a.z)) + distance(pos, frame.camera_pos.xyz)) * (1.0 / 1048576.0);
+  precise vec3 o = pos + n * (hp_depth_uncertainty(p, depth, pos) + grid);
   return o;
 }
 
