@@ -97,15 +97,30 @@ std::string y_axis(const Frame& f, const std::vector<double>& ticks, const std::
   return s + "</g>\n";
 }
 
+// The legend's entries flow left to right and wrap onto further rows of 18 px; legend_extra_height says how
+// much taller than one row it is, so a chart can grow to hold it.
+double legend_entry_width(const std::string& name) { return 16 + 7.0 * double(name.size()) + 18; }
+
+double legend_extra_height(double width, double left, const std::vector<std::string>& names) {
+  double x = left;
+  int rows = names.empty() ? 0 : 1;
+  for (const std::string& n : names) {
+    if (x > left && x + legend_entry_width(n) > width - 10) ++rows, x = left;
+    x += legend_entry_width(n);
+  }
+  return rows > 1 ? 18.0 * (rows - 1) : 0.0;
+}
+
 std::string legend(const Frame& f, const std::vector<std::string>& names) {
   std::string s = "<g class=\"legend\">\n";
   double x = f.left;
-  const double y = f.height - 18;
+  double y = f.height - 18 - legend_extra_height(f.width, f.left, names);
   for (size_t i = 0; i < names.size(); ++i) {
+    if (x > f.left && x + legend_entry_width(names[i]) > f.width - 10) x = f.left, y += 18;
     s += "<rect class=\"legend-swatch\" x=\"" + num(x) + "\" y=\"" + num(y - 10) + "\" width=\"12\" height=\"12\" fill=\"" +
          colour(i) + "\"/>\n";
     s += "<text class=\"legend-label\" x=\"" + num(x + 16) + "\" y=\"" + num(y) + "\">" + escape(names[i]) + "</text>\n";
-    x += 16 + 7.0 * double(names[i].size()) + 18;
+    x += legend_entry_width(names[i]);
   }
   return s + "</g>\n";
 }
@@ -219,7 +234,10 @@ std::string render(const BarChart& c) {
     for (double v : g.high) hi = std::max(hi, v);
   }
   const double slot = std::max(24.0, 14.0 * double(ns) + 16.0);  // width of one group
-  Frame f{std::max(360.0, 90.0 + slot * double(c.groups.size())), 380};
+  const double width = std::max(360.0, 90.0 + slot * double(c.groups.size()));
+  const double extra = legend_extra_height(width, 70, c.series);
+  Frame f{width, 380 + extra};
+  f.bottom += extra;
   const std::vector<double> ticks = nice_ticks(0.0, hi);  // bars start at zero: lengths compare
   f.y0 = ticks.front();
   f.y1 = ticks.back();
@@ -264,8 +282,11 @@ std::string render(const LineChart& c) {
       }
     }
   }
-  Frame f{640, 400};
-  f.bottom = 70;
+  std::vector<std::string> line_names;
+  for (const Line& l : c.lines) line_names.push_back(l.name);
+  const double extra = legend_extra_height(640, 70, line_names);  // a legend of several rows: a taller chart
+  Frame f{640, 400 + extra};
+  f.bottom = 70 + extra;
   f.log_x = c.log_x;
   f.log_y = c.log_y;
   const std::vector<double> yt = c.log_y ? log_ticks(ylo, yhi) : nice_ticks(0.0, yhi), xt = axis_ticks(c.log_x, xlo, xhi, false);

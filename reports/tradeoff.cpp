@@ -267,7 +267,9 @@ std::string tradeoff_section(const std::vector<CellResult>& cells, const json& s
     svg::ScatterPoint p;
     p.x = r.x.value;
     p.y = r.y.value;
-    p.label = varying_label(*r.cell, among);
+    // Only the front is labelled (every point has its tooltip): labels on every point of a 24-cell sweep
+    // overlap into an unreadable band.
+    if (r.front) p.label = varying_label(*r.cell, among);
     p.tooltip = cell_label(*r.cell) + ": " + x_label + " " + value_text(r.x) + ", " + y_label + " " + value_text(r.y) +
                 (r.front ? " (on the Pareto front)" : "");
     p.front = r.front;

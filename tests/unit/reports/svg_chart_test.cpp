@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <set>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -266,4 +268,29 @@ TEST(SvgChart, RejectsInconsistentInput) {
 }
 
 }  // namespace
+TEST(SvgChart, LongLegendsWrapAndTheChartGrows) {
+  LineChart one;
+  one.title = "t";
+  one.lines.push_back({"short", {1, 2}, {1, 2}, {}, {}});
+  const std::string a = render(one);
+  EXPECT_NE(a.find("height=\"400.00\""), std::string::npos);
+  LineChart many = one;
+  for (int i = 0; i < 4; ++i) {
+    many.lines.push_back({"case=framed view, reversed_z=" + std::to_string(i), {1, 2}, {2, 3}, {}, {}});
+  }
+  const std::string b = render(many);
+  EXPECT_EQ(b.find("height=\"400.00\""), std::string::npos) << "a legend of several rows makes the chart taller";
+  // Every legend label stays inside the chart's width: its x plus an estimate of its length.
+  std::set<std::string> rows;
+  size_t at = 0;
+  while ((at = b.find("class=\"legend-label\" x=\"", at)) != std::string::npos) {
+    at += 25;
+    const double x = std::stod(b.substr(at));
+    const size_t ypos = b.find("y=\"", at) + 3;
+    rows.insert(b.substr(ypos, b.find('"', ypos) - ypos));
+    EXPECT_LT(x, 640.0);
+  }
+  EXPECT_GE(rows.size(), 2u);
+}
+
 }  // namespace hp::svg
