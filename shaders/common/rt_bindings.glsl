@@ -64,16 +64,18 @@ float hp_depth_uncertainty(ivec2 p, float depth, vec3 pos) {
 }
 
 // The robust origin of a ray leaving the G-buffer surface at pixel p, moved along the normal only, by what
-// the point's error can be: the depth uncertainty, plus 8 ULPs of the largest world coordinate (the BVH
-// holds world-space floats rounded to that grid; the camera-relative G-buffer surface is not rounded) and
-// of the distance to the camera (rounding in the reconstruction). Wächter & Binder's offset (ray_offset.glsl)
+// the point's error can be: the depth uncertainty, plus 2^-23 (1 to 2 ULPs) of the largest world coordinate
+// (the BVH holds world-space floats rounded to that grid, half an ULP per vertex coordinate; the
+// camera-relative G-buffer surface is not rounded) and of the distance to the camera (rounding in the
+// reconstruction). Measured at 1e5 from the origin (hard_cases.json, 26,217 pixels): no grid term, 1,360
+// acne pixels; 2^-23, 15; 2^-22, 25; 2^-20, 85 (a larger offset pushes origins into touching objects). Wächter & Binder's offset (ray_offset.glsl)
 // is meant for hit points computed by a ray cast; applied here it was measured to fail both ways: its
 // 256-ULP steps per axis are 2 world units at 1e5 from the origin and move the point sideways (3,480 acne
 // pixels of 163,708), and its absolute 2^-16 near the origin is 1.5% of a world scaled by 1e-3 (README
 // "Speed against error").
 vec3 hp_offset_gbuffer(ivec2 p, float depth, vec3 pos, vec3 n) {
   vec3 a = abs(pos);
-  precise float grid = (max(a.x, max(a.y, a.z)) + distance(pos, frame.camera_pos.xyz)) * (1.0 / 1048576.0);
+  precise float grid = (max(a.x, max(a.y, a.z)) + distance(pos, frame.camera_pos.xyz)) * (1.0 / 8388608.0);
   precise vec3 o = pos + n * (hp_depth_uncertainty(p, depth, pos) + grid);
   return o;
 }
