@@ -4,11 +4,13 @@
 #include "error.hpp"
 #include "frame.hpp"
 #include "frame_profiler.hpp"
+#include "reference/reference.hpp"
 #include "timing/result_json.hpp"
 #include "timing/timeline.hpp"
 #include "scene/load.hpp"
 #include "vk/context.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -24,10 +26,45 @@ struct RenderArgs {
   uint32_t warmup = 0;
   std::string timings_path, timeline_path;
   bool counters = false;
+  uint32_t cpu_reference = 0;  ///< > 0: render the CPU reference with this many reflection samples instead
   FrameOptions frame;
 };
 
+// The converged CPU reference of the same frame (renderer/reference): no Vulkan device is needed.
+void run_reference(const RenderArgs& a) {
+  const Aov aov = parse_aov(a.aov);
+  if (aov != Aov::color && aov != Aov::shadow) throw InputError("--cpu-reference: --aov must be color or shadow");
+  const FrameSettings settings = a.frame.settings();
+  Scene scene = load_scene(a.frame.scene);
+  a.frame.view.apply_light(scene);
+  const Camera camera = a.frame.view.camera_for(scene, float(settings.width) / float(settings.height));
+  ReferenceSettings rs;
+  rs.width = settings.width;
+  rs.height = settings.height;
+  rs.shadows = settings.rt.shadows;
+  rs.reflections = settings.rt.reflections;
+  rs.reflection_shadows = settings.rt.reflection_shadows;
+  rs.roughness_threshold = settings.rt.roughness_threshold;
+  rs.samples = a.cpu_reference;
+  const ReferenceImage ref = render_reference(scene, camera, rs);
+  if (aov == Aov::shadow) {
+    Image4f mask(ref.shading.width, ref.shading.height);
+    for (size_t i = 0; i < mask.rgba.size() / 4; ++i) {
+      const float v = std::max(0.0f, ref.shading.rgba[4 * i]);
+      mask.rgba[4 * i] = mask.rgba[4 * i + 1] = mask.rgba[4 * i + 2] = v;
+      mask.rgba[4 * i + 3] = 1.0f;
+    }
+    write_image(a.out, mask);
+  } else {
+    write_image(a.out, ref.color);
+  }
+  std::printf("%s: CPU reference %ux%u, %u reflection samples per reflective pixel, %llu rays in %.2f s -> %s\n",
+              scene.name.c_str(), rs.width, rs.height, rs.samples, (unsigned long long)ref.rays, ref.render_s,
+              a.out.c_str());
+}
+
 void run_render(const RenderArgs& a) {
+  if (a.cpu_reference > 0) return run_reference(a);
   const Aov aov = parse_aov(a.aov);
   FrameSettings settings = a.frame.settings();
   settings.rt.counters = a.counters;
@@ -98,6 +135,9 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--timings", args->timings_path, "write the timing result (JSON: environment, statistics, raw samples)");
   cmd->add_option("--timeline", args->timeline_path, "write a Chrome Trace Event timeline (opens in ui.perfetto.dev)");
   cmd->add_flag("--counters", args->counters, "count rays, BVH nodes visited and triangles tested (deterministic)");
+  cmd->add_option("--cpu-reference", args->cpu_reference,
+                  "render the converged CPU reference instead, with N reflection samples per pixel (no GPU needed)")
+      ->check(CLI::Range(1u, 65536u));
   cmd->callback([args] { run_render(*args); });
 }
 

@@ -67,6 +67,24 @@ TEST(Cli, RenderWritesPngAndAov) {
   fs::remove_all(d);
 }
 
+TEST(Cli, CpuReferenceNeedsNoDevice) {
+  const fs::path d = temp_dir();
+  const fs::path out = d / "ref.exr";
+  // No Vulkan ICD at all: the CPU reference still renders.
+  CmdResult r = run("render --scene builtin:cornell --width 48 --height 36 --cpu-reference 4 --out " + out.string(),
+                    "VK_ICD_FILENAMES=/nonexistent.json VK_DRIVER_FILES=/nonexistent.json");
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("CPU reference 48x36"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(out));
+  r = run("render --scene builtin:cornell --width 48 --height 36 --cpu-reference 4 --aov depth --out " +
+          (d / "x.png").string());
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("--aov must be color or shadow"), std::string::npos);
+  EXPECT_FALSE(fs::exists(d / "x.png"));
+  fs::remove_all(d);
+}
+
 TEST(Cli, BadSceneIsOneLineExit2) {
   CmdResult r = run("render --scene /nonexistent/scene.gltf --out /tmp/never.png");
   EXPECT_EQ(r.code, 2) << r.output;
