@@ -204,6 +204,13 @@ void trace_bench(benchmark::State& state, const BenchScene* s, bool primary, boo
   state.counters["hit_%"] = 100.0 * static_cast<double>(hits) / n;
 }
 
+#if HP_BENCH_HAVE_SCENE
+// Generating a built-in 1M-triangle scene (it was a timed unit test once; speed belongs here).
+void generate_bench(benchmark::State& state, const char* spec) {
+  for (auto _ : state) benchmark::DoNotOptimize(hp::load_scene(spec).meshes.data());
+}
+#endif
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -231,6 +238,12 @@ int main(int argc, char** argv) {
       }
     }
   }
+#if HP_BENCH_HAVE_SCENE
+  for (const char* spec : {"builtin:sphere-1m", "builtin:terrain-1m"}) {
+    benchmark::RegisterBenchmark((std::string("generate/") + (spec + 8)).c_str(), generate_bench, spec)
+        ->Unit(benchmark::kMillisecond);
+  }
+#endif
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;
