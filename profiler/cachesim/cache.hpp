@@ -109,6 +109,21 @@ class Cache {
   [[gnu::always_inline]] Outcome store(uint64_t line, uint32_t sectors) { return access<kStore>(line, sectors); }
   // Read-modify-write (atomics at the L2, write-allocate writes): allocate, fetch missing, mark dirty.
   [[gnu::always_inline]] Outcome update(uint64_t line, uint32_t sectors) { return access<kUpdate>(line, sectors); }
+  // The same as load (kOp 0), store (1) or update (2) of (line, 1), for a caller that has checked
+  // once that the cache is unsectored with compact sets of exactly kStride ways (config().ways ==
+  // stride() == kStride): the set width is a constant of the caller's code, not a branch per access.
+  template <int kOp, uint32_t kStride>
+  [[gnu::always_inline]] Outcome access_unsectored(uint64_t line) {
+    if (compact_) [[likely]] {
+      uint64_t tag;
+      const uint32_t set = locate(line, tag);
+      if (tag < kEmpty32) [[likely]] return compact_access<Op(kOp), false, kStride, kStride>(set, uint32_t(tag), 1);
+    }
+    return slow_access<Op(kOp)>(line, 1);
+  }
+  bool sectored() const { return sectored_; }
+  uint32_t stride() const { return stride_; }  // compact engine: ways padded to 4, 8 or 16
+
   // Presence of the sectors without any state change (write-through store probing an L1).
   bool contains(uint64_t line, uint32_t sectors) const;
 
@@ -163,7 +178,7 @@ class Cache {
 
   // Set of a line and the line's tag within that set (the line number without the set-index bits;
   // (set, tag) determines the line).
-  uint32_t locate(uint64_t line, uint64_t& tag) const {
+  [[gnu::always_inline]] uint32_t locate(uint64_t line, uint64_t& tag) const {
     if (channels_ == 1) {
       tag = line >> set_bits_;
       return uint32_t(line & set_mask_);
@@ -184,13 +199,13 @@ class Cache {
   uint64_t line_of(uint32_t set, uint64_t tag) const;  // inverse of locate
 
   // Position (0 = most recent) of way w in a recency permutation.
-  static uint32_t position_of(uint64_t order, uint32_t w) {
+  [[gnu::always_inline]] static uint32_t position_of(uint64_t order, uint32_t w) {
     const uint64_t x = order ^ (uint64_t(w) * 0x1111111111111111ull);  // w's nibble becomes 0
     // Lowest zero nibble of x (exact for the lowest; w occurs once among the used positions).
     const uint64_t z = (x - 0x1111111111111111ull) & ~x & 0x8888888888888888ull;
     return uint32_t(std::countr_zero(z)) >> 2;
   }
-  static uint64_t move_to_front(uint64_t order, uint32_t pos, uint32_t w) {
+  [[gnu::always_inline]] static uint64_t move_to_front(uint64_t order, uint32_t pos, uint32_t w) {
     const uint64_t below = (uint64_t(1) << (4 * pos)) - 1;
     const uint64_t upto = below | (uint64_t(0xF) << (4 * pos));
     return (order & ~upto) | ((order & below) << 4) | w;
@@ -230,7 +245,7 @@ class Cache {
   // Bit i set when way i of the set holds `tag` (padding ways hold kEmpty32, never a real tag).
   // The set's width is a template argument so the comparison unrolls.
   template <uint32_t kStride>
-  static uint32_t match_ways(const uint32_t* tags, uint32_t tag) {
+  [[gnu::always_inline]] static uint32_t match_ways(const uint32_t* tags, uint32_t tag) {
 #if defined(__SSE2__)
     const __m128i key = _mm_set1_epi32(int(tag));
     uint32_t m = 0;
@@ -249,7 +264,8 @@ class Cache {
     return stride_ == 4 ? match_ways<4>(tags, tag) : stride_ == 8 ? match_ways<8>(tags, tag) : match_ways<16>(tags, tag);
   }
 
-  template <Op op, bool sectored, uint32_t kStride>
+  // kWays: the number of ways when the caller knows it (then == kStride), else 0: read at run time.
+  template <Op op, bool sectored, uint32_t kStride, uint32_t kWays = 0>
   [[gnu::always_inline]] Outcome compact_access(uint32_t set, uint32_t tag, uint32_t sectors) {
     uint32_t* tags = tag32_.get() + size_t(set) * kStride;
     SetState& st = state_[set];
@@ -271,7 +287,7 @@ class Cache {
       return o;
     }
     o.missing = sectors;
-    const uint32_t last = ways_per_set_ - 1;
+    const uint32_t last = (kWays ? kWays : ways_per_set_) - 1;
     const uint32_t v = uint32_t(st.order >> (4 * last)) & 0xF;
     st.order = move_to_front(st.order, last, v);
     if constexpr (sectored) {

@@ -34,6 +34,13 @@ Hierarchy::Hierarchy(const CacheConfig& l1, uint32_t compute_units, const CacheC
     c.seed = l1.seed + cu;  // random replacement: independent but reproducible streams per CU
     l1_.emplace_back(c);
   }
+  // Set width codes for issue(): 0 other (general engine, sectored, ways not 4/8/16), 1/2/3 compact
+  // sets of exactly 4/8/16 ways.
+  auto code = [](const Cache& c) -> uint32_t {
+    if (!c.compact() || c.sectored() || c.config().ways != c.stride()) return 0;
+    return c.stride() == 4 ? 1 : c.stride() == 8 ? 2 : 3;
+  };
+  widths_ = (l1_.empty() ? 0 : code(l1_[0])) * 4 + code(l2_);
 }
 
 void Hierarchy::enable_mrc(bool l1, bool l2, double sampling_rate) {
@@ -63,6 +70,7 @@ void Hierarchy::begin_pass() {
   for (Cache& c : l1_) c.invalidate();
   stats_ = {};
   buffers_ = {};
+  written_back_ = 0;
   // Curves describe one pass too: restart them with the same settings.
   if (!l1_mrc_.empty() || l2_mrc_) {
     const bool l1 = !l1_mrc_.empty(), l2 = bool(l2_mrc_);

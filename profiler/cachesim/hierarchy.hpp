@@ -76,7 +76,20 @@ class Hierarchy {
   }
 
   IssueResult issue(uint32_t cu, const Request& r) {
-    if (!sectored_) return issue_unsectored(cu, r);
+    if (!sectored_) {
+      // The set widths of the L1s and the L2 become constants of the code (picked at construction;
+      // a cache that left the compact engine is still handled: access_unsectored checks it).
+      switch (widths_) {  // codes: 0 unknown, 1/2/3 compact sets of 4/8/16 ways
+        case 1 * 4 + 3: return issue_unsectored<4, 16>(cu, r);  // vega56-like: 4-way L1, 16-way L2
+        case 1 * 4 + 2: return issue_unsectored<4, 8>(cu, r);
+        case 1 * 4 + 1: return issue_unsectored<4, 4>(cu, r);
+        case 2 * 4 + 3: return issue_unsectored<8, 16>(cu, r);
+        case 2 * 4 + 2: return issue_unsectored<8, 8>(cu, r);
+        case 3 * 4 + 3: return issue_unsectored<16, 16>(cu, r);
+        case 0 * 4 + 3: return issue_unsectored<0, 16>(cu, r);
+        default: return issue_unsectored<0, 0>(cu, r);
+      }
+    }
     IssueResult res;
     uint32_t to_l2 = r.sectors;
     if (r.kind == AccessKind::load) {
@@ -109,17 +122,49 @@ class Hierarchy {
     return res;
   }
 
+  // The requests of one wave step (one CU), in order: the same as issue() on each, with the set-width
+  // dispatch done once per step instead of once per request. `out` (may be null) receives each
+  // request's IssueResult.
+  void issue(uint32_t cu, std::span<const Request> rs, IssueResult* out) {
+    if (sectored_) {
+      for (size_t i = 0; i < rs.size(); ++i) {
+        const IssueResult res = issue(cu, rs[i]);
+        if (out) out[i] = res;
+      }
+      return;
+    }
+    switch (widths_) {
+      case 1 * 4 + 3: return issue_steps<4, 16>(cu, rs, out);
+      case 1 * 4 + 2: return issue_steps<4, 8>(cu, rs, out);
+      case 1 * 4 + 1: return issue_steps<4, 4>(cu, rs, out);
+      case 2 * 4 + 3: return issue_steps<8, 16>(cu, rs, out);
+      case 2 * 4 + 2: return issue_steps<8, 8>(cu, rs, out);
+      case 3 * 4 + 3: return issue_steps<16, 16>(cu, rs, out);
+      case 0 * 4 + 3: return issue_steps<0, 16>(cu, rs, out);
+      default: return issue_steps<0, 0>(cu, rs, out);
+    }
+  }
+
   // Start of a pass: L1s are invalidated (a barrier between dispatches does that on GPUs); the L2
   // keeps its contents and counters start from zero.
   void begin_pass();
   // Writes back every dirty L2 sector (counted in dram_write_bytes); end of a frame.
   void flush();
 
-  // Unsectored hierarchies count only requests and misses per access; the other counters follow
-  // from them (a request is one sector: hits = line hits = sector hits = requests - misses).
+  // Unsectored hierarchies count only per-buffer requests and misses per access; the level totals
+  // are their sums, and the other counters follow from them (a request is one sector: hits = line
+  // hits = sector hits = requests - misses).
   HierarchyStats stats() const {
     HierarchyStats s = stats_;
     if (!sectored_) {
+      for (const BufferStats& b : buffers_) {
+        s.l1.requests += b.l1_requests;
+        s.l1.misses += b.l1_misses;
+        s.l2.requests += b.l2_requests;
+        s.l2.misses += b.l2_misses;
+        s.dram_read_bytes += b.dram_read_bytes;
+      }
+      s.dram_write_bytes += written_back_ * sector_bytes_;
       for (LevelStats* l : {&s.l1, &s.l2}) {
         l->hits = l->requests - l->misses;
         l->line_hits = l->sector_hits = l->hits;
@@ -139,37 +184,52 @@ class Hierarchy {
  private:
   // The same counts as the general path for one-sector lines, with fewer counters (see stats())
   // and no branch on the L2 outcome, which is close to a coin toss on ray-tracing traces.
+  // S1, S2: the set widths of the L1s and of the L2 (compact engine), 0 when not known.
+  template <uint32_t S, int kOp>
+  [[gnu::always_inline]] static Outcome access1(Cache& c, uint64_t line) {
+    if constexpr (S != 0) return c.template access_unsectored<kOp, S>(line);
+    else if constexpr (kOp == 0) return c.load(line, 1);
+    else if constexpr (kOp == 1) return c.store(line, 1);
+    else return c.update(line, 1);
+  }
+  template <uint32_t S1, uint32_t S2>
   [[gnu::always_inline]] IssueResult issue_unsectored(uint32_t cu, const Request& r) {
     IssueResult res;
     BufferStats& b = buffers_[r.buffer];
-    if (r.kind == AccessKind::load) {
-      ++stats_.l1.requests;
+    const AccessKind kind = r.kind;
+    const uint64_t line = r.line;
+    if (kind == AccessKind::load) {
       ++b.l1_requests;
-      if (!l1_mrc_.empty()) feed_l1_mrc(cu, r.line);
-      if (l1_[cu].load(r.line, 1).line_hit) return res;
-      ++stats_.l1.misses;
+      if (!l1_mrc_.empty()) feed_l1_mrc(cu, line);
+      if (access1<S1, 0>(l1_[cu], line).line_hit) return res;
       ++b.l1_misses;
       res.l1_miss = true;
-    } else if (r.kind == AccessKind::store) {
+    } else if (kind == AccessKind::store) {
       ++stats_.stores;
     } else {
       ++stats_.atomics;
     }
-    ++stats_.l2.requests;
     ++b.l2_requests;
-    if (l2_mrc_) feed_l2_mrc(r.line);
-    const Outcome o = r.kind == AccessKind::load    ? l2_.load(r.line, 1)
-                      : r.kind == AccessKind::store ? l2_.store(r.line, 1)
-                                                    : l2_.update(r.line, 1);
+    if (l2_mrc_) feed_l2_mrc(line);
+    const Outcome o = kind == AccessKind::load    ? access1<S2, 0>(l2_, line)
+                      : kind == AccessKind::store ? access1<S2, 1>(l2_, line)
+                                                  : access1<S2, 2>(l2_, line);
     const uint32_t miss = o.missing;  // 0 or 1
-    stats_.l2.misses += miss;
     b.l2_misses += miss;
-    stats_.dram_write_bytes += uint64_t(o.written_back_sectors) * sector_bytes_;
-    const uint64_t read = uint64_t(miss & uint32_t(r.kind != AccessKind::store)) * sector_bytes_;
-    stats_.dram_read_bytes += read;  // write-validate: a store miss reads nothing
-    b.dram_read_bytes += read;
+    written_back_ += o.written_back_sectors;
+    // write-validate: a store miss reads nothing
+    b.dram_read_bytes += uint64_t(miss & uint32_t(kind != AccessKind::store)) * sector_bytes_;
     res.l2_miss = miss;
     return res;
+  }
+
+  template <uint32_t S1, uint32_t S2>
+  void issue_steps(uint32_t cu, std::span<const Request> rs, IssueResult* out) {
+    if (out) {
+      for (size_t i = 0; i < rs.size(); ++i) out[i] = issue_unsectored<S1, S2>(cu, rs[i]);
+    } else {
+      for (const Request& r : rs) issue_unsectored<S1, S2>(cu, r);
+    }
   }
 
   // Curve accesses are queued and handed to StackDistance in batches, which fetches the host memory
@@ -231,6 +291,8 @@ class Hierarchy {
   uint32_t sector_bytes_;
   bool sectored_;
   HierarchyStats stats_;
+  uint64_t written_back_ = 0;  // unsectored: dirty lines written back by evictions (see stats())
+  uint32_t widths_ = 0;        // unsectored: 4 * code(L1 set width) + code(L2 set width), see issue()
   std::array<BufferStats, 256> buffers_{};
   std::vector<std::unique_ptr<StackDistance>> l1_mrc_;
   std::unique_ptr<StackDistance> l2_mrc_;

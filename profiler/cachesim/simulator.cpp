@@ -250,13 +250,13 @@ PassResult Simulator::run_pass(const trace::PassInfo& pass, std::span<const trac
       if (per_inv) {
         if (outcome.size() < co.requests.size()) outcome.resize(co.requests.size());
         IssueResult* o = outcome.data();
-        for (size_t r = 0; r < co.requests.size(); ++r) o[r] = hierarchy_.issue(i, co.requests[r]);
+        hierarchy_.issue(i, std::span<const Request>(co.requests), o);
         for (const auto& [inv, r] : co.lane_request) {
           res.l1_misses[inv] += o[r].l1_miss;
           res.l2_misses[inv] += o[r].l2_miss;
         }
       } else {
-        for (const Request& r : co.requests) hierarchy_.issue(i, r);
+        hierarchy_.issue(i, std::span<const Request>(co.requests), nullptr);
       }
       w.remaining -= issued;
       if (w.remaining == 0) {

@@ -6,7 +6,9 @@
 //                the 9-14 M/s Dinero figure are compared against.
 // Benchmarks:
 //   Hierarchy/*      the coalesced request stream of vega56 replayed through 56 L1s + the L2
-//                    (items = requests; lane_accesses = the same work counted in lane accesses).
+//                    (items = requests; lane_accesses = the same work counted in lane accesses),
+//                    one request per call (/0) or one CU's run of requests per call (/1), as
+//                    Simulator::run_pass issues a wave step.
 //   DineroStyle      one 16k:64:4 L1 + one 4m:64:16 L2 on the same line stream, as `--din` does.
 //   L2Fixed / L2Mrc  the L2 request stream (9.6 M) through one fixed-size L2, vs the exact all-sizes
 //                    stack-distance curve (one by one, and batched as the hierarchy feeds it), vs
@@ -37,6 +39,14 @@ struct Fixture {
   Preset preset;
   std::vector<std::pair<uint32_t, Request>> requests;  // coalesced, in issue order
   std::vector<uint64_t> l2_lines;                       // the L2's request stream
+  // The same requests as runs of one CU (a wave step, or consecutive steps of one CU), the way
+  // Simulator::run_pass hands them to Hierarchy::issue(cu, span, out).
+  std::vector<Request> flat;
+  struct Run {
+    uint32_t cu;
+    uint32_t begin, end;
+  };
+  std::vector<Run> runs;
   Fixture() {
     SyntheticBvhOptions o;
     // HP_BENCH_RAYS (default 512) shrinks the image for instruction-level profiling under callgrind;
@@ -52,6 +62,11 @@ struct Fixture {
     so.observer = [&](uint32_t cu, const Request& r) { requests.emplace_back(cu, r); };
     Simulator sim(preset, trace.header, so);
     sim.run_pass(trace.passes[0], trace.records[0]);
+    for (const auto& [cu, r] : requests) {
+      if (runs.empty() || runs.back().cu != cu) runs.push_back({cu, uint32_t(flat.size()), uint32_t(flat.size())});
+      flat.push_back(r);
+      ++runs.back().end;
+    }
     // The L2 stream: what misses the L1s (plus stores, atomics), recomputed with plain caches.
     std::vector<Cache> l1(preset.compute_units, Cache(preset.l1));
     for (const auto& [cu, r] : requests)
@@ -68,10 +83,11 @@ void Hierarchy_L1L2(benchmark::State& state) {
   const Fixture& f = fixture();
   for (auto _ : state) {
     Hierarchy h(f.preset.l1, f.preset.compute_units, f.preset.l2);
-    const size_t n = f.requests.size();
-    for (size_t i = 0; i < n; ++i) {
-      if (state.range(0) && i + 16 < n) h.prefetch(f.requests[i + 16].first, f.requests[i + 16].second.line);
-      h.issue(f.requests[i].first, f.requests[i].second);
+    if (state.range(0)) {
+      for (const Fixture::Run& run : f.runs)
+        h.issue(run.cu, std::span<const Request>(f.flat.data() + run.begin, run.end - run.begin), nullptr);
+    } else {
+      for (const auto& [cu, r] : f.requests) h.issue(cu, r);
     }
     benchmark::DoNotOptimize(h.stats().l2.misses);
   }
@@ -79,7 +95,7 @@ void Hierarchy_L1L2(benchmark::State& state) {
   // The same work counted in the lane accesses the coalescer turned into these requests.
   state.counters["lane_accesses"] =
       benchmark::Counter(double(f.trace.records[0].size()), benchmark::Counter::kIsIterationInvariantRate);
-  state.SetLabel(state.range(0) ? "prefetch 16 ahead" : "no prefetch");
+  state.SetLabel(state.range(0) ? "per step, as the simulator issues" : "one by one");
 }
 BENCHMARK(Hierarchy_L1L2)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
