@@ -74,7 +74,7 @@ void Hierarchy::begin_pass() {
   // Curves describe one pass too: restart them with the same settings.
   if (!l1_mrc_.empty() || l2_mrc_) {
     const bool l1 = !l1_mrc_.empty(), l2 = bool(l2_mrc_);
-    const double rate = l2 ? l2_mrc_->curve().sampling_rate : l1_mrc_[0]->curve().sampling_rate;
+    const double rate = l2 ? l2_mrc_->sampling_rate() : l1_mrc_[0]->sampling_rate();
     enable_mrc(l1, l2, rate);
   }
 }

@@ -22,6 +22,27 @@ uint64_t mix(uint64_t x) {  // splitmix64 finaliser: spreads line numbers for ha
   return x;
 }
 
+// The default x86-64 target has no POPCNT; a host that has it (checked once at run time) runs the
+// same code compiled for it. Results do not depend on which.
+#if (defined(__x86_64__) || defined(__i386__)) && !defined(__POPCNT__)
+#define HP_SD_HW_TARGET [[gnu::target("popcnt")]]
+bool host_has_popcount() {
+  static const bool has = __builtin_cpu_supports("popcnt");
+  return has;
+}
+#else
+#define HP_SD_HW_TARGET
+bool host_has_popcount() { return false; }  // count_bits already is the instruction, or none exists
+#endif
+
+template <bool kHw>
+[[gnu::always_inline]] inline uint32_t bits(uint64_t x) {
+  if constexpr (kHw)
+    return uint32_t(__builtin_popcountll(x));
+  else
+    return count_bits(x);
+}
+
 }  // namespace
 
 uint64_t MissRatioCurve::misses(uint64_t lines) const {
@@ -43,6 +64,7 @@ StackDistance::StackDistance(uint32_t line_bytes, double sampling_rate) {
   sampled_ = sampling_rate < 1.0;
   sample_threshold_ = uint64_t(std::max(0.0, sampling_rate) * double(1 << 24));
   scale_ = sampled_ ? 1.0 / sampling_rate : 1.0;
+  hw_popcount_ = host_has_popcount();
   page_table_.assign(1 << 8, PageSlot{kEmptyKey, 0});
   page_mask_ = (1 << 8) - 1;
   capacity_ = 1 << 12;
@@ -65,22 +87,29 @@ void StackDistance::grow_pages() {
 uint32_t* StackDistance::page_of(uint64_t line) {
   const uint64_t key = line >> kPageBits;
   if (key == last_key_) return times_.data() + last_page_;
-  if ((pages_ + 1) * 2 > page_table_.size()) grow_pages();
   uint64_t h = mix(key) & page_mask_;
   while (true) {
-    PageSlot& s = page_table_[h];
+    const PageSlot& s = page_table_[h];
     if (s.key == key) break;
-    if (s.key == kEmptyKey) {
-      s.key = key;
-      s.page = times_.size();
-      times_.resize(times_.size() + (size_t(1) << kPageBits), 0);
-      ++pages_;
-      break;
-    }
+    if (s.key == kEmptyKey) return new_page(key);
     h = (h + 1) & page_mask_;
   }
   last_key_ = key;
   last_page_ = page_table_[h].page;
+  return times_.data() + last_page_;
+}
+
+uint32_t* StackDistance::new_page(uint64_t key) {
+  if ((pages_ + 1) * 2 > page_table_.size()) grow_pages();
+  uint64_t h = mix(key) & page_mask_;
+  while (page_table_[h].key != kEmptyKey) h = (h + 1) & page_mask_;
+  PageSlot& s = page_table_[h];
+  s.key = key;
+  s.page = times_.size();
+  times_.resize(times_.size() + (size_t(1) << kPageBits), 0);
+  ++pages_;
+  last_key_ = key;
+  last_page_ = s.page;
   return times_.data() + last_page_;
 }
 
@@ -99,18 +128,40 @@ void StackDistance::prefetch_page(uint64_t line) const {
 }
 
 void StackDistance::access(std::span<const uint64_t> lines) {
+  if (hw_popcount_)
+    access_batch_hw(lines);
+  else
+    access_batch<false>(lines);
+}
+
+HP_SD_HW_TARGET void StackDistance::access_batch_hw(std::span<const uint64_t> lines) { access_batch<true>(lines); }
+
+template <bool kHw>
+[[gnu::always_inline]] inline void StackDistance::access_batch(std::span<const uint64_t> lines) {
   // Two stages: the table slot kFar lines ahead, then (its slot now cached) the page kNear ahead.
   constexpr size_t kFar = 16, kNear = 8;
   const size_t n = lines.size();
   if (sampled_) {  // most lines are skipped after one hash: nothing worth fetching ahead
-    for (uint64_t line : lines) access(line);
+    for (uint64_t line : lines) access_one<kHw>(line);
     return;
   }
   for (size_t i = 0; i < n; ++i) {
     if (i + kFar < n) __builtin_prefetch(page_table_.data() + (mix(lines[i + kFar] >> kPageBits) & page_mask_));
     if (i + kNear < n) prefetch_page(lines[i + kNear]);
-    access(lines[i]);
+    access_one<kHw>(lines[i]);
   }
+}
+
+void StackDistance::count_distance(uint64_t bucket) {  // a bucket past the end: grow, as before
+  const size_t size = std::max<uint64_t>(bucket + 1, counts_.size() * 2);
+  counts_.resize(size, 0);
+  ++counts_[bucket];
+}
+
+void StackDistance::publish_histogram() const {
+  curve_.histogram.resize(counts_.size());
+  for (size_t d = 0; d < counts_.size(); ++d) curve_.histogram[d] = counts_[d] + (d < carry_.size() ? carry_[d] : 0);
+  histogram_stale_ = false;
 }
 
 uint64_t StackDistance::tree_prefix(uint32_t block) const {
@@ -135,18 +186,19 @@ void StackDistance::rebuild_tree() {
   }
 }
 
-uint64_t StackDistance::ones_after(uint32_t t) const {
+template <bool kHw>
+[[gnu::always_inline]] inline uint64_t StackDistance::ones_after(uint32_t t) const {
   const uint32_t w = t >> 6;
   // (2 << 63) wraps to 0, and the mask to all ones: nothing after bit 63 in this word.
-  uint64_t n = count_bits(bits_[w] & ~((uint64_t(2) << (t & 63)) - 1));
+  uint64_t n = bits<kHw>(bits_[w] & ~((uint64_t(2) << (t & 63)) - 1));
   const uint32_t last_word = (now_ - 1) >> 6;
   constexpr uint32_t kWordsPerBlock = 1u << (kBlockBits - 6);
   if (last_word - w <= kWordsPerBlock) {  // recent: count the words up to now directly
-    for (uint32_t k = w + 1; k <= last_word; ++k) n += count_bits(bits_[k]);
+    for (uint32_t k = w + 1; k <= last_word; ++k) n += bits<kHw>(bits_[k]);
     return n;
   }
   const uint32_t b = t >> kBlockBits;
-  for (uint32_t k = w + 1; k < (b + 1) * kWordsPerBlock; ++k) n += count_bits(bits_[k]);
+  for (uint32_t k = w + 1; k < (b + 1) * kWordsPerBlock; ++k) n += bits<kHw>(bits_[k]);
   return n + (live_ - tree_prefix(b));  // every live line has exactly one 1
 }
 
@@ -174,7 +226,12 @@ void StackDistance::compact() {
   now_ = ones;
 }
 
-uint64_t StackDistance::access(uint64_t line) {
+uint64_t StackDistance::access(uint64_t line) { return hw_popcount_ ? access_hw(line) : access_one<false>(line); }
+
+HP_SD_HW_TARGET uint64_t StackDistance::access_hw(uint64_t line) { return access_one<true>(line); }
+
+template <bool kHw>
+[[gnu::always_inline]] inline uint64_t StackDistance::access_one(uint64_t line) {
   if (sampled_ && (mix(line ^ 0x5851F42D4C957F2Dull) >> 40) >= sample_threshold_) return kCold;
   ++curve_.accesses;
   if (now_ == capacity_) compact();
@@ -185,12 +242,19 @@ uint64_t StackDistance::access(uint64_t line) {
     ++curve_.cold;
   } else {
     const uint32_t last = slot - 1;
-    distance = ones_after(last);  // live lines touched after `last`
+    distance = ones_after<kHw>(last);  // live lines touched after `last`
     bits_[last >> 6] &= ~(uint64_t(1) << (last & 63));
     tree_add(last >> kBlockBits, -1);
     const uint64_t bucket = sampled_ ? uint64_t(double(distance) * scale_) : distance;
-    if (bucket >= curve_.histogram.size()) curve_.histogram.resize(std::max<uint64_t>(bucket + 1, curve_.histogram.size() * 2), 0);
-    ++curve_.histogram[bucket];
+    histogram_stale_ = true;
+    if (bucket < counts_.size()) [[likely]] {
+      if (++counts_[bucket] == 0) [[unlikely]] {  // wrapped: carry 2^32 into the wide part
+        if (carry_.size() <= bucket) carry_.resize(counts_.size(), 0);
+        carry_[bucket] += uint64_t(1) << 32;
+      }
+    } else {
+      count_distance(bucket);
+    }
   }
   slot = now_ + 1;
   bits_[now_ >> 6] |= uint64_t(1) << (now_ & 63);

@@ -61,7 +61,12 @@ class StackDistance {
   // overlap instead of waiting one after another.
   void access(std::span<const uint64_t> lines);
 
-  const MissRatioCurve& curve() const { return curve_; }
+  // The curve so far (its histogram is copied out of the 32-bit working counts when it changed).
+  const MissRatioCurve& curve() const {
+    if (histogram_stale_) publish_histogram();
+    return curve_;
+  }
+  double sampling_rate() const { return curve_.sampling_rate; }
   uint64_t distinct_lines() const { return live_; }
 
  private:
@@ -72,12 +77,32 @@ class StackDistance {
   void prefetch_page(uint64_t line) const;  // the line's page, created (all "never seen") when new
   void grow_pages();
   void compact();
+  // kHw: count bits with the POPCNT instruction (only called where the host has it; see
+  // access()): the far-distance path counts up to 8 bitmap words per access.
+  template <bool kHw>
   uint64_t ones_after(uint32_t t) const;  // set bits of the bitmap at times > t
   void tree_add(uint32_t block, int32_t delta);
   uint64_t tree_prefix(uint32_t block) const;  // ones in blocks [0, block]
   void rebuild_tree();
 
-  MissRatioCurve curve_;
+  template <bool kHw>
+  uint64_t access_one(uint64_t line);
+  template <bool kHw>
+  void access_batch(std::span<const uint64_t> lines);
+  uint64_t access_hw(uint64_t line);                     // access_one<true>, compiled for POPCNT
+  void access_batch_hw(std::span<const uint64_t> lines);  // access_batch<true>, likewise
+  bool hw_popcount_ = false;
+  uint32_t* new_page(uint64_t key);
+  void count_distance(uint64_t bucket);
+  void publish_histogram() const;
+
+  // curve_.histogram is published from counts_ (+ carry_) by curve(): the working histogram takes 4
+  // bytes per distance instead of 8, and it is the one structure of this class that every re-access
+  // touches at a random place (its distance), so it should be as small as possible.
+  mutable MissRatioCurve curve_;
+  mutable bool histogram_stale_ = false;
+  std::vector<uint32_t> counts_;  // low 32 bits of each bucket, sized as curve_.histogram will be
+  std::vector<uint64_t> carry_;   // multiples of 2^32 carried out of counts_ (empty until one wraps)
   uint64_t sample_threshold_;  // hash < threshold (of 2^24) is tracked
   bool sampled_ = false;
   double scale_ = 1.0;
