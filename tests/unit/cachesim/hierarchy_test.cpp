@@ -3,6 +3,9 @@
 #include <array>
 
 #include <random>
+#include <span>
+#include <string>
+#include <vector>
 
 #include "cachesim/hierarchy.hpp"
 #include "reference_model.hpp"
@@ -89,12 +92,17 @@ void expect_level(const LevelStats& a, const LevelStats& b, const char* name) {
   EXPECT_EQ(a.sector_misses, b.sector_misses);
 }
 
-void run_random(const CacheConfig& c1, const CacheConfig& c2, uint32_t cus, uint64_t seed) {
+// per_step: the requests go through Hierarchy::issue(cu, span, out) in runs of 1-12 of one CU, as
+// Simulator::run_pass issues a wave step (out null for some runs).
+void run_random(const CacheConfig& c1, const CacheConfig& c2, uint32_t cus, uint64_t seed, bool per_step = false) {
   Hierarchy h(c1, cus, c2);
   RefHierarchy r(c1, cus, c2);
   Cache probe(c1);
   std::mt19937_64 rng(seed);
   const uint64_t lines = c2.size_bytes / c2.line_bytes * 3;
+  std::vector<Request> step;
+  std::vector<IssueResult> out;
+  uint32_t step_cu = 0;
   for (int i = 0; i < 80000; ++i) {
     Request q;
     q.line = rng() % 3 ? rng() % (lines / 16) : rng() % lines;
@@ -103,6 +111,23 @@ void run_random(const CacheConfig& c1, const CacheConfig& c2, uint32_t cus, uint
     q.kind = k < 7 ? AccessKind::load : k < 9 ? AccessKind::store : AccessKind::atomic;
     q.buffer = uint8_t(rng() % 4);
     const uint32_t cu = uint32_t(rng() % cus);
+    if (per_step) {
+      if (step.empty()) step_cu = cu;
+      step.push_back(q);
+      if (rng() % 12 == 0 || i == 79999) {
+        const bool want = rng() % 4 != 0;
+        out.assign(step.size(), IssueResult{true, true});
+        h.issue(step_cu, std::span<const Request>(step), want ? out.data() : nullptr);
+        for (size_t k = 0; k < step.size(); ++k) {
+          r.issue(step_cu, step[k]);
+          if (!want) continue;
+          ASSERT_EQ(out[k].l1_miss, r.last.l1_miss) << "request " << i << " step " << k;
+          ASSERT_EQ(out[k].l2_miss, r.last.l2_miss) << "request " << i << " step " << k;
+        }
+        step.clear();
+      }
+      continue;
+    }
     const IssueResult got = h.issue(cu, q);
     r.issue(cu, q);
     ASSERT_EQ(got.l1_miss, r.last.l1_miss) << "request " << i;
@@ -142,6 +167,45 @@ TEST(Hierarchy, MatchesReferenceVegaShapedAndFifo) {
 
 TEST(Hierarchy, MatchesReferenceSectored) {
   run_random(cfg(8 << 10, 128, 32, 8), cfg(64 << 10, 128, 32, 16, 2), 3, 12);
+}
+
+// Every set-width specialisation of the unsectored path (and the general ones: other way counts,
+// random replacement, sectors), one request at a time and per wave step.
+TEST(Hierarchy, MatchesReferenceInEverySetWidthPerStep) {
+  const uint32_t widths[][2] = {{4, 16}, {4, 8}, {4, 4}, {8, 16}, {8, 8}, {16, 16}, {2, 16}, {12, 16}, {4, 2}};
+  uint64_t seed = 40;
+  for (const auto& w : widths) {
+    SCOPED_TRACE(std::to_string(w[0]) + "-way L1, " + std::to_string(w[1]) + "-way L2");
+    const CacheConfig l1 = cfg(uint64_t(w[0]) * 64 * 16, 64, 64, w[0]), l2 = cfg(uint64_t(w[1]) * 64 * 64 * 4, 64, 64, w[1], 4);
+    run_random(l1, l2, 3, ++seed, false);
+    run_random(l1, l2, 3, ++seed, true);
+  }
+  run_random(cfg(8 << 10, 128, 32, 8), cfg(64 << 10, 128, 32, 16, 2), 3, 61, true);
+  // Random replacement (seeded per CU, which the reference does not model): per step against one
+  // request at a time.
+  CacheConfig rl1 = cfg(4 << 10, 64, 64, 4), rl2 = cfg(64 << 10, 64, 64, 16, 4);
+  rl1.replacement = rl2.replacement = Replacement::random;
+  Hierarchy one(rl1, 3, rl2), steps(rl1, 3, rl2);
+  std::mt19937_64 rng(62);
+  std::vector<Request> step;
+  std::vector<IssueResult> out;
+  for (int i = 0; i < 20000; ++i) {
+    const uint32_t cu = uint32_t(rng() % 3);
+    step.clear();
+    for (uint64_t k = 0, n = 1 + rng() % 10; k < n; ++k)
+      step.push_back({rng() % 8192, 1, rng() % 8 ? AccessKind::load : AccessKind::store, uint8_t(rng() % 3)});
+    out.assign(step.size(), {});
+    steps.issue(cu, std::span<const Request>(step), out.data());
+    for (size_t k = 0; k < step.size(); ++k) {
+      const IssueResult e = one.issue(cu, step[k]);
+      ASSERT_EQ(out[k].l1_miss, e.l1_miss);
+      ASSERT_EQ(out[k].l2_miss, e.l2_miss);
+    }
+  }
+  expect_level(steps.stats().l1, one.stats().l1, "L1");
+  expect_level(steps.stats().l2, one.stats().l2, "L2");
+  EXPECT_EQ(steps.stats().dram_read_bytes, one.stats().dram_read_bytes);
+  EXPECT_EQ(steps.stats().dram_write_bytes, one.stats().dram_write_bytes);
 }
 
 TEST(Hierarchy, L1IsPrivatePerComputeUnit) {

@@ -95,6 +95,32 @@ TEST(StackDistance, BatchedAccessEqualsOneByOne) {
   }
 }
 
+// The histogram is counted in 32-bit working counts and published by curve(): it must equal the
+// histogram of the returned distances, grown as documented (to max(d + 1, 2 * size) when a distance d
+// falls past the end), also when curve() is read in between accesses.
+TEST(StackDistance, PublishedHistogramEqualsTheReturnedDistances) {
+  const auto s = stream(5, 60000, 30000);
+  StackDistance sd;
+  std::vector<uint64_t> hist;
+  uint64_t cold = 0;
+  for (size_t i = 0; i < s.size(); ++i) {
+    const uint64_t d = sd.access(s[i]);
+    if (d == StackDistance::kCold) {
+      ++cold;
+    } else {
+      if (d >= hist.size()) hist.resize(std::max<uint64_t>(d + 1, hist.size() * 2), 0);
+      ++hist[d];
+    }
+    if (i % 9973 == 0) {
+      ASSERT_EQ(sd.curve().histogram, hist) << "after access " << i;
+      ASSERT_EQ(sd.curve().cold, cold);
+    }
+  }
+  EXPECT_EQ(sd.curve().histogram, hist);
+  EXPECT_EQ(sd.curve().accesses, s.size());
+  EXPECT_EQ(sd.curve().footprint_lines(), hist.size());
+}
+
 TEST(StackDistance, DistancesOfAHandTrace) {
   StackDistance sd;
   EXPECT_EQ(sd.access(1), StackDistance::kCold);
