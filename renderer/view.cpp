@@ -9,7 +9,6 @@ namespace hp {
 View make_view(const Camera& camera, float aspect, bool reversed_z) {
   View v;
   v.reversed_z = reversed_z;
-  v.view = glm::lookAt(camera.position, camera.target, camera.up);
   const float f = 1.0f / std::tan(glm::radians(camera.vfov_deg) * 0.5f);
   const float n = camera.znear, fa = camera.zfar;
   // Column-major; view space looks down -z. y is negated so that world up is framebuffer up.
@@ -24,9 +23,6 @@ View make_view(const Camera& camera, float aspect, bool reversed_z) {
     p[2][2] = n / (fa - n);
     p[3][2] = fa * n / (fa - n);
   }
-  v.proj = p;
-  v.view_proj = p * v.view;
-  v.inv_view_proj = glm::inverse(v.view_proj);
   v.eye = camera.position;
   const glm::dvec3 fwd = glm::dvec3(camera.target) - glm::dvec3(camera.position);
   const glm::dmat4 rot = glm::lookAt(glm::dvec3(0.0), fwd, glm::dvec3(camera.up));

@@ -8,17 +8,13 @@
 
 namespace hp {
 
+/// Camera-relative: the matrices project a position taken relative to the eye (the view has no translation;
+/// built in double), so a world far from the origin keeps its precision near the camera (README "Speed
+/// against error"). The GPU passes get exactly these.
 struct View {
-  glm::mat4 view{1.0f};
-  glm::mat4 proj{1.0f};
-  glm::mat4 view_proj{1.0f};
-  glm::mat4 inv_view_proj{1.0f};
-  /// Camera-relative rendering: the same projection of a position taken relative to the eye (view without
-  /// its translation, built in double). The GPU passes use these: a world far from the origin would
-  /// otherwise lose its precision in the translation of view_proj (README "Hard cases").
   glm::vec3 eye{0.0f};
-  glm::mat4 view_proj_rel{1.0f};
-  glm::mat4 inv_view_proj_rel{1.0f};
+  glm::mat4 view_proj_rel{1.0f};      ///< (world - eye) -> clip
+  glm::mat4 inv_view_proj_rel{1.0f};  ///< (ndc, depth) -> world - eye
   bool reversed_z = false;
   /// The depth-buffer value of the background (the clear value).
   float far_depth() const { return reversed_z ? 0.0f : 1.0f; }

@@ -98,7 +98,8 @@ json measure_error(Frame& frame, const Scenario& s, const Scene& ref_scene, cons
   CompareOptions co;
   co.image.threshold = s.error_threshold;
   co.image.flip = s.error_flip;
-  json e = compare_with_reference(gpu, ref, WorldTransform{s.world_scale, s.world_translate}, co);
+  Image4f flip_map;
+  json e = compare_with_reference(gpu, ref, WorldTransform{s.world_scale, s.world_translate}, co, &flip_map);
   e["frames"] = s.error_frames;
   e["reference"] = {{"id", ref_id},
                     {"samples", rs.samples},
@@ -108,7 +109,7 @@ json measure_error(Frame& frame, const Scenario& s, const Scene& ref_scene, cons
   write_image((cell_dir / "reference.png").string(), ref.color);
   images["reference"] = "cells/" + id + "/reference.png";
   if (s.error_flip) {
-    write_image((cell_dir / "flip.png").string(), flip_error_map(gpu.color, ref.color, co.image.flip_ppd));
+    write_image((cell_dir / "flip.png").string(), flip_map);
     images["flip"] = "cells/" + id + "/flip.png";
   }
   return e;

@@ -25,7 +25,7 @@ json to_json(const ErrorMetrics& m) {
 }
 
 json compare_with_reference(const FrameReadback& gpu, const ReferenceImage& ref, const WorldTransform& t,
-                            const CompareOptions& o) {
+                            const CompareOptions& o, Image4f* flip_map) {
   const uint32_t w = ref.color.width, h = ref.color.height;
   const auto same = [&](const Image4f& im) { return im.width == w && im.height == h; };
   if (!same(gpu.color) || !same(gpu.normal) || gpu.depth.size() != size_t(w) * h ||
@@ -35,7 +35,18 @@ json compare_with_reference(const FrameReadback& gpu, const ReferenceImage& ref,
                                 std::to_string(h));
   }
   json out;
-  out["image"] = to_json(compare_images(gpu.color, ref.color, o.image));
+  if (flip_map && o.image.flip) {
+    *flip_map = flip_error_map(gpu.color, ref.color, o.image.flip_ppd);
+    ErrorOptions without = o.image;
+    without.flip = false;
+    ErrorMetrics m = compare_images(gpu.color, ref.color, without);
+    double sum = 0.0;
+    for (size_t i = 0; i < flip_map->rgba.size(); i += 4) sum += flip_map->rgba[i];
+    m.flip_mean = flip_map->rgba.empty() ? 0.0 : sum / double(flip_map->rgba.size() / 4);
+    out["image"] = to_json(m);
+  } else {
+    out["image"] = to_json(compare_images(gpu.color, ref.color, o.image));
+  }
 
   const float far_depth = gpu.view.far_depth();
   const glm::dvec3 cam(gpu.camera_position);

@@ -43,9 +43,10 @@ struct CompareOptions {
 
 /// {"image": {...metrics...}, "shadow": {compared, acne, leaks, wrong = acne + leaks, coverage_mismatch} (when `gpu.shadow` is
 /// not empty), "depth": {pixels, mean_rel, max_rel, bins: [{near, far, pixels, mean_rel, max_rel}]},
-/// "coverage_mismatch": n}. Throws std::invalid_argument when the sizes differ.
+/// "coverage_mismatch": n}. Throws std::invalid_argument when the sizes differ. With `flip_map` and
+/// o.image.flip, the per-pixel FLIP map is returned there too (computed once: its mean is flip_mean).
 nlohmann::json compare_with_reference(const FrameReadback& gpu, const ReferenceImage& ref, const WorldTransform& t,
-                                      const CompareOptions& o = {});
+                                      const CompareOptions& o = {}, Image4f* flip_map = nullptr);
 
 /// The metrics as JSON (PSNR of identical images, +inf, as null).
 nlohmann::json to_json(const ErrorMetrics& m);

@@ -156,6 +156,27 @@ TEST(Reference, IdAndCache) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(Compare, FlipMapIsComputedOnceAndMatchesTheMetric) {
+  const Scene scene = make_cornell_scene();
+  const uint32_t w = 40, h = 30;
+  const ReferenceImage r = render_reference(scene, scene.camera, small(w, h, 2));
+  FrameReadback f;
+  f.view = make_view(scene.camera, float(w) / float(h), false);
+  f.camera_position = scene.camera.position;
+  f.color = r.color;
+  for (size_t i = 0; i < f.color.rgba.size(); i += 4) f.color.rgba[i] *= 0.8f;  // a visible difference
+  f.normal = Image4f(w, h);
+  f.depth.assign(size_t(w) * h, 1.0f);
+  Image4f map;
+  const nlohmann::json with_map = compare_with_reference(f, r, {}, {}, &map);
+  const nlohmann::json without = compare_with_reference(f, r, {}, {});
+  ASSERT_EQ(map.width, w);
+  ASSERT_EQ(map.height, h);
+  EXPECT_GT(with_map["image"]["flip_mean"].get<double>(), 0.0);
+  EXPECT_NEAR(with_map["image"]["flip_mean"].get<double>(), without["image"]["flip_mean"].get<double>(), 1e-9);
+  EXPECT_EQ(with_map["image"]["mse"], without["image"]["mse"]);
+}
+
 // A "frame" made from the reference itself compares as exact; single-pixel faults are counted.
 TEST(Compare, CountsAcneLeaksAndMismatches) {
   const Scene scene = make_cornell_scene();
