@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <iterator>
 #include <ostream>
 
 #include "cachesim/cache.hpp"  // count_bits
@@ -65,6 +66,7 @@ StackDistance::StackDistance(uint32_t line_bytes, double sampling_rate) {
   sample_threshold_ = uint64_t(std::max(0.0, sampling_rate) * double(1 << 24));
   scale_ = sampled_ ? 1.0 / sampling_rate : 1.0;
   hw_popcount_ = host_has_popcount();
+  std::fill(std::begin(pending_), std::end(pending_), kCold);
   page_table_.assign(1 << 8, PageSlot{kEmptyKey, 0});
   page_mask_ = (1 << 8) - 1;
   capacity_ = 1 << 12;
@@ -152,13 +154,16 @@ template <bool kHw>
   }
 }
 
-void StackDistance::count_distance(uint64_t bucket) {  // a bucket past the end: grow, as before
+void StackDistance::count_distance(uint64_t bucket) {  // a bucket past the end: grow as before
   const size_t size = std::max<uint64_t>(bucket + 1, counts_.size() * 2);
   counts_.resize(size, 0);
-  ++counts_[bucket];
 }
 
 void StackDistance::publish_histogram() const {
+  for (uint64_t& p : pending_) {
+    if (p != kCold) count_now(p);
+    p = kCold;
+  }
   curve_.histogram.resize(counts_.size());
   for (size_t d = 0; d < counts_.size(); ++d) curve_.histogram[d] = counts_[d] + (d < carry_.size() ? carry_[d] : 0);
   histogram_stale_ = false;
@@ -247,14 +252,12 @@ template <bool kHw>
     tree_add(last >> kBlockBits, -1);
     const uint64_t bucket = sampled_ ? uint64_t(double(distance) * scale_) : distance;
     histogram_stale_ = true;
-    if (bucket < counts_.size()) [[likely]] {
-      if (++counts_[bucket] == 0) [[unlikely]] {  // wrapped: carry 2^32 into the wide part
-        if (carry_.size() <= bucket) carry_.resize(counts_.size(), 0);
-        carry_[bucket] += uint64_t(1) << 32;
-      }
-    } else {
-      count_distance(bucket);
-    }
+    if (bucket >= counts_.size()) [[unlikely]] count_distance(bucket);  // grows only
+    __builtin_prefetch(counts_.data() + bucket, 1);
+    uint64_t& p = pending_[pending_next_];
+    pending_next_ = (pending_next_ + 1) % kPending;
+    if (p != kCold) count_now(p);
+    p = bucket;
   }
   slot = now_ + 1;
   bits_[now_ >> 6] |= uint64_t(1) << (now_ & 63);

@@ -101,8 +101,19 @@ class StackDistance {
   // touches at a random place (its distance), so it should be as small as possible.
   mutable MissRatioCurve curve_;
   mutable bool histogram_stale_ = false;
-  std::vector<uint32_t> counts_;  // low 32 bits of each bucket, sized as curve_.histogram will be
-  std::vector<uint64_t> carry_;   // multiples of 2^32 carried out of counts_ (empty until one wraps)
+  // Each increment is deferred by kPending accesses, its bucket fetched meanwhile (sums commute;
+  // the histogram's growth is decided at once, so its length is unchanged); curve() flushes them.
+  static constexpr uint32_t kPending = 16;
+  mutable std::vector<uint32_t> counts_;  // low 32 bits of each bucket, sized as curve_.histogram will be
+  mutable std::vector<uint64_t> carry_;   // multiples of 2^32 carried out of counts_ (empty until one wraps)
+  mutable uint64_t pending_[kPending];    // buckets still to count, kCold = none
+  mutable uint32_t pending_next_ = 0;
+  void count_now(uint64_t bucket) const {
+    if (++counts_[bucket] == 0) [[unlikely]] {  // wrapped: carry 2^32 into the wide part
+      if (carry_.size() <= bucket) carry_.resize(counts_.size(), 0);
+      carry_[bucket] += uint64_t(1) << 32;
+    }
+  }
   uint64_t sample_threshold_;  // hash < threshold (of 2^24) is tracked
   bool sampled_ = false;
   double scale_ = 1.0;
