@@ -67,8 +67,7 @@ fs::path reference_cache(const fs::path& out) {
 // Renders `s.error_frames` accumulated frames, compares them with the (cached) CPU reference of the
 // untransformed scene and writes the reference and an error map into the cell folder.
 json measure_error(Frame& frame, const Scenario& s, const Scene& ref_scene, const Camera& ref_camera,
-                   const Camera& camera, const fs::path& out, const fs::path& cell_dir, json& images,
-                   const std::string& id) {
+                   const fs::path& out, const fs::path& cell_dir, json& images, const std::string& id) {
   ReferenceSettings rs;
   rs.width = s.frame.width;
   rs.height = s.frame.height;
@@ -94,7 +93,6 @@ json measure_error(Frame& frame, const Scenario& s, const Scene& ref_scene, cons
   gpu.normal = frame.read_aov(Aov::normal);
   gpu.depth = frame.read_depth();
   gpu.view = frame.view();
-  gpu.camera_position = camera.position;
   CompareOptions co;
   co.image.threshold = s.error_threshold;
   co.image.flip = s.error_flip;
@@ -313,7 +311,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       }
       line["cache"] = cache;
     }
-    if (s.error) line["error"] = measure_error(frame, s, ref_scene, ref_camera, camera, out, cell_dir, images, id);
+    if (s.error) line["error"] = measure_error(frame, s, ref_scene, ref_camera, out, cell_dir, images, id);
     if (!m.report.is_null()) line["report"] = m.report;
     if (m.expect.is_object() && m.cell_axis_values[i].contains("case")) {
       const std::string name = m.cell_axis_values[i]["case"].get<std::string>();

@@ -49,7 +49,7 @@ json compare_with_reference(const FrameReadback& gpu, const ReferenceImage& ref,
   }
 
   const float far_depth = gpu.view.far_depth();
-  const glm::dvec3 cam(gpu.camera_position);
+  const glm::dvec3 cam(gpu.view.eye);
   struct Sample {
     double dist, rel;
   };

@@ -20,8 +20,7 @@ struct FrameReadback {
   Image4f shadow;              ///< shadow AOV (r: 1 lit, 0 shadowed); empty when the pass is off
   Image4f normal;              ///< normal AOV (rgb world normal, a 0 on background)
   std::vector<float> depth;    ///< raw depth-buffer values
-  View view;                   ///< the GPU frame's matrices
-  glm::vec3 camera_position{0.0f};
+  View view;                   ///< the GPU frame's matrices and eye
 };
 
 /// The GPU frame's world is the reference's world scaled by `scale` about the origin, then translated

@@ -162,7 +162,6 @@ TEST(Compare, FlipMapIsComputedOnceAndMatchesTheMetric) {
   const ReferenceImage r = render_reference(scene, scene.camera, small(w, h, 2));
   FrameReadback f;
   f.view = make_view(scene.camera, float(w) / float(h), false);
-  f.camera_position = scene.camera.position;
   f.color = r.color;
   for (size_t i = 0; i < f.color.rgba.size(); i += 4) f.color.rgba[i] *= 0.8f;  // a visible difference
   f.normal = Image4f(w, h);
@@ -184,7 +183,6 @@ TEST(Compare, CountsAcneLeaksAndMismatches) {
   const ReferenceImage r = render_reference(scene, scene.camera, small(w, h, 2));
   FrameReadback f;
   f.view = make_view(scene.camera, float(w) / float(h), false);
-  f.camera_position = scene.camera.position;
   f.color = r.color;
   f.shadow = Image4f(w, h);
   f.normal = Image4f(w, h);
@@ -229,7 +227,6 @@ TEST(Compare, CountsAcneLeaksAndMismatches) {
   transform_world(s2, big, 1e3, glm::dvec3(0.0));
   FrameReadback g = f;
   g.view = make_view(big, float(w) / float(h), false);
-  g.camera_position = big.position;
   for (uint32_t i = 0; i < w * h; ++i) {
     const float* p = &r.position.rgba[4 * i];
     if (p[3] > 0.5f) g.depth[i] = project_depth(g.view, big.position + 1e3f * glm::vec3(p[0], p[1], p[2]));
