@@ -231,7 +231,11 @@ void StackDistance::compact() {
   now_ = ones;
 }
 
-uint64_t StackDistance::access(uint64_t line) { return hw_popcount_ ? access_hw(line) : access_one<false>(line); }
+uint64_t StackDistance::access(uint64_t line) {
+  // A skipped line (SHARDS) returns here, before the dispatch (access_one checks again: same answer).
+  if (sampled_ && (mix(line ^ 0x5851F42D4C957F2Dull) >> 40) >= sample_threshold_) return kCold;
+  return hw_popcount_ ? access_hw(line) : access_one<false>(line);
+}
 
 HP_SD_HW_TARGET uint64_t StackDistance::access_hw(uint64_t line) { return access_one<true>(line); }
 
