@@ -156,16 +156,32 @@ TEST(Reference, IdAndCache) {
   std::filesystem::remove_all(dir);
 }
 
+// The frame the reference itself would read back, seen from `camera` in a world scaled by `scale`: its
+// colour, shadow mask, normals, and the depth of each exact position.
+FrameReadback frame_from_reference(const ReferenceImage& r, const Camera& camera, float scale = 1.0f) {
+  const uint32_t w = r.color.width, h = r.color.height;
+  FrameReadback f;
+  f.view = make_view(camera, float(w) / float(h), false);
+  f.color = r.color;
+  f.shadow = Image4f(w, h);
+  f.normal = Image4f(w, h);
+  f.depth.assign(size_t(w) * h, f.view.far_depth());
+  for (uint32_t i = 0; i < w * h; ++i) {
+    const float* p = &r.position.rgba[4 * i];
+    const float* s = &r.shading.rgba[4 * i];
+    f.shadow.rgba[4 * i] = s[0];
+    f.normal.rgba[4 * i] = s[1], f.normal.rgba[4 * i + 1] = s[2], f.normal.rgba[4 * i + 2] = s[3];
+    if (p[3] > 0.5f) f.depth[i] = project_depth(f.view, camera.position + scale * glm::vec3(p[0], p[1], p[2]));
+  }
+  return f;
+}
+
 TEST(Compare, FlipMapIsComputedOnceAndMatchesTheMetric) {
   const Scene scene = make_cornell_scene();
   const uint32_t w = 40, h = 30;
   const ReferenceImage r = render_reference(scene, scene.camera, small(w, h, 2));
-  FrameReadback f;
-  f.view = make_view(scene.camera, float(w) / float(h), false);
-  f.color = r.color;
+  FrameReadback f = frame_from_reference(r, scene.camera);
   for (size_t i = 0; i < f.color.rgba.size(); i += 4) f.color.rgba[i] *= 0.8f;  // a visible difference
-  f.normal = Image4f(w, h);
-  f.depth.assign(size_t(w) * h, 1.0f);
   Image4f map;
   const nlohmann::json with_map = compare_with_reference(f, r, {}, {}, &map);
   const nlohmann::json without = compare_with_reference(f, r, {}, {});
@@ -181,23 +197,13 @@ TEST(Compare, CountsAcneLeaksAndMismatches) {
   const Scene scene = make_cornell_scene();
   const uint32_t w = 64, h = 48;
   const ReferenceImage r = render_reference(scene, scene.camera, small(w, h, 2));
-  FrameReadback f;
-  f.view = make_view(scene.camera, float(w) / float(h), false);
-  f.color = r.color;
-  f.shadow = Image4f(w, h);
-  f.normal = Image4f(w, h);
-  f.depth.assign(size_t(w) * h, 1.0f);
+  FrameReadback f = frame_from_reference(r, scene.camera);
   int lit_px = -1, dark_px = -1;
   for (uint32_t i = 0; i < w * h; ++i) {
-    const float* p = &r.position.rgba[4 * i];
-    const float* s = &r.shading.rgba[4 * i];
-    f.shadow.rgba[4 * i] = s[0];
-    f.normal.rgba[4 * i] = s[1], f.normal.rgba[4 * i + 1] = s[2], f.normal.rgba[4 * i + 2] = s[3];
-    if (p[3] > 0.5f) {
-      f.depth[i] = project_depth(f.view, scene.camera.position + glm::vec3(p[0], p[1], p[2]));
-      if (s[0] > 0.5f && lit_px < 0 && i > w * h / 2) lit_px = int(i);
-      if (s[0] < 0.5f && dark_px < 0) dark_px = int(i);
-    }
+    if (r.position.rgba[4 * i + 3] < 0.5f) continue;
+    const float lit = r.shading.rgba[4 * i];
+    if (lit > 0.5f && lit_px < 0 && i > w * h / 2) lit_px = int(i);
+    if (lit < 0.5f && dark_px < 0) dark_px = int(i);
   }
   ErrorOptions eo;
   eo.flip = false;
@@ -225,12 +231,7 @@ TEST(Compare, CountsAcneLeaksAndMismatches) {
   Camera big = scene.camera;
   Scene s2 = scene;
   transform_world(s2, big, 1e3, glm::dvec3(0.0));
-  FrameReadback g = f;
-  g.view = make_view(big, float(w) / float(h), false);
-  for (uint32_t i = 0; i < w * h; ++i) {
-    const float* p = &r.position.rgba[4 * i];
-    if (p[3] > 0.5f) g.depth[i] = project_depth(g.view, big.position + 1e3f * glm::vec3(p[0], p[1], p[2]));
-  }
+  const FrameReadback g = frame_from_reference(r, big, 1e3f);
   e = compare_with_reference(g, r, WorldTransform{1e3, glm::dvec3(0.0)}, co);
   EXPECT_LT(e["depth"]["max_rel"].get<double>(), 1e-3);
 
