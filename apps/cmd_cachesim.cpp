@@ -96,20 +96,32 @@ void run_trace(const CachesimArgs& a) {
   bool exported = a.export_din_path.empty();
   for (uint32_t p = 0; p < reader.passes().size(); ++p) {
     const auto& pass = reader.passes()[p];
-    const auto records = reader.read_pass(p);
     if (!a.export_din_path.empty() && (a.export_pass.empty() ? p == 0 : pass.name == a.export_pass)) {
       std::ofstream din(a.export_din_path);
       if (!din) throw InputError(a.export_din_path + ": cannot write");
-      const uint64_t n = export_din(din, preset, header, pass, records, a.export_cu);
+      const uint64_t n = export_din(
+          din, preset, header, pass,
+          [&](Simulator& s) {
+            reader.read_slices(p, [&](std::span<const trace::TraceRecord> recs, uint64_t first, uint64_t end) {
+              s.feed(recs, first, end);
+            });
+          },
+          a.export_cu);
       std::printf("exported %llu L1 requests of CU %u in pass '%s' to %s\n", (unsigned long long)n, a.export_cu,
                   pass.name.c_str(), a.export_din_path.c_str());
       exported = true;
     }
-    const PassResult r = sim.run_pass(pass, records);
+    // Slice by slice as captured: memory bounded by the largest slice, whatever the frame's size.
+    sim.begin_pass(pass);
+    reader.read_slices(p, [&](std::span<const trace::TraceRecord> recs, uint64_t first, uint64_t end) {
+      sim.feed(recs, first, end);
+    });
+    const PassResult r = sim.end_pass();
     const auto& s = r.stats;
-    std::printf("\npass '%s': %llu lane accesses, %llu workgroups, %llu wavefront steps\n", r.name.c_str(),
-                (unsigned long long)r.lane_accesses, (unsigned long long)r.workgroups,
-                (unsigned long long)r.wave_steps);
+    std::printf("\npass '%s': %llu lane accesses, %llu workgroups, %llu wavefront steps, %u slice(s) (at most %llu "
+                "records held at once)\n",
+                r.name.c_str(), (unsigned long long)r.lane_accesses, (unsigned long long)r.workgroups,
+                (unsigned long long)r.wave_steps, r.slices, (unsigned long long)r.peak_resident_records);
     std::printf("  %-3s %14s %14s %14s %9s %14s %14s\n", "", "requests", "hits", "misses", "hit rate", "sectors",
                 "sector misses");
     print_level("L1", s.l1);
@@ -136,6 +148,8 @@ void run_trace(const CachesimArgs& a) {
     nlohmann::json pj = {{"name", r.name},
                          {"lane_accesses", r.lane_accesses},
                          {"wave_steps", r.wave_steps},
+                         {"slices", r.slices},
+                         {"peak_resident_records", r.peak_resident_records},
                          {"workgroups", r.workgroups},
                          {"l1", level_json(s.l1)},
                          {"l2", level_json(s.l2)},

@@ -100,10 +100,15 @@ void run_trace(const TraceArgs& a) {
       throw InputError("--din-cu " + std::to_string(a.din_cu) + ": preset " + preset.name + " has " +
                        std::to_string(preset.compute_units) + " compute units");
     }
-    const auto records = reader.read_pass(uint32_t(pass));
     const std::string tmp = a.din_out + ".tmp";
     std::ofstream out(tmp);
-    const uint64_t lines = cachesim::export_din(out, preset, reader.header(), reader.passes()[pass], records, a.din_cu);
+    const uint64_t lines = cachesim::export_din(
+        out, preset, reader.header(), reader.passes()[pass],
+        [&](cachesim::Simulator& sim) {
+          reader.read_slices(uint32_t(pass), [&](std::span<const trace::TraceRecord> recs, uint64_t first,
+                                                 uint64_t end) { sim.feed(recs, first, end); });
+        },
+        a.din_cu);
     out.close();
     if (!out) throw InputError(a.din_out + ": cannot write");
     std::rename(tmp.c_str(), a.din_out.c_str());

@@ -6,8 +6,10 @@
 #include "trace/trace_file.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <stdexcept>
 
 namespace hp {
 
@@ -69,58 +71,108 @@ json curve_json(const cachesim::MissRatioCurve& c) {
 
 }  // namespace
 
-json analyse_trace(const std::string& trace_path, const CacheAnalysisOptions& o) {
-  const cachesim::Preset preset = cachesim::scale_for_sampling(cachesim::find_preset(o.preset), o.scale_for_sampling);
-  trace::TraceReader reader(trace_path);
+CacheAnalysis::CacheAnalysis(const trace::TraceHeader& header, const CacheAnalysisOptions& o)
+    : header_(header), options_(o) {
+  const cachesim::Preset preset =
+      cachesim::scale_for_sampling(cachesim::find_preset(o.preset), o.scale_for_sampling);
   cachesim::SimOptions so;
   so.per_invocation = !o.heatmap_dir.empty();
   so.l1_mrc = so.l2_mrc = o.curves;
-  cachesim::Simulator sim(preset, reader.header(), so);
-  json out;
-  out["preset"] = preset.name;
-  out["passes"] = json::array();
-  for (uint32_t p = 0; p < reader.passes().size(); ++p) {
-    const trace::PassInfo& info = reader.passes()[p];
-    const auto records = reader.read_pass(p);
-    const cachesim::PassResult r = sim.run_pass(info, records);
-    json pj;
-    pj["pass"] = info.name;
-    pj["records"] = records.size();
-    pj["lane_accesses"] = r.lane_accesses;
-    pj["l1"] = level_json(r.stats.l1);
-    pj["l2"] = level_json(r.stats.l2);
-    pj["stores"] = r.stats.stores;
-    pj["atomics"] = r.stats.atomics;
-    pj["dram_read_bytes"] = r.stats.dram_read_bytes;
-    pj["dram_write_bytes"] = r.stats.dram_write_bytes;
-    json buffers = json::object();
-    for (const trace::BufferInfo& b : reader.header().buffers) {
-      const cachesim::BufferStats& bs = r.buffers[b.id];
-      if (bs.l1_requests == 0 && bs.l2_requests == 0) continue;
-      buffers[b.name] = {{"l1_requests", bs.l1_requests}, {"l1_misses", bs.l1_misses}, {"l2_requests", bs.l2_requests},
-                         {"l2_misses", bs.l2_misses},     {"dram_read_bytes", bs.dram_read_bytes}};
-    }
-    pj["buffers"] = buffers;
-    if (o.curves) pj["mrc"] = {{"l1", curve_json(r.l1_curve)}, {"l2", curve_json(r.l2_curve)}};
-    if (!o.heatmap_dir.empty()) {
-      // The pass's own pixel grid: shadows cover the image; reflections their (possibly reduced) grid.
-      uint32_t w = reader.header().image_width, h = reader.header().image_height;
-      if (info.name == "reflections") {
-        for (const auto& b : reader.header().buffers) {
-          if (b.name == "reflection") w = b.width, h = b.height;
-        }
-      }
-      const std::filesystem::path dir(o.heatmap_dir);
-      pj["heatmaps"] = {
-          {"l1_misses", write_heatmap(r.l1_misses, info, w, h,
-                                      (dir / (o.heatmap_prefix + info.name + "_l1_misses.png")).string())},
-          {"l2_misses", write_heatmap(r.l2_misses, info, w, h,
-                                      (dir / (o.heatmap_prefix + info.name + "_l2_misses.png")).string())}};
-    }
-    out["passes"].push_back(pj);
+  sim_ = std::make_unique<cachesim::Simulator>(preset, header_, so);
+  out_["preset"] = preset.name;
+  out_["passes"] = json::array();
+}
+
+CacheAnalysis::~CacheAnalysis() = default;
+
+uint32_t CacheAnalysis::begin_pass(const trace::PassInfo& pass) {
+  if (in_pass_) end_pass();
+  sim_->begin_pass(pass);
+  passes_.push_back(pass);
+  in_pass_ = true;
+  return uint32_t(passes_.size() - 1);
+}
+
+void CacheAnalysis::write_records(uint32_t pass, std::span<const trace::TraceRecord> records,
+                                  uint64_t first_workgroup, uint64_t end_workgroup) {
+  if (!in_pass_ || pass + 1 != passes_.size())
+    throw std::logic_error("CacheAnalysis: records for a pass that is not the current one");
+  // A capture hands over what the GPU wrote: check it as a trace file's records are checked.
+  trace::validate_records("pass '" + passes_.back().name + "'", header_, passes_.back(), records, first_workgroup,
+                          end_workgroup);
+  write_validated(records, first_workgroup, end_workgroup);
+}
+
+void CacheAnalysis::write_validated(std::span<const trace::TraceRecord> records, uint64_t first_workgroup,
+                                    uint64_t end_workgroup) {
+  if (!in_pass_) throw std::logic_error("CacheAnalysis: records outside a pass");
+  const auto t0 = std::chrono::steady_clock::now();
+  sim_->feed(records, first_workgroup, end_workgroup);
+  seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void CacheAnalysis::end_pass() {
+  in_pass_ = false;
+  const auto t0 = std::chrono::steady_clock::now();
+  const trace::PassInfo& info = passes_.back();
+  const cachesim::PassResult r = sim_->end_pass();
+  const CacheAnalysisOptions& o = options_;
+  json pj;
+  pj["pass"] = info.name;
+  pj["records"] = r.lane_accesses;
+  pj["lane_accesses"] = r.lane_accesses;
+  pj["peak_resident_records"] = r.peak_resident_records;
+  pj["l1"] = level_json(r.stats.l1);
+  pj["l2"] = level_json(r.stats.l2);
+  pj["stores"] = r.stats.stores;
+  pj["atomics"] = r.stats.atomics;
+  pj["dram_read_bytes"] = r.stats.dram_read_bytes;
+  pj["dram_write_bytes"] = r.stats.dram_write_bytes;
+  json buffers = json::object();
+  for (const trace::BufferInfo& b : header_.buffers) {
+    const cachesim::BufferStats& bs = r.buffers[b.id];
+    if (bs.l1_requests == 0 && bs.l2_requests == 0) continue;
+    buffers[b.name] = {{"l1_requests", bs.l1_requests}, {"l1_misses", bs.l1_misses}, {"l2_requests", bs.l2_requests},
+                       {"l2_misses", bs.l2_misses},     {"dram_read_bytes", bs.dram_read_bytes}};
   }
-  out["dram_writeback_bytes"] = sim.finish();
-  return out;
+  pj["buffers"] = buffers;
+  if (o.curves) pj["mrc"] = {{"l1", curve_json(r.l1_curve)}, {"l2", curve_json(r.l2_curve)}};
+  if (!o.heatmap_dir.empty()) {
+    // The pass's own pixel grid: shadows cover the image; reflections their (possibly reduced) grid.
+    uint32_t w = header_.image_width, h = header_.image_height;
+    if (info.name == "reflections") {
+      for (const auto& b : header_.buffers) {
+        if (b.name == "reflection") w = b.width, h = b.height;
+      }
+    }
+    const std::filesystem::path dir(o.heatmap_dir);
+    pj["heatmaps"] = {
+        {"l1_misses",
+         write_heatmap(r.l1_misses, info, w, h, (dir / (o.heatmap_prefix + info.name + "_l1_misses.png")).string())},
+        {"l2_misses",
+         write_heatmap(r.l2_misses, info, w, h, (dir / (o.heatmap_prefix + info.name + "_l2_misses.png")).string())}};
+  }
+  out_["passes"].push_back(pj);
+  seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+json CacheAnalysis::finish() {
+  if (in_pass_) end_pass();
+  out_["dram_writeback_bytes"] = sim_->finish();
+  out_["simulation_s"] = seconds_;
+  return std::move(out_);
+}
+
+json analyse_trace(const std::string& trace_path, const CacheAnalysisOptions& o) {
+  trace::TraceReader reader(trace_path);
+  CacheAnalysis analysis(reader.header(), o);
+  for (uint32_t p = 0; p < reader.passes().size(); ++p) {
+    analysis.begin_pass(reader.passes()[p]);
+    reader.read_slices(p, [&](std::span<const trace::TraceRecord> recs, uint64_t first, uint64_t end) {
+      analysis.write_validated(recs, first, end);
+    });
+  }
+  return analysis.finish();
 }
 
 }  // namespace hp

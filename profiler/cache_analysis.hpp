@@ -5,9 +5,16 @@
 
 #include <nlohmann/json.hpp>
 
+#include <memory>
 #include <string>
 
+#include "trace/trace_file.hpp"
+
 namespace hp {
+
+namespace cachesim {
+class Simulator;
+}
 
 struct CacheAnalysisOptions {
   std::string preset = "vega56";  ///< name or JSON path (cachesim::find_preset)
@@ -19,7 +26,33 @@ struct CacheAnalysisOptions {
   uint32_t scale_for_sampling = 1;
 };
 
-/// Replays every pass of `trace_path` and returns {"preset", "passes": [...]} (schema in README, "Cache
+/// The cache simulator as a trace sink: a capture streams its slices straight into the replay, so a
+/// frame of any size is analysed without a trace file and with at most a couple of slices in memory.
+/// finish() returns {"preset", "passes": [...], "dram_writeback_bytes", "simulation_s"}; per pass also
+/// "peak_resident_records" (the most records the replay held at once).
+class CacheAnalysis final : public trace::TraceSink {
+ public:
+  CacheAnalysis(const trace::TraceHeader& header, const CacheAnalysisOptions& options);
+  ~CacheAnalysis() override;
+  uint32_t begin_pass(const trace::PassInfo& pass) override;
+  void write_records(uint32_t pass, std::span<const trace::TraceRecord> records, uint64_t first_workgroup,
+                     uint64_t end_workgroup) override;
+  /// write_records for records already validated against this header (TraceReader::read_slices).
+  void write_validated(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup);
+  nlohmann::json finish();
+
+ private:
+  void end_pass();
+  trace::TraceHeader header_;
+  CacheAnalysisOptions options_;
+  std::unique_ptr<cachesim::Simulator> sim_;
+  nlohmann::json out_;
+  std::vector<trace::PassInfo> passes_;
+  bool in_pass_ = false;
+  double seconds_ = 0;  // spent replaying and writing results (not capturing or reading)
+};
+
+/// Replays every pass of `trace_path`, slice by slice and returns {"preset", "passes": [...]} (schema in README, "Cache
 /// tables"). Throws hp::InputError for a bad trace or preset.
 nlohmann::json analyse_trace(const std::string& trace_path, const CacheAnalysisOptions& options);
 

@@ -269,7 +269,7 @@ trace::TraceHeader Frame::trace_header(bool tiled) const {
   return h;
 }
 
-std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace::TraceWriter& writer) {
+std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace::TraceSink& writer) {
   if (!rt_passes_) throw InputError("trace: no ray-tracing pass is enabled, nothing to trace");
   if (o.sample_every == 0 || o.sample_every > 0xFFFFFu) {
     throw InputError("trace: --sample-every must be in 1.." + std::to_string(0xFFFFFu));

@@ -88,10 +88,10 @@ class Frame {
   /// queries measure the queries' own overhead.
   FrameTiming render(bool timestamps = true);
   /// Renders one frame like render(), with the chosen ray-tracing passes run as their instrumented variants
-  /// in slices that each fit the trace buffer; each slice's records go to `writer` before the next slice
-  /// runs (bounded memory). A slice that overflows is re-run with fewer workgroup rows; a single row that
+  /// in slices that each fit the trace buffer; each slice's records go to `sink` (a trace file, the cache
+  /// simulator, both) before the next slice runs (bounded memory). A slice that overflows is re-run with fewer workgroup rows; a single row that
   /// does not fit is an InputError naming the limit. The image equals the untraced one.
-  std::vector<CapturedPass> render_captured(const CaptureOptions& options, trace::TraceWriter& writer);
+  std::vector<CapturedPass> render_captured(const CaptureOptions& options, trace::TraceSink& sink);
   /// The trace file header for this frame: image size and the buffer table (ids of trace_buffers.h,
   /// consecutive 4 KiB-aligned synthetic base addresses, image layouts).
   trace::TraceHeader trace_header(bool tiled_images) const;

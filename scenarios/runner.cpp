@@ -280,19 +280,23 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       co.sample_block = s.trace_sample_block;
       co.tiled_images = s.trace_tiled_images;
       const fs::path trace_path = cell_dir / "trace.hptrace";
-      std::vector<CapturedPass> captured;
-      {
-        trace::TraceWriter writer(trace_path, frame.trace_header(co.tiled_images));
-        captured = frame.render_captured(co, writer);
-        writer.finish();
-      }
       CacheAnalysisOptions ao;
       ao.preset = s.cache_preset;
       if (s.trace_scale_model) ao.scale_for_sampling = s.trace_sample_every;  // 1 for a full trace
       ao.heatmap_dir = cell_dir.string();
-      const auto t_sim = std::chrono::steady_clock::now();
-      json cache = analyse_trace(trace_path.string(), ao);
-      cache["simulation_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_sim).count();
+      // The capture streams each slice into the simulator (and into a trace file only when the scenario
+      // keeps one): memory stays bounded by a couple of slices whatever the resolution.
+      CacheAnalysis analysis(frame.trace_header(co.tiled_images), ao);
+      std::vector<CapturedPass> captured;
+      if (s.trace_keep) {
+        trace::TraceWriter writer(trace_path, frame.trace_header(co.tiled_images));
+        trace::TeeSink both(writer, analysis);
+        captured = frame.render_captured(co, both);
+        writer.finish();
+      } else {
+        captured = frame.render_captured(co, analysis);
+      }
+      json cache = analysis.finish();
       for (auto& p : cache["passes"]) {
         for (auto& [k, v] : p["heatmaps"].items()) {
           v = fs::relative(fs::path(v.get<std::string>()), out).string();
@@ -304,11 +308,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
           }
         }
       }
-      if (s.trace_keep) {
-        cache["trace_file"] = fs::relative(trace_path, out).string();
-      } else {
-        fs::remove(trace_path);
-      }
+      if (s.trace_keep) cache["trace_file"] = fs::relative(trace_path, out).string();
       line["cache"] = cache;
     }
     if (s.error) line["error"] = measure_error(frame, s, ref_scene, ref_camera, out, cell_dir, images, id);

@@ -12,7 +12,8 @@ namespace hp::cachesim {
 
 namespace {
 
-// A pass's accesses grouped by invocation and ordered by sequence number, with addresses resolved.
+// One slice of a pass's accesses grouped by invocation (local to the slice) and ordered by sequence
+// number, with addresses resolved.
 struct LaneAccesses {
   std::vector<uint64_t> begin;    // begin[inv] .. begin[inv + 1]: that invocation's accesses
   std::vector<uint64_t> address;  // byte address
@@ -20,17 +21,19 @@ struct LaneAccesses {
   std::vector<uint32_t> seq;      // the record's sequence number
 };
 
-LaneAccesses group(std::span<const trace::TraceRecord> records, uint64_t invocations,
+// `first_invocation` is the slice's first global invocation; records are already checked to lie in
+// [first_invocation, first_invocation + invocations).
+LaneAccesses group(std::span<const trace::TraceRecord> records, uint64_t first_invocation, uint64_t invocations,
                    const trace::BufferInfo* const* buffers) {
   LaneAccesses a;
   a.begin.assign(invocations + 1, 0);
-  for (const auto& r : records) ++a.begin[r.invocation + 1];
+  for (const auto& r : records) ++a.begin[r.invocation - first_invocation + 1];
   for (uint64_t i = 0; i < invocations; ++i) a.begin[i + 1] += a.begin[i];
   // Counting sort by invocation, stable, so one invocation's records keep their buffer order, then
   // a per-invocation sort by seq where needed (GPU atomics usually hand out indices in program order).
   std::vector<uint64_t> fill(a.begin.begin(), a.begin.end() - 1);
   std::vector<trace::TraceRecord> sorted(records.size());
-  for (const auto& r : records) sorted[fill[r.invocation]++] = r;
+  for (const auto& r : records) sorted[fill[r.invocation - first_invocation]++] = r;
   for (uint64_t i = 0; i < invocations; ++i) {
     auto first = sorted.begin() + int64_t(a.begin[i]), last = sorted.begin() + int64_t(a.begin[i + 1]);
     auto by_seq = [](const trace::TraceRecord& x, const trace::TraceRecord& y) { return x.seq < y.seq; };
@@ -118,8 +121,18 @@ class Coalescer {
   bool sectors_;
 };
 
+// A fed slice: its workgroups' accesses and per-invocation cursors, alive until every workgroup retired.
+struct Slice {
+  uint64_t first_group = 0, end_group = 0;
+  uint64_t first_invocation = 0;
+  LaneAccesses acc;
+  std::vector<uint64_t> cursor;  // next access per (slice-local) invocation
+  uint64_t groups_left = 0;      // workgroups not yet retired
+};
+
 struct Wave {
-  uint64_t first_invocation;
+  Slice* slice;
+  uint64_t first_local;  // first lane's invocation, local to the slice
   uint32_t lanes;
   uint64_t remaining;  // accesses not yet issued
   uint64_t workgroup;
@@ -127,6 +140,7 @@ struct Wave {
 
 struct ResidentGroup {
   uint64_t workgroup;
+  Slice* slice;
   uint32_t waves_left;
   uint32_t waves;
 };
@@ -140,6 +154,41 @@ struct ComputeUnit {
 
 }  // namespace
 
+// The scheduler's state between feeds: the replay stops where it would dispatch a workgroup no slice has
+// brought yet, and resumes there, so a sliced replay makes exactly the decisions of a whole one.
+struct Simulator::PassState {
+  trace::PassInfo info;
+  PassResult res;
+  uint64_t per_group = 0, groups = 0, invocations = 0;
+  uint32_t waves_per_group = 0;
+  std::vector<ComputeUnit> cu;
+  std::vector<std::unique_ptr<Slice>> slices;  // alive, in workgroup order
+  uint64_t fed_end = 0;                        // workgroups below this are known (fed or empty)
+  bool final = false;                          // end_pass: every workgroup is known
+  uint64_t next_group = 0;
+  uint64_t resident_records = 0;
+  // Refill position, kept when a refill stops for data: sweep index and whether this sweep placed work.
+  uint32_t refill_cu = 0;
+  bool refill_progress = false;
+  bool refilling = true;  // the replay stopped inside a refill (or has not started)
+  bool done = false;
+  Coalescer co;
+  std::vector<IssueResult> outcome;
+
+  PassState(uint32_t width, const Cache& l1, bool sectors)
+      : co(width, l1.line_shift(), l1.sector_shift(), l1.full_mask(), sectors) {}
+
+  void retire(Slice* s) {
+    if (--s->groups_left) return;
+    resident_records -= s->acc.address.size();
+    for (size_t i = 0; i < slices.size(); ++i)
+      if (slices[i].get() == s) {
+        slices.erase(slices.begin() + int64_t(i));
+        break;
+      }
+  }
+};
+
 Simulator::Simulator(const Preset& preset, const trace::TraceHeader& header, SimOptions options)
     : preset_(preset), buffer_storage_(header.buffers), options_(std::move(options)),
       hierarchy_(preset.l1, preset.compute_units, preset.l2) {
@@ -147,98 +196,174 @@ Simulator::Simulator(const Preset& preset, const trace::TraceHeader& header, Sim
   if (options_.l1_mrc || options_.l2_mrc) hierarchy_.enable_mrc(options_.l1_mrc, options_.l2_mrc, options_.mrc_sampling_rate);
 }
 
+Simulator::~Simulator() = default;
+
 PassResult Simulator::run_pass(const trace::PassInfo& pass, std::span<const trace::TraceRecord> records) {
+  begin_pass(pass);
+  feed(records, 0, pass.dispatch.workgroups());
+  return end_pass();
+}
+
+void Simulator::begin_pass(const trace::PassInfo& pass) {
   const auto& d = pass.dispatch;
-  const uint64_t per_group = d.invocations_per_workgroup();
-  const uint64_t groups = d.workgroups();
-  const uint64_t invocations = d.invocations();
-  if (invocations > 0xFFFFFFFFull)
-    throw InputError("pass '" + pass.name + "': more than 2^32 invocations");
-  for (const auto& r : records)
-    if (!buffers_[gpu::trace_buffer(r.info)] || r.invocation >= invocations)
-      throw InputError("pass '" + pass.name + "': record outside the dispatch or its buffer table");
-
-  const LaneAccesses acc = group(records, invocations, buffers_);
-  hierarchy_.begin_pass();
-
-  PassResult res;
-  res.name = pass.name;
-  res.lane_accesses = records.size();
-  res.workgroups = groups;
-  const bool per_inv = options_.per_invocation;
-  if (per_inv) {
-    res.l1_misses.assign(invocations, 0);
-    res.l2_misses.assign(invocations, 0);
-  }
-
-  const uint32_t width = preset_.wave_width;
-  const uint32_t waves_per_group = uint32_t((per_group + width - 1) / width);
-  const uint32_t cus = preset_.compute_units;
+  if (d.invocations() > 0xFFFFFFFFull) throw InputError("pass '" + pass.name + "': more than 2^32 invocations");
   const Cache& l1 = hierarchy_.l1(0);
-  Coalescer co(width, l1.line_shift(), l1.sector_shift(), l1.full_mask(), preset_.coalescing == Coalescing::sector);
-  std::vector<ComputeUnit> cu(cus);
-  uint64_t next_group = 0;
-  std::vector<IssueResult> outcome;
-  std::vector<uint64_t> cursor(acc.begin.begin(), acc.begin.end() - 1);  // next access per invocation
+  pass_ = std::make_unique<PassState>(preset_.wave_width, l1, preset_.coalescing == Coalescing::sector);
+  PassState& ps = *pass_;
+  ps.info = pass;
+  ps.per_group = d.invocations_per_workgroup();
+  ps.groups = d.workgroups();
+  ps.invocations = d.invocations();
+  ps.waves_per_group = uint32_t((ps.per_group + preset_.wave_width - 1) / preset_.wave_width);
+  ps.cu.resize(preset_.compute_units);
+  ps.res.name = pass.name;
+  ps.res.workgroups = ps.groups;
+  if (options_.per_invocation) {
+    ps.res.l1_misses.assign(ps.invocations, 0);
+    ps.res.l2_misses.assign(ps.invocations, 0);
+  }
+  hierarchy_.begin_pass();
+}
 
-  // Places a workgroup's wavefronts on a CU; wavefronts without accesses never become resident.
+void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup) {
+  if (!pass_ || pass_->final) throw std::logic_error("Simulator::feed outside begin_pass / end_pass");
+  PassState& ps = *pass_;
+  const std::string& name = ps.info.name;
+  if (first_workgroup > end_workgroup || end_workgroup > ps.groups)
+    throw InputError("pass '" + name + "': slice of workgroups [" + std::to_string(first_workgroup) + ", " +
+                     std::to_string(end_workgroup) + ") outside the dispatch of " + std::to_string(ps.groups));
+  if (first_workgroup < ps.fed_end)
+    throw InputError("pass '" + name + "': slice [" + std::to_string(first_workgroup) + ", " +
+                     std::to_string(end_workgroup) + ") overlaps or precedes workgroup " +
+                     std::to_string(ps.fed_end) + " (slices must come in dispatch order)");
+  const uint64_t first_inv = first_workgroup * ps.per_group, end_inv = end_workgroup * ps.per_group;
+  for (const auto& r : records)
+    if (!buffers_[gpu::trace_buffer(r.info)] || r.invocation < first_inv || r.invocation >= end_inv)
+      throw InputError("pass '" + name + "': record outside its slice's workgroups or the buffer table");
+  ps.fed_end = end_workgroup;
+  if (end_workgroup > first_workgroup) {
+    auto s = std::make_unique<Slice>();
+    s->first_group = first_workgroup;
+    s->end_group = end_workgroup;
+    s->first_invocation = first_inv;
+    s->acc = group(records, first_inv, end_inv - first_inv, buffers_);
+    s->cursor.assign(s->acc.begin.begin(), s->acc.begin.end() - 1);
+    s->groups_left = end_workgroup - first_workgroup;
+    ps.resident_records += records.size();
+    ps.res.peak_resident_records = std::max(ps.res.peak_resident_records, ps.resident_records);
+    ps.res.lane_accesses += records.size();
+    ps.res.slices += !records.empty();
+    ps.slices.push_back(std::move(s));
+  }
+  advance();
+}
+
+PassResult Simulator::end_pass() {
+  if (!pass_) throw std::logic_error("Simulator::end_pass without begin_pass");
+  pass_->final = true;
+  advance();
+  PassResult res = std::move(pass_->res);
+  pass_.reset();
+  res.stats = hierarchy_.stats();
+  res.buffers = hierarchy_.buffers();
+  if (options_.l1_mrc) res.l1_curve = hierarchy_.l1_curve();
+  if (options_.l2_mrc) res.l2_curve = hierarchy_.l2_curve();
+  return res;
+}
+
+void Simulator::advance() {
+  PassState& ps = *pass_;
+  if (ps.done) return;
+  PassResult& res = ps.res;
+  const bool per_inv = options_.per_invocation;
+  const uint32_t width = preset_.wave_width;
+  const uint32_t cus = preset_.compute_units;
+  Coalescer& co = ps.co;
+
+  // Places workgroup next_group's wavefronts on a CU; wavefronts without accesses never become
+  // resident, and a workgroup without any retires at once.
   auto dispatch = [&](ComputeUnit& c) {
-    const uint64_t g = next_group++;
+    const uint64_t g = ps.next_group++;
+    Slice* s = nullptr;
+    for (auto& sp : ps.slices)
+      if (g >= sp->first_group && g < sp->end_group) {
+        s = sp.get();
+        break;
+      }
+    res.waves += ps.waves_per_group;
+    if (!s) return;  // a workgroup no slice covers: no accesses
     uint32_t placed = 0;
-    for (uint32_t w = 0; w < waves_per_group; ++w) {
-      const uint64_t first = g * per_group + uint64_t(w) * width;
-      const uint32_t lanes = uint32_t(std::min<uint64_t>(width, per_group - uint64_t(w) * width));
-      const uint64_t accesses = acc.begin[first + lanes] - acc.begin[first];
-      ++res.waves;
+    const uint64_t group_first = (g - s->first_group) * ps.per_group;
+    for (uint32_t w = 0; w < ps.waves_per_group; ++w) {
+      const uint64_t first = group_first + uint64_t(w) * width;
+      const uint32_t lanes = uint32_t(std::min<uint64_t>(width, ps.per_group - uint64_t(w) * width));
+      const uint64_t accesses = s->acc.begin[first + lanes] - s->acc.begin[first];
       if (accesses == 0) continue;
-      c.waves.push_back(Wave{first, lanes, accesses, g});
+      c.waves.push_back(Wave{s, first, lanes, accesses, g});
       ++placed;
     }
     if (placed) {
-      c.groups.push_back(ResidentGroup{g, placed, placed});
+      c.groups.push_back(ResidentGroup{g, s, placed, placed});
       c.resident_waves += placed;
+    } else {
+      ps.retire(s);
     }
   };
   auto has_room = [&](const ComputeUnit& c) {
-    return c.resident_waves == 0 || c.resident_waves + waves_per_group <= preset_.max_waves_per_cu;
+    return c.resident_waves == 0 || c.resident_waves + ps.waves_per_group <= preset_.max_waves_per_cu;
   };
-  // Round-robin over CUs until no CU has room or no workgroup is left.
+  // Sweeps the CUs round-robin, one workgroup to each with room, until a sweep places nothing or no
+  // workgroup is left. Returns false, keeping its position, where the next workgroup has not been fed.
   auto refill = [&] {
-    bool progress = true;
-    while (progress && next_group < groups) {
-      progress = false;
-      for (uint32_t i = 0; i < cus && next_group < groups; ++i)
-        if (has_room(cu[i])) {
-          dispatch(cu[i]);
-          progress = true;
-        }
+    while (ps.next_group < ps.groups) {
+      if (ps.refill_cu == cus) {
+        if (!ps.refill_progress) break;
+        ps.refill_cu = 0;
+        ps.refill_progress = false;
+      }
+      if (has_room(ps.cu[ps.refill_cu])) {
+        if (!ps.final && ps.next_group >= ps.fed_end) return false;
+        dispatch(ps.cu[ps.refill_cu]);
+        ps.refill_progress = true;
+      }
+      ++ps.refill_cu;
     }
+    ps.refill_cu = 0;
+    ps.refill_progress = false;
+    return true;
   };
 
-  refill();
+  if (ps.refilling) {
+    if (!refill()) return;
+    ps.refilling = false;
+  }
   while (true) {
     bool any = false, freed = false;
     for (uint32_t i = 0; i < cus; ++i) {
-      ComputeUnit& c = cu[i];
+      ComputeUnit& c = ps.cu[i];
       if (c.waves.empty()) continue;
       any = true;
       if (c.next >= c.waves.size()) c.next = 0;
       Wave& w = c.waves[c.next];
+      Slice& s = *w.slice;
+      const uint64_t* begin = s.acc.begin.data();
+      uint64_t* cursor = s.cursor.data();
+      const uint32_t* seq = s.acc.seq.data();
       // The step issues every lane whose next access has the lowest pending sequence number:
       // lanes stay in lockstep by seq, and a capture can realign lanes after divergence by giving
       // the accesses after a reconvergence point a common seq.
       uint32_t step_seq = ~0u;
       for (uint32_t l = 0; l < w.lanes; ++l) {
-        const uint64_t inv = w.first_invocation + l;
-        if (cursor[inv] < acc.begin[inv + 1]) step_seq = std::min(step_seq, acc.seq[cursor[inv]]);
+        const uint64_t inv = w.first_local + l;
+        if (cursor[inv] < begin[inv + 1]) step_seq = std::min(step_seq, seq[cursor[inv]]);
       }
       co.begin();
       uint32_t issued = 0;
       for (uint32_t l = 0; l < w.lanes; ++l) {
-        const uint64_t inv = w.first_invocation + l;
+        const uint64_t inv = w.first_local + l;
         const uint64_t idx = cursor[inv];
-        if (idx < acc.begin[inv + 1] && acc.seq[idx] == step_seq) {
-          co.add(acc.address[idx], acc.info[idx], uint32_t(inv), per_inv);
+        if (idx < begin[inv + 1] && seq[idx] == step_seq) {
+          co.add(s.acc.address[idx], s.acc.info[idx], uint32_t(s.first_invocation + inv), per_inv);
           ++cursor[inv];
           ++issued;
         }
@@ -248,8 +373,8 @@ PassResult Simulator::run_pass(const trace::PassInfo& pass, std::span<const trac
       if (options_.observer)
         for (const Request& r : co.requests) options_.observer(i, r);
       if (per_inv) {
-        if (outcome.size() < co.requests.size()) outcome.resize(co.requests.size());
-        IssueResult* o = outcome.data();
+        if (ps.outcome.size() < co.requests.size()) ps.outcome.resize(co.requests.size());
+        IssueResult* o = ps.outcome.data();
         hierarchy_.issue(i, std::span<const Request>(co.requests), o);
         for (const auto& [inv, r] : co.lane_request) {
           res.l1_misses[inv] += o[r].l1_miss;
@@ -265,7 +390,9 @@ PassResult Simulator::run_pass(const trace::PassInfo& pass, std::span<const trac
         --c.resident_waves;
         for (size_t k = 0; k < c.groups.size(); ++k)
           if (c.groups[k].workgroup == g && --c.groups[k].waves_left == 0) {
+            Slice* gs = c.groups[k].slice;
             c.groups.erase(c.groups.begin() + int64_t(k));
+            ps.retire(gs);
             freed = true;
             break;
           }
@@ -273,16 +400,18 @@ PassResult Simulator::run_pass(const trace::PassInfo& pass, std::span<const trac
         ++c.next;
       }
     }
-    if (!any && next_group >= groups) break;
+    if (!any && ps.next_group >= ps.groups) {
+      ps.done = true;
+      return;
+    }
     ++res.cycles;
-    if (freed || !any) refill();
+    if (freed || !any) {
+      if (!refill()) {
+        ps.refilling = true;
+        return;
+      }
+    }
   }
-
-  res.stats = hierarchy_.stats();
-  res.buffers = hierarchy_.buffers();
-  if (options_.l1_mrc) res.l1_curve = hierarchy_.l1_curve();
-  if (options_.l2_mrc) res.l2_curve = hierarchy_.l2_curve();
-  return res;
 }
 
 uint64_t Simulator::finish() {
@@ -293,6 +422,14 @@ uint64_t Simulator::finish() {
 
 uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceHeader& header,
                     const trace::PassInfo& pass, std::span<const trace::TraceRecord> records, uint32_t cu,
+                    bool include_stores) {
+  return export_din(
+      out, preset, header, pass, [&](Simulator& sim) { sim.feed(records, 0, pass.dispatch.workgroups()); }, cu,
+      include_stores);
+}
+
+uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceHeader& header,
+                    const trace::PassInfo& pass, const std::function<void(Simulator&)>& feed, uint32_t cu,
                     bool include_stores) {
   if (cu >= preset.compute_units)
     throw InputError("--export-din: compute unit " + std::to_string(cu) + " does not exist (preset '" +
@@ -317,7 +454,9 @@ uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceH
     }
   };
   Simulator sim(preset, header, std::move(opt));
-  sim.run_pass(pass, records);
+  sim.begin_pass(pass);
+  feed(sim);
+  sim.end_pass();
   return lines;
 }
 

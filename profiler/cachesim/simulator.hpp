@@ -16,6 +16,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -42,6 +43,8 @@ struct PassResult {
   // two lines counts for both; lanes sharing a request all see its outcome).
   std::vector<uint32_t> l1_misses, l2_misses;
   uint64_t lane_accesses = 0, wave_steps = 0, waves = 0, workgroups = 0, cycles = 0;
+  uint32_t slices = 0;                 // feed() calls that brought records
+  uint64_t peak_resident_records = 0;  // most records held at once (streaming keeps this bounded)
   MissRatioCurve l1_curve, l2_curve;  // filled when requested
 };
 
@@ -49,10 +52,25 @@ class Simulator {
  public:
   // Throws InputError when the preset and trace cannot work together.
   Simulator(const Preset& preset, const trace::TraceHeader& header, SimOptions options = {});
+  ~Simulator();
+  Simulator(const Simulator&) = delete;
+  Simulator& operator=(const Simulator&) = delete;
 
   // Replays one pass. Records must be validated (TraceReader::read_pass does it); any order.
   // L1s start empty (barrier between dispatches), the L2 stays warm from earlier passes.
+  // Equivalent to begin_pass, one feed of the whole dispatch, end_pass.
   PassResult run_pass(const trace::PassInfo& pass, std::span<const trace::TraceRecord> records);
+
+  // Streaming replay of one pass, slice by slice as a capture produces them, in bounded memory:
+  // feed() takes the records of workgroups [first_workgroup, end_workgroup) (any order inside; every
+  // record's invocation must lie in that range) and simulates as far as those workgroups allow; slices
+  // come in increasing, non-overlapping workgroup order, and workgroups no slice covers have no accesses.
+  // A slice's records are freed once all its workgroups have retired. The counts equal run_pass's
+  // whatever the slicing. Throws InputError on a record outside its slice or buffer table, or on slices
+  // out of order.
+  void begin_pass(const trace::PassInfo& pass);
+  void feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup);
+  PassResult end_pass();
 
   // End of the frame: dirty L2 sectors written back, in bytes.
   uint64_t finish();
@@ -60,11 +78,14 @@ class Simulator {
   const Preset& preset() const { return preset_; }
 
  private:
+  struct PassState;
+  void advance();
   Preset preset_;
   const trace::BufferInfo* buffers_[256] = {};
   std::vector<trace::BufferInfo> buffer_storage_;
   SimOptions options_;
   Hierarchy hierarchy_;
+  std::unique_ptr<PassState> pass_;
 };
 
 // Writes the coalesced request stream that compute unit `cu` sends to its L1 during one pass, in
@@ -73,6 +94,11 @@ class Simulator {
 // Returns the number of lines written.
 uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceHeader& header,
                     const trace::PassInfo& pass, std::span<const trace::TraceRecord> records, uint32_t cu,
+                    bool include_stores = false);
+// The same, streamed: `feed` hands the pass's slices to the simulator (Simulator::feed), e.g. from
+// TraceReader::read_slices, so a frame of any size exports in bounded memory.
+uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceHeader& header,
+                    const trace::PassInfo& pass, const std::function<void(Simulator&)>& feed, uint32_t cu,
                     bool include_stores = false);
 
 }  // namespace hp::cachesim

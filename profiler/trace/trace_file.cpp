@@ -1,6 +1,8 @@
 #include "trace/trace_file.hpp"
 
+#include <algorithm>
 #include <bit>
+#include <stdexcept>
 #include <cstring>
 #include <system_error>
 
@@ -212,6 +214,18 @@ void TraceWriter::finish() {
   if (ec) throw InputError(path_.string() + ": cannot rename the finished trace into place: " + ec.message());
 }
 
+uint32_t TeeSink::begin_pass(const PassInfo& pass) {
+  const uint32_t i = a_.begin_pass(pass);
+  if (b_.begin_pass(pass) != i) throw std::logic_error("TeeSink: the two sinks number passes differently");
+  return i;
+}
+
+void TeeSink::write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
+                            uint64_t end_workgroup) {
+  a_.write_records(pass, records, first_workgroup, end_workgroup);
+  b_.write_records(pass, records, first_workgroup, end_workgroup);
+}
+
 // ------------------------------------------------------------------------------------------------ reader
 
 // Buffer and pass names come from the file: keep the message one line whatever bytes they hold.
@@ -262,7 +276,11 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
       if ((ch.payload_bytes - sizeof e) % sizeof(TraceRecord) != 0 ||
           e.count != (ch.payload_bytes - sizeof e) / sizeof(TraceRecord))
         fail("malformed RECS" + at + ": record count does not match the chunk size");
-      chunks_.push_back({e.pass, pos + sizeof e, e.count});
+      const uint64_t groups = passes_[e.pass].dispatch.workgroups();
+      if (e.first_workgroup > e.end_workgroup || e.end_workgroup > groups)
+        fail("RECS" + at + ": workgroups [" + std::to_string(e.first_workgroup) + ", " +
+             std::to_string(e.end_workgroup) + ") outside the dispatch of " + std::to_string(groups));
+      chunks_.push_back({e.pass, pos + sizeof e, e.count, e.first_workgroup, e.end_workgroup});
       total += e.count;
     } else {
       std::vector<char> payload(ch.payload_bytes);
@@ -335,6 +353,17 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
   }
   if (!have_buffers) fail("truncated: no buffer table");
   if (!have_end) fail("truncated: no END chunk (the writer did not finish)");
+  // A workgroup belongs to at most one slice: sliced replay (read_slices) relies on it.
+  std::vector<const Chunk*> order;
+  for (const Chunk& c : chunks_)
+    if (c.first_workgroup < c.end_workgroup) order.push_back(&c);
+  std::sort(order.begin(), order.end(), [](const Chunk* a, const Chunk* b) {
+    return a->pass != b->pass ? a->pass < b->pass : a->first_workgroup < b->first_workgroup;
+  });
+  for (size_t i = 1; i < order.size(); ++i)
+    if (order[i]->pass == order[i - 1]->pass && order[i]->first_workgroup < order[i - 1]->end_workgroup)
+      fail("RECS slices of pass " + std::to_string(order[i]->pass) + " overlap at workgroup " +
+           std::to_string(order[i]->first_workgroup));
   guard.armed = false;
 }
 
@@ -349,27 +378,55 @@ uint64_t TraceReader::record_count(uint32_t pass) const {
   return n;
 }
 
-std::vector<TraceRecord> TraceReader::read_pass(uint32_t pass) const {
-  if (pass >= passes_.size()) fail("no pass " + std::to_string(pass));
-  std::vector<TraceRecord> out(record_count(pass));
-  size_t at = 0;
-  for (const Chunk& c : chunks_) {
-    if (c.pass != pass) continue;
-    std::fseek(file_, long(c.file_offset), SEEK_SET);
-    if (c.count && std::fread(out.data() + at, sizeof(TraceRecord), c.count, file_) != c.count)
-      fail("truncated records of pass " + std::to_string(pass));
-    at += c.count;
-  }
-  validate_records(path_.string() + ": pass '" + passes_[pass].name + "'", header_, passes_[pass], out);
+std::vector<TraceRecord> TraceReader::read_chunk(const Chunk& c) const {
+  std::vector<TraceRecord> out(c.count);
+  std::fseek(file_, long(c.file_offset), SEEK_SET);
+  if (c.count && std::fread(out.data(), sizeof(TraceRecord), c.count, file_) != c.count)
+    fail("truncated records of pass " + std::to_string(c.pass));
+  validate_records(path_.string() + ": pass '" + passes_[c.pass].name + "'", header_, passes_[c.pass], out,
+                   c.first_workgroup, c.end_workgroup);
   return out;
 }
 
+std::vector<TraceRecord> TraceReader::read_pass(uint32_t pass) const {
+  if (pass >= passes_.size()) fail("no pass " + std::to_string(pass));
+  std::vector<TraceRecord> out;
+  out.reserve(record_count(pass));
+  for (const Chunk& c : chunks_) {
+    if (c.pass != pass) continue;
+    const auto part = read_chunk(c);
+    out.insert(out.end(), part.begin(), part.end());
+  }
+  return out;
+}
+
+uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
+  if (pass >= passes_.size()) fail("no pass " + std::to_string(pass));
+  std::vector<const Chunk*> order;
+  for (const Chunk& c : chunks_)
+    if (c.pass == pass) order.push_back(&c);
+  // Chunks never overlap (checked at open); a writer may still have appended them out of order.
+  std::stable_sort(order.begin(), order.end(),
+                   [](const Chunk* a, const Chunk* b) { return a->first_workgroup < b->first_workgroup; });
+  uint64_t largest = 0;
+  for (const Chunk* c : order) {
+    const auto records = read_chunk(*c);
+    largest = std::max<uint64_t>(largest, records.size());
+    consume(records, c->first_workgroup, c->end_workgroup);
+  }
+  return largest;
+}
+
 void validate_records(const std::string& where, const TraceHeader& header, const PassInfo& pass,
-                      std::span<const TraceRecord> records) {
+                      std::span<const TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup) {
   const BufferInfo* by_id[256] = {};
   for (const BufferInfo& b : header.buffers)
     if (b.id < 256) by_id[b.id] = &b;
   const uint64_t invocations = pass.dispatch.invocations();
+  const uint64_t per_group = pass.dispatch.invocations_per_workgroup();
+  const uint64_t slice_first = std::min(first_workgroup, pass.dispatch.workgroups()) * per_group;
+  const uint64_t slice_end = std::min(end_workgroup, pass.dispatch.workgroups()) * per_group;
+  const bool sliced = first_workgroup != 0 || end_workgroup < pass.dispatch.workgroups();
   for (size_t i = 0; i < records.size(); ++i) {
     const TraceRecord& r = records[i];
     auto bad = [&](const std::string& why) {
@@ -381,6 +438,9 @@ void validate_records(const std::string& where, const TraceHeader& header, const
     if (!b) bad("unknown buffer id " + std::to_string(gpu::trace_buffer(r.info)));
     if (r.invocation >= invocations)
       bad("invocation " + std::to_string(r.invocation) + " outside the dispatch of " + std::to_string(invocations));
+    if (sliced && (r.invocation < slice_first || r.invocation >= slice_end))
+      bad("invocation " + std::to_string(r.invocation) + " outside its slice's workgroups [" +
+          std::to_string(first_workgroup) + ", " + std::to_string(end_workgroup) + ")");
     if (uint64_t(r.offset) + gpu::trace_size(r.info) > b->size_bytes)
       bad("offset " + std::to_string(r.offset) + " past the end of buffer '" + b->name + "'");
   }

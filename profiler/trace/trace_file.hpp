@@ -25,6 +25,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -84,20 +85,43 @@ struct Trace {
   std::vector<std::vector<TraceRecord>> records;  // records[pass]
 };
 
+// Where a capture sends its trace, pass by pass and slice by slice (a file, the cache simulator, both).
+// Passes begin in order; a pass's slices come in increasing, non-overlapping workgroup order, and each
+// slice's records are only valid during the call.
+class TraceSink {
+ public:
+  virtual ~TraceSink() = default;
+  virtual uint32_t begin_pass(const PassInfo& pass) = 0;  // returns the pass index
+  // One slice of a pass; [first_workgroup, end_workgroup) is the slice's dispatched range.
+  virtual void write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
+                             uint64_t end_workgroup) = 0;
+};
+
+// Sends everything to two sinks (keep the trace file while simulating it).
+class TeeSink final : public TraceSink {
+ public:
+  TeeSink(TraceSink& a, TraceSink& b) : a_(a), b_(b) {}
+  uint32_t begin_pass(const PassInfo& pass) override;
+  void write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
+                     uint64_t end_workgroup) override;
+
+ private:
+  TraceSink &a_, &b_;
+};
+
 // Streams a trace file: header and buffer table at construction, then passes and record slices.
 // Writes to PATH.tmp and renames to PATH in finish(), so a crashed capture never leaves a file that
 // looks complete; destroying an unfinished writer removes the temporary file.
-class TraceWriter {
+class TraceWriter final : public TraceSink {
  public:
   TraceWriter(std::filesystem::path path, const TraceHeader& header);
-  ~TraceWriter();
+  ~TraceWriter() override;
   TraceWriter(const TraceWriter&) = delete;
   TraceWriter& operator=(const TraceWriter&) = delete;
 
-  uint32_t begin_pass(const PassInfo& pass);  // returns the pass index
-  // One slice of a pass; [first_workgroup, end_workgroup) is the slice's dispatched range.
+  uint32_t begin_pass(const PassInfo& pass) override;
   void write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
-                     uint64_t end_workgroup);
+                     uint64_t end_workgroup) override;
   void finish();
 
  private:
@@ -121,16 +145,23 @@ class TraceReader {
   const TraceHeader& header() const { return header_; }
   const std::vector<PassInfo>& passes() const { return passes_; }
   uint64_t record_count(uint32_t pass) const;
-  // All records of a pass, validated: reserved bits zero, known buffer id, invocation inside the
-  // dispatch, offset + size inside the buffer.
+  // All records of a pass, validated: reserved bits zero, known buffer id, invocation inside its
+  // slice's workgroups, offset + size inside the buffer.
   std::vector<TraceRecord> read_pass(uint32_t pass) const;
+  // The same records one slice at a time, in workgroup order, each validated before `consume` sees it:
+  // memory bounded by the largest slice. Returns the largest slice's record count.
+  using SliceFn = std::function<void(std::span<const TraceRecord> records, uint64_t first_workgroup,
+                                     uint64_t end_workgroup)>;
+  uint64_t read_slices(uint32_t pass, const SliceFn& consume) const;
 
  private:
   struct Chunk {
     uint32_t pass;
     uint64_t file_offset;  // of the first record
     uint64_t count;
+    uint64_t first_workgroup, end_workgroup;
   };
+  std::vector<TraceRecord> read_chunk(const Chunk& c) const;
   [[noreturn]] void fail(const std::string& what) const;
   std::filesystem::path path_;
   std::FILE* file_ = nullptr;
@@ -142,8 +173,10 @@ class TraceReader {
 void write_trace(const std::filesystem::path& path, const Trace& trace);
 Trace read_trace(const std::filesystem::path& path);
 
-// Checks one pass's records against the header and dispatch; throws InputError naming `where`.
+// Checks one pass's records against the header and dispatch (and, when given, the slice of workgroups
+// [first_workgroup, end_workgroup) they came from); throws InputError naming `where`.
 void validate_records(const std::string& where, const TraceHeader& header, const PassInfo& pass,
-                      std::span<const TraceRecord> records);
+                      std::span<const TraceRecord> records, uint64_t first_workgroup = 0,
+                      uint64_t end_workgroup = UINT64_MAX);
 
 }  // namespace hp::trace

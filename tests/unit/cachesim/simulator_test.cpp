@@ -205,6 +205,105 @@ TEST(Simulator, SyntheticTraceCountsAreConsistentAndDeterministic) {
   EXPECT_GT(ra.stats.l2.misses, 0u);
 }
 
+// Everything a replay counts, for comparing two replays of the same pass.
+void expect_same(const PassResult& a, const PassResult& b) {
+  EXPECT_EQ(a.stats.l1.requests, b.stats.l1.requests);
+  EXPECT_EQ(a.stats.l1.misses, b.stats.l1.misses);
+  EXPECT_EQ(a.stats.l1.sector_misses, b.stats.l1.sector_misses);
+  EXPECT_EQ(a.stats.l2.requests, b.stats.l2.requests);
+  EXPECT_EQ(a.stats.l2.misses, b.stats.l2.misses);
+  EXPECT_EQ(a.stats.l2.sector_misses, b.stats.l2.sector_misses);
+  EXPECT_EQ(a.stats.dram_read_bytes, b.stats.dram_read_bytes);
+  EXPECT_EQ(a.stats.stores, b.stats.stores);
+  EXPECT_EQ(a.lane_accesses, b.lane_accesses);
+  EXPECT_EQ(a.wave_steps, b.wave_steps);
+  EXPECT_EQ(a.waves, b.waves);
+  EXPECT_EQ(a.cycles, b.cycles);
+  EXPECT_EQ(a.l1_misses, b.l1_misses);
+  EXPECT_EQ(a.l2_misses, b.l2_misses);
+  for (uint64_t lines : {1u, 16u, 256u, 4096u, 65536u}) EXPECT_EQ(a.l2_curve.misses(lines), b.l2_curve.misses(lines));
+  for (size_t i = 0; i < a.buffers.size(); ++i) EXPECT_EQ(a.buffers[i].l2_misses, b.buffers[i].l2_misses);
+}
+
+TEST(Simulator, SlicedReplayEqualsWholeReplayAndHoldsOnlyAFewSlices) {
+  SyntheticBvhOptions o;
+  o.width = 64;
+  o.height = 48;
+  o.tree_depth = 10;
+  o.incoherent_fraction = 0.3;
+  trace::Trace t = make_bvh_like_trace(o);
+  const trace::PassInfo& pass = t.passes[0];
+  const uint64_t groups = pass.dispatch.workgroups(), per_group = pass.dispatch.invocations_per_workgroup();
+  std::mt19937 rng(11);
+  for (Preset p : {small_preset(4, 16, 8), small_preset(3, 32, 2, Coalescing::sector), small_preset(7, 64, 64)}) {
+    SimOptions so;
+    so.l2_mrc = true;
+    Simulator whole(p, t.header, so);
+    const PassResult ref = whole.run_pass(pass, t.records[0]);
+    for (int trial = 0; trial < 4; ++trial) {
+      // Random cut points, some slices empty, records shuffled inside each slice.
+      std::vector<uint64_t> cuts = {0, groups};
+      for (int k = 0; k < 1 + trial * 5; ++k) cuts.push_back(rng() % (groups + 1));
+      std::sort(cuts.begin(), cuts.end());
+      Simulator sliced(p, t.header, so);
+      sliced.begin_pass(pass);
+      for (size_t c = 0; c + 1 < cuts.size(); ++c) {
+        std::vector<TraceRecord> part;
+        for (const TraceRecord& r : t.records[0])
+          if (r.invocation >= cuts[c] * per_group && r.invocation < cuts[c + 1] * per_group) part.push_back(r);
+        std::shuffle(part.begin(), part.end(), rng);
+        sliced.feed(part, cuts[c], cuts[c + 1]);
+      }
+      const PassResult r = sliced.end_pass();
+      SCOPED_TRACE("preset wave" + std::to_string(p.wave_width) + ", trial " + std::to_string(trial));
+      expect_same(ref, r);
+      EXPECT_EQ(r.peak_resident_records <= t.records[0].size(), true);
+      const uint64_t waves_per_group = (per_group + p.wave_width - 1) / p.wave_width;
+      const uint64_t resident_groups = uint64_t(p.compute_units) * std::max<uint64_t>(1, p.max_waves_per_cu / waves_per_group);
+      if (trial == 3 && resident_groups * 4 < groups) {
+        // Many slices on a machine that holds a fraction of the dispatch: the replay never held it all.
+        EXPECT_LT(r.peak_resident_records, t.records[0].size() * 3 / 4) << r.slices << " slices";
+      }
+    }
+  }
+}
+
+TEST(Simulator, WorkgroupsNoSliceCoversHaveNoAccesses) {
+  // Workgroups 1 and 3 of 4 fed as slices; 0 and 2 never: the replay equals a whole pass without them.
+  const trace::PassInfo pass = pass_of(64, 4);
+  std::vector<TraceRecord> g1, g3, both;
+  for (uint32_t i = 0; i < 64; ++i) {
+    g1.push_back(load(64 + i, 0, i * 4));
+    g3.push_back(load(192 + i, 0, 4096 + i * 8));
+  }
+  both = g1;
+  both.insert(both.end(), g3.begin(), g3.end());
+  const Preset p = small_preset(2, 16, 8);
+  Simulator whole(p, one_buffer()), sliced(p, one_buffer());
+  const PassResult ref = whole.run_pass(pass, both);
+  sliced.begin_pass(pass);
+  sliced.feed(g1, 1, 2);
+  sliced.feed(g3, 3, 4);
+  const PassResult r = sliced.end_pass();
+  expect_same(ref, r);
+  EXPECT_EQ(r.slices, 2u);
+  EXPECT_EQ(r.waves, 16u);  // every workgroup's 4 waves are counted, empty or not
+}
+
+TEST(Simulator, SlicesOutOfOrderOrOutsideTheirRangeAreRejected) {
+  const trace::PassInfo pass = pass_of(64, 4);
+  Simulator sim(small_preset(2, 16, 8), one_buffer());
+  sim.begin_pass(pass);
+  sim.feed(std::vector<TraceRecord>{load(130, 0, 0)}, 2, 3);
+  EXPECT_THROW(sim.feed(std::vector<TraceRecord>{load(10, 0, 0)}, 0, 1), InputError);   // before the last slice
+  EXPECT_THROW(sim.feed(std::vector<TraceRecord>{load(10, 0, 0)}, 3, 4), InputError);   // record not in [3, 4)
+  EXPECT_THROW(sim.feed(std::vector<TraceRecord>{}, 3, 5), InputError);                 // past the dispatch
+  sim.feed(std::vector<TraceRecord>{load(200, 0, 64)}, 3, 4);
+  const PassResult r = sim.end_pass();
+  EXPECT_EQ(r.lane_accesses, 2u);
+  EXPECT_EQ(r.stats.l1.requests, 2u);
+}
+
 TEST(Simulator, DineroExportReplaysToTheSameL1Counts) {
   SyntheticBvhOptions o;
   o.width = o.height = 32;

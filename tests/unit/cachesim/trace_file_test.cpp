@@ -90,23 +90,88 @@ TEST(TraceFile, RoundTrip) {
   }
 }
 
+// Pass 0's records by workgroup: records 0..63 and 128 (invocation 5) belong to workgroup 0, 64..127 to 1.
+std::vector<TraceRecord> of_group(const Trace& t, uint32_t wg) {
+  std::vector<TraceRecord> out;
+  for (const TraceRecord& r : t.records[0])
+    if (r.invocation / 64 == wg) out.push_back(r);
+  return out;
+}
+
 TEST(TraceFile, StreamedSlicesAreConcatenatedPerPass) {
   const Trace t = sample();
   const auto p = tmp("slices.hptrace");
+  const auto g0 = of_group(t, 0), g1 = of_group(t, 1);
   {
     TraceWriter w(p, t.header);
     const uint32_t a = w.begin_pass(t.passes[0]);
     const uint32_t b = w.begin_pass(t.passes[1]);
-    std::span<const TraceRecord> r0 = t.records[0];
-    w.write_records(a, r0.subspan(0, 64), 0, 1);
+    w.write_records(a, g0, 0, 1);
     w.write_records(b, t.records[1], 0, 1);
-    w.write_records(a, r0.subspan(64), 1, 2);
+    w.write_records(a, g1, 1, 2);
     w.finish();
   }
   TraceReader r(p);
   EXPECT_EQ(r.record_count(0), t.records[0].size());
   const auto recs = r.read_pass(0);
-  for (size_t i = 0; i < recs.size(); ++i) EXPECT_TRUE(same(recs[i], t.records[0][i]));
+  ASSERT_EQ(recs.size(), g0.size() + g1.size());
+  for (size_t i = 0; i < recs.size(); ++i) EXPECT_TRUE(same(recs[i], i < g0.size() ? g0[i] : g1[i - g0.size()]));
+}
+
+TEST(TraceFile, ReadSlicesComesInWorkgroupOrderOneSliceAtATime) {
+  const Trace t = sample();
+  const auto p = tmp("slices_order.hptrace");
+  const auto g0 = of_group(t, 0), g1 = of_group(t, 1);
+  {
+    TraceWriter w(p, t.header);
+    const uint32_t a = w.begin_pass(t.passes[0]);
+    w.write_records(a, g1, 1, 2);  // written out of order
+    w.write_records(a, g0, 0, 1);
+    w.finish();
+  }
+  TraceReader r(p);
+  std::vector<std::pair<uint64_t, uint64_t>> ranges;
+  std::vector<size_t> sizes;
+  const uint64_t largest = r.read_slices(0, [&](std::span<const TraceRecord> recs, uint64_t first, uint64_t end) {
+    ranges.emplace_back(first, end);
+    sizes.push_back(recs.size());
+    for (const TraceRecord& x : recs) EXPECT_EQ(x.invocation / 64, first);
+  });
+  ASSERT_EQ(ranges.size(), 2u);
+  EXPECT_EQ(ranges[0], std::make_pair(uint64_t(0), uint64_t(1)));
+  EXPECT_EQ(ranges[1], std::make_pair(uint64_t(1), uint64_t(2)));
+  EXPECT_EQ(sizes[0], g0.size());
+  EXPECT_EQ(sizes[1], g1.size());
+  EXPECT_EQ(largest, g0.size());
+}
+
+TEST(TraceFile, SlicesMustHoldTheirOwnWorkgroupsAndNotOverlap) {
+  const Trace t = sample();
+  const auto outside = tmp("slice_outside.hptrace"), overlap = tmp("slice_overlap.hptrace"),
+             past = tmp("slice_past.hptrace");
+  {
+    TraceWriter w(outside, t.header);
+    const uint32_t a = w.begin_pass(t.passes[0]);
+    w.write_records(a, t.records[0], 1, 2);  // holds workgroup 0's records too
+    w.finish();
+  }
+  EXPECT_NE(error_reading(outside).find("outside its slice's workgroups [1, 2)"), std::string::npos)
+      << error_reading(outside);
+  {
+    TraceWriter w(overlap, t.header);
+    const uint32_t a = w.begin_pass(t.passes[0]);
+    w.write_records(a, of_group(t, 0), 0, 1);
+    w.write_records(a, of_group(t, 1), 0, 2);
+    w.finish();
+  }
+  EXPECT_NE(error_reading(overlap).find("overlap at workgroup 0"), std::string::npos) << error_reading(overlap);
+  {
+    TraceWriter w(past, t.header);
+    const uint32_t a = w.begin_pass(t.passes[0]);
+    w.write_records(a, {}, 2, 3);
+    w.finish();
+  }
+  EXPECT_NE(error_reading(past).find("outside the dispatch of 2"), std::string::npos) << error_reading(past);
 }
 
 TEST(TraceFile, UnfinishedWriterLeavesNoFile) {
