@@ -12,42 +12,58 @@ namespace hp::cachesim {
 
 namespace {
 
-// One slice of a pass's accesses grouped by invocation (local to the slice) and ordered by sequence
-// number, with addresses resolved.
-struct LaneAccesses {
-  std::vector<uint64_t> begin;    // begin[inv] .. begin[inv + 1]: that invocation's accesses
+// One workgroup's accesses grouped by invocation and ordered by sequence number, with addresses
+// resolved: what a resident workgroup needs, freed when it retires.
+struct GroupAccesses {
+  uint64_t first_invocation = 0;  // global index of the workgroup's first invocation
+  std::vector<uint32_t> begin;    // begin[i] .. begin[i + 1]: local invocation i's accesses
+  std::vector<uint32_t> cursor;   // next access per local invocation
   std::vector<uint64_t> address;  // byte address
   std::vector<uint32_t> info;     // the record's info word (size, kind, buffer)
   std::vector<uint32_t> seq;      // the record's sequence number
 };
 
-// `first_invocation` is the slice's first global invocation; records are already checked to lie in
-// [first_invocation, first_invocation + invocations).
-LaneAccesses group(std::span<const trace::TraceRecord> records, uint64_t first_invocation, uint64_t invocations,
-                   const trace::BufferInfo* const* buffers) {
-  LaneAccesses a;
-  a.begin.assign(invocations + 1, 0);
-  for (const auto& r : records) ++a.begin[r.invocation - first_invocation + 1];
-  for (uint64_t i = 0; i < invocations; ++i) a.begin[i + 1] += a.begin[i];
+// Splits one slice's records (already checked to lie in its workgroups) into per-workgroup groups;
+// workgroups without records get none.
+std::vector<std::unique_ptr<GroupAccesses>> group(std::span<const trace::TraceRecord> records,
+                                                  uint64_t first_group, uint64_t end_group, uint64_t per_group,
+                                                  const trace::BufferInfo* const* buffers) {
+  const uint64_t first_invocation = first_group * per_group;
+  const uint64_t invocations = (end_group - first_group) * per_group;
+  std::vector<uint64_t> begin(invocations + 1, 0);
+  for (const auto& r : records) ++begin[r.invocation - first_invocation + 1];
+  for (uint64_t i = 0; i < invocations; ++i) begin[i + 1] += begin[i];
   // Counting sort by invocation, stable, so one invocation's records keep their buffer order, then
   // a per-invocation sort by seq where needed (GPU atomics usually hand out indices in program order).
-  std::vector<uint64_t> fill(a.begin.begin(), a.begin.end() - 1);
+  std::vector<uint64_t> fill(begin.begin(), begin.end() - 1);
   std::vector<trace::TraceRecord> sorted(records.size());
   for (const auto& r : records) sorted[fill[r.invocation - first_invocation]++] = r;
+  auto by_seq = [](const trace::TraceRecord& x, const trace::TraceRecord& y) { return x.seq < y.seq; };
   for (uint64_t i = 0; i < invocations; ++i) {
-    auto first = sorted.begin() + int64_t(a.begin[i]), last = sorted.begin() + int64_t(a.begin[i + 1]);
-    auto by_seq = [](const trace::TraceRecord& x, const trace::TraceRecord& y) { return x.seq < y.seq; };
+    auto first = sorted.begin() + int64_t(begin[i]), last = sorted.begin() + int64_t(begin[i + 1]);
     if (!std::is_sorted(first, last, by_seq)) std::stable_sort(first, last, by_seq);
   }
-  a.address.resize(sorted.size());
-  a.info.resize(sorted.size());
-  a.seq.resize(sorted.size());
-  for (size_t i = 0; i < sorted.size(); ++i) {
-    a.seq[i] = sorted[i].seq;
-    a.address[i] = buffers[gpu::trace_buffer(sorted[i].info)]->address(sorted[i].offset);
-    a.info[i] = sorted[i].info;
+  std::vector<std::unique_ptr<GroupAccesses>> out(end_group - first_group);
+  for (uint64_t g = 0; g < out.size(); ++g) {
+    const uint64_t i0 = g * per_group, r0 = begin[i0], r1 = begin[i0 + per_group];
+    if (r0 == r1) continue;
+    auto ga = std::make_unique<GroupAccesses>();
+    ga->first_invocation = first_invocation + i0;
+    ga->begin.resize(per_group + 1);
+    for (uint64_t i = 0; i <= per_group; ++i) ga->begin[i] = uint32_t(begin[i0 + i] - r0);
+    ga->cursor.assign(ga->begin.begin(), ga->begin.end() - 1);
+    ga->address.resize(r1 - r0);
+    ga->info.resize(r1 - r0);
+    ga->seq.resize(r1 - r0);
+    for (uint64_t k = r0; k < r1; ++k) {
+      const trace::TraceRecord& r = sorted[k];
+      ga->seq[k - r0] = r.seq;
+      ga->address[k - r0] = buffers[gpu::trace_buffer(r.info)]->address(r.offset);
+      ga->info[k - r0] = r.info;
+    }
+    out[g] = std::move(ga);
   }
-  return a;
+  return out;
 }
 
 // Merges one wavefront step's lane accesses into requests. A small open-addressed table keyed by
@@ -121,18 +137,15 @@ class Coalescer {
   bool sectors_;
 };
 
-// A fed slice: its workgroups' accesses and per-invocation cursors, alive until every workgroup retired.
+// A fed slice: its workgroups' accesses until each is dispatched (the resident workgroup then owns them).
 struct Slice {
   uint64_t first_group = 0, end_group = 0;
-  uint64_t first_invocation = 0;
-  LaneAccesses acc;
-  std::vector<uint64_t> cursor;  // next access per (slice-local) invocation
-  uint64_t groups_left = 0;      // workgroups not yet retired
+  std::vector<std::unique_ptr<GroupAccesses>> groups;  // by workgroup - first_group; null: none or dispatched
 };
 
 struct Wave {
-  Slice* slice;
-  uint64_t first_local;  // first lane's invocation, local to the slice
+  GroupAccesses* group;
+  uint32_t first_local;  // first lane's invocation within the workgroup
   uint32_t lanes;
   uint64_t remaining;  // accesses not yet issued
   uint64_t workgroup;
@@ -140,9 +153,8 @@ struct Wave {
 
 struct ResidentGroup {
   uint64_t workgroup;
-  Slice* slice;
+  std::unique_ptr<GroupAccesses> data;
   uint32_t waves_left;
-  uint32_t waves;
 };
 
 struct ComputeUnit {
@@ -162,11 +174,11 @@ struct Simulator::PassState {
   uint64_t per_group = 0, groups = 0, invocations = 0;
   uint32_t waves_per_group = 0;
   std::vector<ComputeUnit> cu;
-  std::vector<std::unique_ptr<Slice>> slices;  // alive, in workgroup order
+  std::vector<std::unique_ptr<Slice>> slices;  // fed and not yet fully dispatched, in workgroup order
   uint64_t fed_end = 0;                        // workgroups below this are known (fed or empty)
   bool final = false;                          // end_pass: every workgroup is known
   uint64_t next_group = 0;
-  uint64_t resident_records = 0;
+  uint64_t resident_records = 0;               // records held: fed, not yet retired
   // Refill position, kept when a refill stops for data: sweep index and whether this sweep placed work.
   uint32_t refill_cu = 0;
   bool refill_progress = false;
@@ -178,15 +190,18 @@ struct Simulator::PassState {
   PassState(uint32_t width, const Cache& l1, bool sectors)
       : co(width, l1.line_shift(), l1.sector_shift(), l1.full_mask(), sectors) {}
 
-  void retire(Slice* s) {
-    if (--s->groups_left) return;
-    resident_records -= s->acc.address.size();
-    for (size_t i = 0; i < slices.size(); ++i)
-      if (slices[i].get() == s) {
-        slices.erase(slices.begin() + int64_t(i));
+  // Takes workgroup g's accesses out of its slice (null: none); drops slices fully handed out.
+  std::unique_ptr<GroupAccesses> take(uint64_t g) {
+    std::unique_ptr<GroupAccesses> out;
+    for (auto& sp : slices)
+      if (g >= sp->first_group && g < sp->end_group) {
+        out = std::move(sp->groups[g - sp->first_group]);
         break;
       }
+    while (!slices.empty() && slices.front()->end_group <= g + 1) slices.erase(slices.begin());
+    return out;
   }
+  void retire(const GroupAccesses& ga) { resident_records -= ga.address.size(); }
 };
 
 Simulator::Simulator(const Preset& preset, const trace::TraceHeader& header, SimOptions options)
@@ -245,10 +260,7 @@ void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first
     auto s = std::make_unique<Slice>();
     s->first_group = first_workgroup;
     s->end_group = end_workgroup;
-    s->first_invocation = first_inv;
-    s->acc = group(records, first_inv, end_inv - first_inv, buffers_);
-    s->cursor.assign(s->acc.begin.begin(), s->acc.begin.end() - 1);
-    s->groups_left = end_workgroup - first_workgroup;
+    s->groups = group(records, first_workgroup, end_workgroup, ps.per_group, buffers_);
     ps.resident_records += records.size();
     ps.res.peak_resident_records = std::max(ps.res.peak_resident_records, ps.resident_records);
     ps.res.lane_accesses += records.size();
@@ -284,30 +296,20 @@ void Simulator::advance() {
   // resident, and a workgroup without any retires at once.
   auto dispatch = [&](ComputeUnit& c) {
     const uint64_t g = ps.next_group++;
-    Slice* s = nullptr;
-    for (auto& sp : ps.slices)
-      if (g >= sp->first_group && g < sp->end_group) {
-        s = sp.get();
-        break;
-      }
     res.waves += ps.waves_per_group;
-    if (!s) return;  // a workgroup no slice covers: no accesses
+    std::unique_ptr<GroupAccesses> ga = ps.take(g);
+    if (!ga) return;  // a workgroup without accesses
     uint32_t placed = 0;
-    const uint64_t group_first = (g - s->first_group) * ps.per_group;
     for (uint32_t w = 0; w < ps.waves_per_group; ++w) {
-      const uint64_t first = group_first + uint64_t(w) * width;
-      const uint32_t lanes = uint32_t(std::min<uint64_t>(width, ps.per_group - uint64_t(w) * width));
-      const uint64_t accesses = s->acc.begin[first + lanes] - s->acc.begin[first];
+      const uint32_t first = w * width;
+      const uint32_t lanes = uint32_t(std::min<uint64_t>(width, ps.per_group - first));
+      const uint64_t accesses = ga->begin[first + lanes] - ga->begin[first];
       if (accesses == 0) continue;
-      c.waves.push_back(Wave{s, first, lanes, accesses, g});
+      c.waves.push_back(Wave{ga.get(), first, lanes, accesses, g});
       ++placed;
     }
-    if (placed) {
-      c.groups.push_back(ResidentGroup{g, s, placed, placed});
-      c.resident_waves += placed;
-    } else {
-      ps.retire(s);
-    }
+    c.groups.push_back(ResidentGroup{g, std::move(ga), placed});
+    c.resident_waves += placed;
   };
   auto has_room = [&](const ComputeUnit& c) {
     return c.resident_waves == 0 || c.resident_waves + ps.waves_per_group <= preset_.max_waves_per_cu;
@@ -345,25 +347,25 @@ void Simulator::advance() {
       any = true;
       if (c.next >= c.waves.size()) c.next = 0;
       Wave& w = c.waves[c.next];
-      Slice& s = *w.slice;
-      const uint64_t* begin = s.acc.begin.data();
-      uint64_t* cursor = s.cursor.data();
-      const uint32_t* seq = s.acc.seq.data();
+      GroupAccesses& ga = *w.group;
+      const uint32_t* begin = ga.begin.data();
+      uint32_t* cursor = ga.cursor.data();
+      const uint32_t* seq = ga.seq.data();
       // The step issues every lane whose next access has the lowest pending sequence number:
       // lanes stay in lockstep by seq, and a capture can realign lanes after divergence by giving
       // the accesses after a reconvergence point a common seq.
       uint32_t step_seq = ~0u;
       for (uint32_t l = 0; l < w.lanes; ++l) {
-        const uint64_t inv = w.first_local + l;
+        const uint32_t inv = w.first_local + l;
         if (cursor[inv] < begin[inv + 1]) step_seq = std::min(step_seq, seq[cursor[inv]]);
       }
       co.begin();
       uint32_t issued = 0;
       for (uint32_t l = 0; l < w.lanes; ++l) {
-        const uint64_t inv = w.first_local + l;
-        const uint64_t idx = cursor[inv];
+        const uint32_t inv = w.first_local + l;
+        const uint32_t idx = cursor[inv];
         if (idx < begin[inv + 1] && seq[idx] == step_seq) {
-          co.add(s.acc.address[idx], s.acc.info[idx], uint32_t(s.first_invocation + inv), per_inv);
+          co.add(ga.address[idx], ga.info[idx], uint32_t(ga.first_invocation + inv), per_inv);
           ++cursor[inv];
           ++issued;
         }
@@ -390,9 +392,8 @@ void Simulator::advance() {
         --c.resident_waves;
         for (size_t k = 0; k < c.groups.size(); ++k)
           if (c.groups[k].workgroup == g && --c.groups[k].waves_left == 0) {
-            Slice* gs = c.groups[k].slice;
+            ps.retire(*c.groups[k].data);
             c.groups.erase(c.groups.begin() + int64_t(k));
-            ps.retire(gs);
             freed = true;
             break;
           }
