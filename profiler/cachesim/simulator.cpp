@@ -12,22 +12,27 @@ namespace hp::cachesim {
 
 namespace {
 
-// One workgroup's accesses grouped by invocation and ordered by sequence number, with addresses
-// resolved: what a resident workgroup needs, freed when it retires.
+// One workgroup's accesses in the order its wavefronts will issue them: per wavefront, its lockstep steps
+// (each step: the lanes whose next access has the lowest pending sequence number, in lane order), with
+// addresses resolved (lanes stay in lockstep by seq, and a capture can realign lanes after divergence by
+// giving the accesses after a reconvergence point a common seq). A wavefront's steps depend on its own
+// lanes' records only, so they are fixed here,
+// once, while the workgroup's records are hot in the host's caches; the scheduler then streams through
+// them. Freed when the workgroup retires.
 struct GroupAccesses {
   uint64_t first_invocation = 0;  // global index of the workgroup's first invocation
-  std::vector<uint32_t> begin;    // begin[i] .. begin[i + 1]: local invocation i's accesses
-  std::vector<uint32_t> cursor;   // next access per local invocation
-  std::vector<uint64_t> address;  // byte address
+  std::vector<uint64_t> address;  // byte address, in issue order
   std::vector<uint32_t> info;     // the record's info word (size, kind, buffer)
-  std::vector<uint32_t> seq;      // the record's sequence number
+  std::vector<uint16_t> lane;     // the issuing lane within its wavefront
+  std::vector<uint32_t> step_end; // per step (all wavefronts' steps in order): end of its entries
+  std::vector<uint32_t> wave_steps_end;  // per wavefront: end of its steps in step_end
 };
 
-// Splits one slice's records (already checked to lie in its workgroups) into per-workgroup groups;
+// Splits one slice's records (already checked to lie in its workgroups) into per-workgroup issue orders;
 // workgroups without records get none.
 std::vector<std::unique_ptr<GroupAccesses>> group(std::span<const trace::TraceRecord> records,
                                                   uint64_t first_group, uint64_t end_group, uint64_t per_group,
-                                                  const trace::BufferInfo* const* buffers) {
+                                                  uint32_t wave_width, const trace::BufferInfo* const* buffers) {
   const uint64_t first_invocation = first_group * per_group;
   const uint64_t invocations = (end_group - first_group) * per_group;
   std::vector<uint64_t> begin(invocations + 1, 0);
@@ -35,31 +40,50 @@ std::vector<std::unique_ptr<GroupAccesses>> group(std::span<const trace::TraceRe
   for (uint64_t i = 0; i < invocations; ++i) begin[i + 1] += begin[i];
   // Counting sort by invocation, stable, so one invocation's records keep their buffer order, then
   // a per-invocation sort by seq where needed (GPU atomics usually hand out indices in program order).
-  std::vector<uint64_t> fill(begin.begin(), begin.end() - 1);
+  std::vector<uint64_t> cur(begin.begin(), begin.end() - 1);
   std::vector<trace::TraceRecord> sorted(records.size());
-  for (const auto& r : records) sorted[fill[r.invocation - first_invocation]++] = r;
+  for (const auto& r : records) sorted[cur[r.invocation - first_invocation]++] = r;
   auto by_seq = [](const trace::TraceRecord& x, const trace::TraceRecord& y) { return x.seq < y.seq; };
   for (uint64_t i = 0; i < invocations; ++i) {
     auto first = sorted.begin() + int64_t(begin[i]), last = sorted.begin() + int64_t(begin[i + 1]);
     if (!std::is_sorted(first, last, by_seq)) std::stable_sort(first, last, by_seq);
   }
   std::vector<std::unique_ptr<GroupAccesses>> out(end_group - first_group);
+  const uint32_t waves = uint32_t((per_group + wave_width - 1) / wave_width);
   for (uint64_t g = 0; g < out.size(); ++g) {
     const uint64_t i0 = g * per_group, r0 = begin[i0], r1 = begin[i0 + per_group];
     if (r0 == r1) continue;
     auto ga = std::make_unique<GroupAccesses>();
     ga->first_invocation = first_invocation + i0;
-    ga->begin.resize(per_group + 1);
-    for (uint64_t i = 0; i <= per_group; ++i) ga->begin[i] = uint32_t(begin[i0 + i] - r0);
-    ga->cursor.assign(ga->begin.begin(), ga->begin.end() - 1);
-    ga->address.resize(r1 - r0);
-    ga->info.resize(r1 - r0);
-    ga->seq.resize(r1 - r0);
-    for (uint64_t k = r0; k < r1; ++k) {
-      const trace::TraceRecord& r = sorted[k];
-      ga->seq[k - r0] = r.seq;
-      ga->address[k - r0] = buffers[gpu::trace_buffer(r.info)]->address(r.offset);
-      ga->info[k - r0] = r.info;
+    ga->address.reserve(r1 - r0);
+    ga->info.reserve(r1 - r0);
+    ga->lane.reserve(r1 - r0);
+    for (uint32_t w = 0; w < waves; ++w) {
+      const uint64_t l0 = i0 + uint64_t(w) * wave_width;
+      const uint32_t lanes = uint32_t(std::min<uint64_t>(wave_width, per_group - uint64_t(w) * wave_width));
+      for (uint32_t l = 0; l < lanes; ++l) cur[l0 + l] = begin[l0 + l];
+      while (true) {
+        uint32_t step_seq = ~0u;
+        bool any = false;
+        for (uint32_t l = 0; l < lanes; ++l)
+          if (cur[l0 + l] < begin[l0 + l + 1]) {
+            step_seq = std::min(step_seq, sorted[cur[l0 + l]].seq);
+            any = true;
+          }
+        if (!any) break;
+        for (uint32_t l = 0; l < lanes; ++l) {
+          const uint64_t k = cur[l0 + l];
+          if (k < begin[l0 + l + 1] && sorted[k].seq == step_seq) {
+            const trace::TraceRecord& r = sorted[k];
+            ga->address.push_back(buffers[gpu::trace_buffer(r.info)]->address(r.offset));
+            ga->info.push_back(r.info);
+            ga->lane.push_back(uint16_t(l));
+            ++cur[l0 + l];
+          }
+        }
+        ga->step_end.push_back(uint32_t(ga->address.size()));
+      }
+      ga->wave_steps_end.push_back(uint32_t(ga->step_end.size()));
     }
     out[g] = std::move(ga);
   }
@@ -146,8 +170,7 @@ struct Slice {
 struct Wave {
   GroupAccesses* group;
   uint32_t first_local;  // first lane's invocation within the workgroup
-  uint32_t lanes;
-  uint64_t remaining;  // accesses not yet issued
+  uint32_t next_step, end_step;  // its steps in group->step_end
   uint64_t workgroup;
 };
 
@@ -260,7 +283,7 @@ void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first
     auto s = std::make_unique<Slice>();
     s->first_group = first_workgroup;
     s->end_group = end_workgroup;
-    s->groups = group(records, first_workgroup, end_workgroup, ps.per_group, buffers_);
+    s->groups = group(records, first_workgroup, end_workgroup, ps.per_group, preset_.wave_width, buffers_);
     ps.resident_records += records.size();
     ps.res.peak_resident_records = std::max(ps.res.peak_resident_records, ps.resident_records);
     ps.res.lane_accesses += records.size();
@@ -301,11 +324,9 @@ void Simulator::advance() {
     if (!ga) return;  // a workgroup without accesses
     uint32_t placed = 0;
     for (uint32_t w = 0; w < ps.waves_per_group; ++w) {
-      const uint32_t first = w * width;
-      const uint32_t lanes = uint32_t(std::min<uint64_t>(width, ps.per_group - first));
-      const uint64_t accesses = ga->begin[first + lanes] - ga->begin[first];
-      if (accesses == 0) continue;
-      c.waves.push_back(Wave{ga.get(), first, lanes, accesses, g});
+      const uint32_t s0 = w ? ga->wave_steps_end[w - 1] : 0, s1 = ga->wave_steps_end[w];
+      if (s0 == s1) continue;  // a wavefront without accesses
+      c.waves.push_back(Wave{ga.get(), w * width, s0, s1, g});
       ++placed;
     }
     c.groups.push_back(ResidentGroup{g, std::move(ga), placed});
@@ -348,28 +369,11 @@ void Simulator::advance() {
       if (c.next >= c.waves.size()) c.next = 0;
       Wave& w = c.waves[c.next];
       GroupAccesses& ga = *w.group;
-      const uint32_t* begin = ga.begin.data();
-      uint32_t* cursor = ga.cursor.data();
-      const uint32_t* seq = ga.seq.data();
-      // The step issues every lane whose next access has the lowest pending sequence number:
-      // lanes stay in lockstep by seq, and a capture can realign lanes after divergence by giving
-      // the accesses after a reconvergence point a common seq.
-      uint32_t step_seq = ~0u;
-      for (uint32_t l = 0; l < w.lanes; ++l) {
-        const uint32_t inv = w.first_local + l;
-        if (cursor[inv] < begin[inv + 1]) step_seq = std::min(step_seq, seq[cursor[inv]]);
-      }
+      const uint32_t step = w.next_step;
+      const uint32_t e0 = step ? ga.step_end[step - 1] : 0, e1 = ga.step_end[step];
+      const uint64_t lane_base = ga.first_invocation + w.first_local;
       co.begin();
-      uint32_t issued = 0;
-      for (uint32_t l = 0; l < w.lanes; ++l) {
-        const uint32_t inv = w.first_local + l;
-        const uint32_t idx = cursor[inv];
-        if (idx < begin[inv + 1] && seq[idx] == step_seq) {
-          co.add(ga.address[idx], ga.info[idx], uint32_t(ga.first_invocation + inv), per_inv);
-          ++cursor[inv];
-          ++issued;
-        }
-      }
+      for (uint32_t k = e0; k < e1; ++k) co.add(ga.address[k], ga.info[k], uint32_t(lane_base + ga.lane[k]), per_inv);
       ++res.wave_steps;
       for (const Request& r : co.requests) hierarchy_.prefetch(i, r.line);
       if (options_.observer)
@@ -385,8 +389,7 @@ void Simulator::advance() {
       } else {
         hierarchy_.issue(i, std::span<const Request>(co.requests), nullptr);
       }
-      w.remaining -= issued;
-      if (w.remaining == 0) {
+      if (++w.next_step == w.end_step) {
         const uint64_t g = w.workgroup;
         c.waves.erase(c.waves.begin() + int64_t(c.next));  // next now points at the following wave
         --c.resident_waves;
