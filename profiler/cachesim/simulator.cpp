@@ -19,6 +19,13 @@ namespace {
 // lanes' records only, so they are fixed here,
 // once, while the workgroup's records are hot in the host's caches; the scheduler then streams through
 // them. Freed when the workgroup retires.
+// Working memory of group(), kept from slice to slice.
+struct GroupScratch {
+  std::vector<uint64_t> begin, cursor;
+  std::vector<uint32_t> order, lane_cursor, lane_end;
+  std::vector<trace::TraceRecord> group;
+};
+
 struct GroupAccesses {
   uint64_t first_invocation = 0;  // global index of the workgroup's first invocation
   std::vector<uint64_t> address;  // byte address, in issue order
@@ -29,56 +36,70 @@ struct GroupAccesses {
 };
 
 // Splits one slice's records (already checked to lie in its workgroups) into per-workgroup issue orders;
-// workgroups without records get none.
+// workgroups without records get none. `scratch` is reused from slice to slice (no fresh pages each time).
 std::vector<std::unique_ptr<GroupAccesses>> group(std::span<const trace::TraceRecord> records,
                                                   uint64_t first_group, uint64_t end_group, uint64_t per_group,
-                                                  uint32_t wave_width, const trace::BufferInfo* const* buffers) {
+                                                  uint32_t wave_width, const trace::BufferInfo* const* buffers,
+                                                  GroupScratch& scratch) {
   const uint64_t first_invocation = first_group * per_group;
   const uint64_t invocations = (end_group - first_group) * per_group;
-  std::vector<uint64_t> begin(invocations + 1, 0);
+  // Counting sort of record indices by invocation, stable, so one invocation's records keep their buffer
+  // order; each workgroup's records are then gathered, small enough to stay in the host's caches.
+  std::vector<uint64_t>& begin = scratch.begin;
+  begin.assign(invocations + 1, 0);
   for (const auto& r : records) ++begin[r.invocation - first_invocation + 1];
   for (uint64_t i = 0; i < invocations; ++i) begin[i + 1] += begin[i];
-  // Counting sort by invocation, stable, so one invocation's records keep their buffer order, then
-  // a per-invocation sort by seq where needed (GPU atomics usually hand out indices in program order).
-  std::vector<uint64_t> cur(begin.begin(), begin.end() - 1);
-  std::vector<trace::TraceRecord> sorted(records.size());
-  for (const auto& r : records) sorted[cur[r.invocation - first_invocation]++] = r;
-  auto by_seq = [](const trace::TraceRecord& x, const trace::TraceRecord& y) { return x.seq < y.seq; };
-  for (uint64_t i = 0; i < invocations; ++i) {
-    auto first = sorted.begin() + int64_t(begin[i]), last = sorted.begin() + int64_t(begin[i + 1]);
-    if (!std::is_sorted(first, last, by_seq)) std::stable_sort(first, last, by_seq);
-  }
+  std::vector<uint64_t>& cur = scratch.cursor;
+  cur.assign(begin.begin(), begin.end() - 1);
+  std::vector<uint32_t>& order = scratch.order;
+  order.resize(records.size());
+  for (size_t k = 0; k < records.size(); ++k) order[cur[records[k].invocation - first_invocation]++] = uint32_t(k);
+
   std::vector<std::unique_ptr<GroupAccesses>> out(end_group - first_group);
+  std::vector<trace::TraceRecord>& recs = scratch.group;
+  std::vector<uint32_t>& at = scratch.lane_cursor;
   const uint32_t waves = uint32_t((per_group + wave_width - 1) / wave_width);
+  auto by_seq = [](const trace::TraceRecord& x, const trace::TraceRecord& y) { return x.seq < y.seq; };
   for (uint64_t g = 0; g < out.size(); ++g) {
     const uint64_t i0 = g * per_group, r0 = begin[i0], r1 = begin[i0 + per_group];
     if (r0 == r1) continue;
+    // This workgroup's records by invocation, each invocation's sorted by seq where needed (GPU atomics
+    // usually hand out indices in program order).
+    recs.resize(r1 - r0);
+    for (uint64_t k = r0; k < r1; ++k) recs[k - r0] = records[order[k]];
+    at.resize(per_group + 1);
+    for (uint64_t i = 0; i <= per_group; ++i) at[i] = uint32_t(begin[i0 + i] - r0);
+    for (uint64_t i = 0; i < per_group; ++i) {
+      auto first = recs.begin() + at[i], last = recs.begin() + at[i + 1];
+      if (!std::is_sorted(first, last, by_seq)) std::stable_sort(first, last, by_seq);
+    }
     auto ga = std::make_unique<GroupAccesses>();
     ga->first_invocation = first_invocation + i0;
     ga->address.reserve(r1 - r0);
     ga->info.reserve(r1 - r0);
     ga->lane.reserve(r1 - r0);
     for (uint32_t w = 0; w < waves; ++w) {
-      const uint64_t l0 = i0 + uint64_t(w) * wave_width;
-      const uint32_t lanes = uint32_t(std::min<uint64_t>(wave_width, per_group - uint64_t(w) * wave_width));
-      for (uint32_t l = 0; l < lanes; ++l) cur[l0 + l] = begin[l0 + l];
+      const uint32_t l0 = w * wave_width;
+      const uint32_t lanes = uint32_t(std::min<uint64_t>(wave_width, per_group - l0));
+      uint32_t* c = at.data() + l0;  // at[] becomes each lane's cursor; at[l0 + l + 1] is still its end
+      std::vector<uint32_t>& end = scratch.lane_end;
+      end.assign(at.begin() + l0 + 1, at.begin() + l0 + lanes + 1);
       while (true) {
         uint32_t step_seq = ~0u;
         bool any = false;
         for (uint32_t l = 0; l < lanes; ++l)
-          if (cur[l0 + l] < begin[l0 + l + 1]) {
-            step_seq = std::min(step_seq, sorted[cur[l0 + l]].seq);
+          if (c[l] < end[l]) {
+            step_seq = std::min(step_seq, recs[c[l]].seq);
             any = true;
           }
         if (!any) break;
         for (uint32_t l = 0; l < lanes; ++l) {
-          const uint64_t k = cur[l0 + l];
-          if (k < begin[l0 + l + 1] && sorted[k].seq == step_seq) {
-            const trace::TraceRecord& r = sorted[k];
+          if (c[l] < end[l] && recs[c[l]].seq == step_seq) {
+            const trace::TraceRecord& r = recs[c[l]];
             ga->address.push_back(buffers[gpu::trace_buffer(r.info)]->address(r.offset));
             ga->info.push_back(r.info);
             ga->lane.push_back(uint16_t(l));
-            ++cur[l0 + l];
+            ++c[l];
           }
         }
         ga->step_end.push_back(uint32_t(ga->address.size()));
@@ -209,6 +230,7 @@ struct Simulator::PassState {
   bool done = false;
   Coalescer co;
   std::vector<IssueResult> outcome;
+  GroupScratch scratch;
 
   PassState(uint32_t width, const Cache& l1, bool sectors)
       : co(width, l1.line_shift(), l1.sector_shift(), l1.full_mask(), sectors) {}
@@ -283,7 +305,7 @@ void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first
     auto s = std::make_unique<Slice>();
     s->first_group = first_workgroup;
     s->end_group = end_workgroup;
-    s->groups = group(records, first_workgroup, end_workgroup, ps.per_group, preset_.wave_width, buffers_);
+    s->groups = group(records, first_workgroup, end_workgroup, ps.per_group, preset_.wave_width, buffers_, ps.scratch);
     ps.resident_records += records.size();
     ps.res.peak_resident_records = std::max(ps.res.peak_resident_records, ps.resident_records);
     ps.res.lane_accesses += records.size();

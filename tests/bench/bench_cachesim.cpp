@@ -1,5 +1,6 @@
 // Speed of the cache simulator, single thread, on a generated BVH-like trace (cachesim/synthetic.hpp:
-// 512x512 rays over a 2^18-node tree; no captured BVH trace exists yet). What an "access" is:
+// 512x512 rays over a 2^18-node tree), or on a captured one: HP_BENCH_TRACE=FILE (a `hybridprof trace`
+// output) and HP_BENCH_PASS=NAME (default its first pass). What an "access" is:
 //   lane access  one record of the trace: one lane's load/store (27.0 M here);
 //   request      one coalesced line request that a wave step sends to an L1 (10.6 M here): what
 //                Dinero IV counts as a reference, and what issue 6's 150 M accesses/s target and
@@ -20,6 +21,7 @@
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <span>
 #include <string>
@@ -48,14 +50,28 @@ struct Fixture {
   };
   std::vector<Run> runs;
   Fixture() {
-    SyntheticBvhOptions o;
-    // HP_BENCH_RAYS (default 512) shrinks the image for instruction-level profiling under callgrind;
-    // every figure in docs/cache-model.md is taken at the default.
-    const char* rays = std::getenv("HP_BENCH_RAYS");
-    o.width = o.height = rays ? uint32_t(std::max(8, std::atoi(rays))) : 512u;
-    o.tree_depth = 17;
-    o.incoherent_fraction = 0.25;
-    trace = make_bvh_like_trace(o);
+    if (const char* path = std::getenv("HP_BENCH_TRACE")) {
+      // A captured trace (hybridprof trace --out FILE): its pass HP_BENCH_PASS, default the first.
+      trace = hp::trace::read_trace(path);
+      const char* want = std::getenv("HP_BENCH_PASS");
+      size_t p = 0;
+      while (want && p < trace.passes.size() && trace.passes[p].name != want) ++p;
+      if (p == trace.passes.size()) {
+        std::fprintf(stderr, "HP_BENCH_PASS=%s: no such pass in %s\n", want, path);
+        std::exit(2);
+      }
+      trace.passes = {trace.passes[p]};
+      trace.records = {std::move(trace.records[p])};
+    } else {
+      SyntheticBvhOptions o;
+      // HP_BENCH_RAYS (default 512) shrinks the image for instruction-level profiling under callgrind;
+      // every figure in docs/cache-model.md is taken at the default.
+      const char* rays = std::getenv("HP_BENCH_RAYS");
+      o.width = o.height = rays ? uint32_t(std::max(8, std::atoi(rays))) : 512u;
+      o.tree_depth = 17;
+      o.incoherent_fraction = 0.25;
+      trace = make_bvh_like_trace(o);
+    }
     preset = find_preset("vega56");
     SimOptions so;
     so.per_invocation = false;
@@ -178,6 +194,8 @@ int main(int argc, char** argv) {
   // Built before any benchmark runs, so a profiler collecting inside one benchmark
   // (valgrind --tool=callgrind --collect-atstart=no --toggle-collect=...) sees only that benchmark.
   const Fixture& f = fixture();
+  benchmark::AddCustomContext("trace", std::getenv("HP_BENCH_TRACE") ? std::getenv("HP_BENCH_TRACE") : "generated");
+  benchmark::AddCustomContext("pass", f.trace.passes[0].name);
   benchmark::AddCustomContext("lane_accesses", std::to_string(f.trace.records[0].size()));
   benchmark::AddCustomContext("l1_requests", std::to_string(f.requests.size()));
   benchmark::AddCustomContext("l2_requests", std::to_string(f.l2_lines.size()));
