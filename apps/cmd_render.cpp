@@ -102,8 +102,14 @@ void run_render(const RenderArgs& a) {
                 p.duration_ns.median_ci.valid ? "" : " (too few frames for a 95% CI: full range)");
   }
   if (summary.query_overhead) {
-    std::printf("  timestamp query overhead: %.3f%% of the CPU wall time per frame\n",
-                100.0 * summary.query_overhead->overhead_fraction());
+    const QueryOverhead& q = *summary.query_overhead;
+    std::printf("  timestamp query overhead: %.3f%% of the CPU wall time per frame (medians)", 100.0 * q.overhead_fraction());
+    if (q.paired_fraction) {
+      std::printf("; paired over %u frame pairs: %.3f%% [%.3f%%, %.3f%%]%s", q.frames, 100.0 * *q.paired_fraction,
+                  100.0 * q.paired_fraction_ci.low, 100.0 * q.paired_fraction_ci.high,
+                  q.paired_fraction_ci.valid ? " (95% CI)" : " (range: too few pairs for a 95% CI)");
+    }
+    std::printf("\n");
   }
   const Counters total = timings.total_counters();
   for (const char* pass : {"shadows", "reflections"}) {

@@ -51,13 +51,9 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o) {
     timings.add(to_frame_sample(t, counters ? &c : nullptr));
     if (overhead && i % 2 == 0) without_queries.push_back(double(frame.render(false).cpu_wall_ns));
   }
-  if (!without_queries.empty()) {
-    QueryOverhead q;
-    q.frame_ns_with_queries = quantile(with_queries, 0.5);
-    q.frame_ns_without_queries = quantile(without_queries, 0.5);
-    q.frames = uint32_t(without_queries.size());
-    timings.set_query_overhead(q);
-  }
+  // Frame i with queries pairs with the frame without that ran next to it (after it for even i, before
+  // it for odd i): both vectors hold one entry per i.
+  if (!without_queries.empty()) timings.set_query_overhead(paired_query_overhead(with_queries, without_queries));
   return timings;
 }
 

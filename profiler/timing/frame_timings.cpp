@@ -46,6 +46,25 @@ double QueryOverhead::overhead_fraction() const {
   return frame_ns_without_queries > 0.0 ? overhead_ns() / frame_ns_without_queries : 0.0;
 }
 
+QueryOverhead paired_query_overhead(std::span<const double> with_queries, std::span<const double> without_queries) {
+  if (with_queries.size() != without_queries.size())
+    throw std::invalid_argument("paired_query_overhead: " + std::to_string(with_queries.size()) + " frames with queries, " +
+                                std::to_string(without_queries.size()) + " without");
+  QueryOverhead q;
+  q.frames = std::uint32_t(without_queries.size());
+  if (with_queries.empty()) return q;
+  q.frame_ns_with_queries = quantile(with_queries, 0.5);
+  q.frame_ns_without_queries = quantile(without_queries, 0.5);
+  std::vector<double> d;
+  for (std::size_t i = 0; i < with_queries.size(); ++i)
+    if (without_queries[i] > 0.0) d.push_back((with_queries[i] - without_queries[i]) / without_queries[i]);
+  if (d.empty()) return q;
+  std::sort(d.begin(), d.end());
+  q.paired_fraction = quantile_sorted(d, 0.5);
+  q.paired_fraction_ci = median_ci_order_statistic(d);
+  return q;
+}
+
 FrameTimings::FrameTimings(std::uint32_t warmup, std::uint32_t measured, TimingSource source)
     : warmup_wanted_(warmup), measured_wanted_(measured), source_(source) {
   measured_.reserve(measured);

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -56,18 +57,26 @@ std::string_view to_string(TimingSource source);
 // Inverse of to_string; throws std::invalid_argument on anything else.
 TimingSource timing_source_from_string(std::string_view text);
 
-// Cost of the queries themselves: mean frame time over frames with and without the timestamp
-// queries, measured and filled in by the caller.
+// Cost of the queries themselves: median frame time over frames with and without the timestamp
+// queries, measured and filled in by the caller; and, when the frames were interleaved in pairs, the
+// paired estimate: the median of each pair's relative difference (with - without) / without, with its
+// distribution-free 95% CI. Pairing adjacent frames cancels the drift of a shared machine, which moves
+// the two medians apart by several percent from run to run.
 struct QueryOverhead {
   double frame_ns_with_queries = 0.0;
   double frame_ns_without_queries = 0.0;
   std::uint32_t frames = 0;  // frames per side
+  std::optional<double> paired_fraction;  // median of the pairs' relative differences
+  MedianCi paired_fraction_ci;            // its order-statistic CI (valid from 6 pairs)
 
   double overhead_ns() const { return frame_ns_with_queries - frame_ns_without_queries; }
   // overhead_ns / frame_ns_without_queries; 0 when the baseline is 0. Target: under 0.01.
   double overhead_fraction() const;
   bool operator==(const QueryOverhead&) const = default;
 };
+
+// The overhead of frames with queries over their paired frames without (same length, pairs by index).
+QueryOverhead paired_query_overhead(std::span<const double> with_queries, std::span<const double> without_queries);
 
 struct PassSummary {
   std::string pass;

@@ -192,13 +192,20 @@ void to_json(json& j, const QueryOverhead& q) {
        {"frame_ns_without_queries", q.frame_ns_without_queries},
        {"frames", q.frames},
        {"overhead_ns", q.overhead_ns()},
-       {"overhead_fraction", q.overhead_fraction()}};
+       {"overhead_fraction", q.overhead_fraction()},
+       {"paired_fraction", optional_json(q.paired_fraction)},
+       {"paired_fraction_ci", q.paired_fraction ? json(q.paired_fraction_ci) : json(nullptr)}};
 }
 
 void from_json(const json& j, QueryOverhead& q) {
   q.frame_ns_with_queries = get<double>(j, "frame_ns_with_queries");
   q.frame_ns_without_queries = get<double>(j, "frame_ns_without_queries");
   q.frames = get<std::uint32_t>(j, "frames");
+  // Results written before the paired estimate existed have neither field.
+  if (j.contains("paired_fraction")) q.paired_fraction = get_optional<double>(j, "paired_fraction");
+  if (q.paired_fraction) {
+    q.paired_fraction_ci = within("paired_fraction_ci", [&] { return field(j, "paired_fraction_ci").get<MedianCi>(); });
+  }
 }
 
 json timing_result_json(const Environment& env, const FrameTimings& timings,

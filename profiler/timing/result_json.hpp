@@ -6,7 +6,8 @@
 //                 hostname, os, device: {name, type, driver_name, driver_info, api_version}}
 //   timing: {source: "gpu-timestamps"|"cpu-wall", warmup_frames, measured_frames,
 //            query_overhead: null | {frame_ns_with_queries, frame_ns_without_queries, frames,
-//                                    overhead_ns, overhead_fraction},
+//                                    overhead_ns, overhead_fraction, paired_fraction,
+//                                    paired_fraction_ci},
 //            frame_ns: Summary, cpu_wall_ns: Summary,
 //            passes: [{pass, duration_ns: Summary}, ...]}
 //   Summary: {count, min, max, median, mean, p95, stddev|null, cv|null, quantile_definition: "type7",

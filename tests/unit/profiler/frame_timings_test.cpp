@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <stdexcept>
+#include <vector>
 
 #include "timing/frame_timings.hpp"
 #include "timing_fixture.hpp"
@@ -90,6 +92,51 @@ TEST(FrameTimings, QueryOverhead) {
   EXPECT_FALSE(t.summarize().query_overhead.has_value());
   t.set_query_overhead(q);
   EXPECT_EQ(t.summarize().query_overhead, q);
+}
+
+TEST(FrameTimings, PairedQueryOverheadIsTheMedianRelativeDifferenceWithItsCi) {
+  // Relative differences 0.10, 0.02, -0.01, 0.05, 0.01, 0.03, 0.00: sorted, the median is the 4th, 0.02;
+  // with 7 pairs the 95% order-statistic CI is [1st, 7th] (coverage 1 - 2/128).
+  const std::vector<double> without(7, 100.0), with = {110.0, 102.0, 99.0, 105.0, 101.0, 103.0, 100.0};
+  const QueryOverhead q = paired_query_overhead(with, without);
+  ASSERT_TRUE(q.paired_fraction.has_value());
+  EXPECT_NEAR(*q.paired_fraction, 0.02, 1e-12);
+  EXPECT_TRUE(q.paired_fraction_ci.valid);
+  EXPECT_NEAR(q.paired_fraction_ci.low, -0.01, 1e-12);
+  EXPECT_NEAR(q.paired_fraction_ci.high, 0.10, 1e-12);
+  EXPECT_NEAR(q.paired_fraction_ci.coverage, 1.0 - 2.0 / 128.0, 1e-12);
+  EXPECT_EQ(q.frames, 7u);
+  EXPECT_DOUBLE_EQ(q.frame_ns_with_queries, 102.0);
+  EXPECT_DOUBLE_EQ(q.frame_ns_without_queries, 100.0);
+  EXPECT_THROW(paired_query_overhead(with, std::vector<double>(6, 100.0)), std::invalid_argument);
+}
+
+TEST(FrameTimings, PairingCancelsTheDriftBetweenPairs) {
+  // Frame times swing by +-50% through the run (a shared machine), each pair's two frames share the swing,
+  // and the queries cost 1%: the paired estimate and its CI stay within 0.2 points of 1%. Pairing frames
+  // one apart (a misaligned pairing) would see the swing between frames, several percent.
+  std::vector<double> with, without;
+  uint32_t state = 12345;
+  auto noise = [&] {  // deterministic, uniform in [-0.05, 0.05)
+    state = state * 1664525u + 1013904223u;
+    return (double(state >> 8) / double(1u << 24) - 0.5) * 0.1;
+  };
+  for (int i = 0; i < 60; ++i) {
+    const double drift = 100.0 + 50.0 * std::sin(i / 3.0);
+    without.push_back(drift + noise());
+    with.push_back((drift + noise()) * 1.01);
+  }
+  const QueryOverhead q = paired_query_overhead(with, without);
+  ASSERT_TRUE(q.paired_fraction_ci.valid);
+  EXPECT_NEAR(*q.paired_fraction, 0.01, 0.002);
+  EXPECT_LE(q.paired_fraction_ci.low, 0.01);
+  EXPECT_GE(q.paired_fraction_ci.high, 0.01);
+  EXPECT_GT(q.paired_fraction_ci.low, 0.008);
+  EXPECT_LT(q.paired_fraction_ci.high, 0.012);
+  std::vector<double> shifted(with.begin() + 1, with.end());
+  shifted.push_back(with.front());
+  const QueryOverhead misaligned = paired_query_overhead(shifted, without);
+  EXPECT_GT(misaligned.paired_fraction_ci.high - misaligned.paired_fraction_ci.low, 0.05);
 }
 
 TEST(FrameTimings, TotalCountersSumFrames) {

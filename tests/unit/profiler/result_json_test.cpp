@@ -30,7 +30,10 @@ FrameTimings finished_run() {
   FrameTimings t(2, 8, TimingSource::GpuTimestamps);
   for (std::uint64_t i = 0; t.add(test::synthetic_frame(i)); ++i) {
   }
-  t.set_query_overhead({1'000'500.0, 1'000'000.0, 8});
+  QueryOverhead q = paired_query_overhead(std::vector<double>{1'000'400.0, 1'000'500.0, 1'000'600.0, 999'900.0,
+                                                              1'001'000.0, 1'000'500.0, 1'000'550.0, 1'000'450.0},
+                                          std::vector<double>(8, 1'000'000.0));
+  t.set_query_overhead(q);
   return t;
 }
 
@@ -70,6 +73,8 @@ TEST(ResultJson, SchemaFieldsAreWhereTheReportLooks) {
   EXPECT_EQ(doc["timing"]["passes"][1]["duration_ns"]["median_ci"]["lower_rank"], 1);
   EXPECT_TRUE(doc["timing"]["passes"][1]["duration_ns"]["median_ci_bootstrap"].is_null());
   EXPECT_DOUBLE_EQ(doc["timing"]["query_overhead"]["overhead_fraction"].get<double>(), 0.0005);
+  EXPECT_DOUBLE_EQ(doc["timing"]["query_overhead"]["paired_fraction"].get<double>(), 0.0005);
+  EXPECT_TRUE(doc["timing"]["query_overhead"]["paired_fraction_ci"]["valid"].get<bool>());
   EXPECT_EQ(doc["frames"].size(), 8u);
   EXPECT_EQ(doc["frames"][0]["passes"][0]["begin_ns"], 5'002'000'000ull);  // frame 2: first kept
   EXPECT_EQ(doc["frames"][0]["counters"]["shadows"]["rays_cast"], 4096);
