@@ -12,13 +12,6 @@ namespace hp::cachesim {
 
 namespace {
 
-// One workgroup's accesses in the order its wavefronts will issue them: per wavefront, its lockstep steps
-// (each step: the lanes whose next access has the lowest pending sequence number, in lane order), with
-// addresses resolved (lanes stay in lockstep by seq, and a capture can realign lanes after divergence by
-// giving the accesses after a reconvergence point a common seq). A wavefront's steps depend on its own
-// lanes' records only, so they are fixed here,
-// once, while the workgroup's records are hot in the host's caches; the scheduler then streams through
-// them. Freed when the workgroup retires.
 // Working memory of group(), kept from slice to slice.
 struct GroupScratch {
   std::vector<uint64_t> begin, cursor;
@@ -26,6 +19,12 @@ struct GroupScratch {
   std::vector<trace::TraceRecord> group;
 };
 
+// One workgroup's accesses in the order its wavefronts will issue them: per wavefront, its lockstep steps
+// (each step: the lanes whose next access has the lowest pending sequence number, in lane order), with
+// addresses resolved. Lanes stay in lockstep by seq, and a capture can realign lanes after divergence by
+// giving the accesses after a reconvergence point a common seq. A wavefront's steps depend on its own
+// lanes' records only, so they are fixed here, once, while the workgroup's records are hot in the host's
+// caches; the scheduler then streams through them. Freed when the workgroup retires.
 struct GroupAccesses {
   uint64_t first_invocation = 0;  // global index of the workgroup's first invocation
   std::vector<uint64_t> address;  // byte address, in issue order
@@ -338,7 +337,7 @@ void Simulator::advance() {
   Coalescer& co = ps.co;
 
   // Places workgroup next_group's wavefronts on a CU; wavefronts without accesses never become
-  // resident, and a workgroup without any retires at once.
+  // resident, and a workgroup without any never does.
   auto dispatch = [&](ComputeUnit& c) {
     const uint64_t g = ps.next_group++;
     res.waves += ps.waves_per_group;
