@@ -42,7 +42,16 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
     }
   };
   check_range("BVH node", g.bvh.nodes.size() * sizeof(gpu::BvhNode));
-  nodes_ = upload(ctx, g.bvh.nodes, uploaded_bytes_);
+  // The traversal fetches nodes as texels (traversal.glsl says why): two 16-byte texels per node.
+  const uint64_t max_texels = ctx.properties().limits.maxTexelBufferElements;
+  if (g.bvh.nodes.size() * 2 > max_texels) {
+    throw InputError("scene '" + scene.name + "': the BVH's " + std::to_string(g.bvh.nodes.size()) +
+                     " nodes need " + std::to_string(g.bvh.nodes.size() * 2) +
+                     " texels, over this device's maxTexelBufferElements of " + std::to_string(max_texels));
+  }
+  uploaded_bytes_ += g.bvh.nodes.size() * sizeof(gpu::BvhNode);
+  nodes_ = vk::upload_vector(ctx, g.bvh.nodes, kStorage | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT);
+  node_texels_ = vk::BufferView(ctx, nodes_, VK_FORMAT_R32G32B32A32_UINT);
   object_first_ = object_leaves_ ? upload(ctx, leaf.object_first, uploaded_bytes_) : dummy(ctx);
   slot_scene_ = upload(ctx, leaf.scene_index, uploaded_bytes_);
 

@@ -26,6 +26,8 @@ class RtScene {
   /// Every binding of shaders/common/rt_bindings.glsl 2..11; a buffer the configuration does not read is
   /// a 4-byte dummy.
   const vk::Buffer& nodes() const { return nodes_; }
+  /// The node buffer as RGBA32UI texels, two per node (binding 26: the traversal's fetches).
+  VkBufferView node_texels() const { return node_texels_.handle(); }
   const vk::Buffer& positions() const { return positions_; }
   const vk::Buffer& indices() const { return indices_; }
   const vk::Buffer& soup() const { return soup_; }
@@ -44,6 +46,7 @@ class RtScene {
   uint64_t uploaded_bytes_ = 0;
   vk::Buffer nodes_, positions_, indices_, soup_, object_first_, slot_scene_, normals_, soup_normals_,
       slot_material_, materials_;
+  vk::BufferView node_texels_;  // after nodes_: destroyed before it
 };
 
 }  // namespace hp

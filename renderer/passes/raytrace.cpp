@@ -136,12 +136,14 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   for (uint32_t i = 18; i <= 20; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCS, nullptr});
   b.push_back({21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // trace records (instrumented variants)
   for (uint32_t i = 22; i <= 25; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // compaction
+  b.push_back({26, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // BVH nodes as texels
   descriptors_ = vk::DescriptorSet(ctx, b, 0, 0);
   auto& ds = descriptors_;
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   ds.write_buffer(0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
   ds.write_buffer(1, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, params_.handle());
   ds.write_buffer(2, SB, scene.nodes().handle());
+  ds.write_texel_buffer(26, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.node_texels());
   ds.write_buffer(3, SB, scene.positions().handle());
   ds.write_buffer(4, SB, scene.indices().handle());
   ds.write_buffer(5, SB, scene.soup().handle());

@@ -85,6 +85,16 @@ void DescriptorSet::write_buffer(uint32_t binding, VkDescriptorType type, VkBuff
   vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
 }
 
+void DescriptorSet::write_texel_buffer(uint32_t binding, VkDescriptorType type, VkBufferView view) {
+  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  w.dstSet = set_;
+  w.dstBinding = binding;
+  w.descriptorCount = 1;
+  w.descriptorType = type;
+  w.pTexelBufferView = &view;
+  vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
+}
+
 void DescriptorSet::write_image(uint32_t binding, VkDescriptorType type, VkImageView view, VkImageLayout layout,
                                 VkSampler sampler) {
   VkDescriptorImageInfo ii{sampler, view, layout};

@@ -27,6 +27,7 @@ class DescriptorSet {
   void write_buffer(uint32_t binding, VkDescriptorType type, VkBuffer buffer, VkDeviceSize range = VK_WHOLE_SIZE);
   void write_image(uint32_t binding, VkDescriptorType type, VkImageView view, VkImageLayout layout,
                    VkSampler sampler = VK_NULL_HANDLE);
+  void write_texel_buffer(uint32_t binding, VkDescriptorType type, VkBufferView view);
 
   VkDescriptorSet set() const { return set_; }
   VkDescriptorSetLayout layout() const { return layout_; }

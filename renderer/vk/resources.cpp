@@ -31,6 +31,30 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size_bytes, VkBufferUsageFlags usage, 
   if (host_visible) HP_VK(vkMapMemory(device_, memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
 }
 
+BufferView::BufferView(Context& ctx, const Buffer& buffer, VkFormat format) : device_(ctx.device()) {
+  VkBufferViewCreateInfo vi{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+  vi.buffer = buffer.handle();
+  vi.format = format;
+  vi.offset = 0;
+  vi.range = VK_WHOLE_SIZE;
+  HP_VK(vkCreateBufferView(device_, &vi, nullptr, &view_));
+}
+
+BufferView::~BufferView() {
+  if (view_) vkDestroyBufferView(device_, view_, nullptr);
+}
+
+BufferView::BufferView(BufferView&& o) noexcept { *this = std::move(o); }
+
+BufferView& BufferView::operator=(BufferView&& o) noexcept {
+  if (this != &o) {
+    if (view_) vkDestroyBufferView(device_, view_, nullptr);
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    view_ = std::exchange(o.view_, VK_NULL_HANDLE);
+  }
+  return *this;
+}
+
 Buffer::~Buffer() { reset(); }
 
 Buffer::Buffer(Buffer&& o) noexcept { *this = std::move(o); }

@@ -36,6 +36,23 @@ class Buffer {
   void* mapped_ = nullptr;
 };
 
+/// A texel view of a whole buffer (VK_WHOLE_SIZE), for uniform texel buffer descriptors.
+class BufferView {
+ public:
+  BufferView() = default;
+  BufferView(Context& ctx, const Buffer& buffer, VkFormat format);
+  ~BufferView();
+  BufferView(BufferView&& o) noexcept;
+  BufferView& operator=(BufferView&& o) noexcept;
+  BufferView(const BufferView&) = delete;
+  BufferView& operator=(const BufferView&) = delete;
+  VkBufferView handle() const { return view_; }
+
+ private:
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkBufferView view_ = VK_NULL_HANDLE;
+};
+
 class Image {
  public:
   Image() = default;

@@ -15,7 +15,7 @@ layout(constant_id = 1) const uint HP_OBJECT_LEAVES = 0;
 
 layout(set = 0, binding = 0) uniform FrameBlock { FrameUniforms frame; };
 layout(set = 0, binding = 1) uniform RayBlock { RayParams rt; };
-layout(std430, set = 0, binding = 2) readonly buffer NodeBuffer { BvhNode nodes[]; };
+layout(std430, set = 0, binding = 2) readonly buffer NodeBuffer { BvhNode nodes[]; };  // also binding 26 (texels)
 layout(std430, set = 0, binding = 3) readonly buffer PositionBuffer { float positions[]; };      // 3 per vertex
 layout(std430, set = 0, binding = 4) readonly buffer IndexBuffer { uint indices[]; };           // 3 per slot
 layout(std430, set = 0, binding = 5) readonly buffer SoupBuffer { float soup[]; };              // 9 per slot
