@@ -95,7 +95,9 @@ std::vector<std::unique_ptr<GroupAccesses>> group(std::span<const trace::TraceRe
         for (uint32_t l = 0; l < lanes; ++l) {
           if (c[l] < end[l] && recs[c[l]].seq == step_seq) {
             const trace::TraceRecord& r = recs[c[l]];
-            ga->address.push_back(buffers[gpu::trace_buffer(r.info)]->address(r.offset));
+            const trace::BufferInfo& b = *buffers[gpu::trace_buffer(r.info)];
+            // Plain buffers inline (most records); images apply their declared layout.
+            ga->address.push_back(b.kind == trace::BufferKind::buffer ? b.base_address + r.offset : b.address(r.offset));
             ga->info.push_back(r.info);
             ga->lane.push_back(uint16_t(l));
             ++c[l];

@@ -15,7 +15,8 @@
 //                    stack-distance curve (one by one, and batched as the hierarchy feeds it), vs
 //                    SHARDS sampling: the MRC cost ratio.
 //   EndToEnd         Simulator::run_pass: grouping, SIMT scheduling, coalescing and caches
-//                    (items = lane accesses).
+//                    (items = lane accesses); /1 adds per-invocation counts, /2 the exact L1 and L2
+//                    miss-ratio curves (what `hybridprof cachesim --mrc` and the run matrix compute).
 // Rates are per CPU second (Google Benchmark's default): on a shared VM they are less disturbed by
 // other processes than wall time, not undisturbed. Note the load average printed in the header.
 #include <benchmark/benchmark.h>
@@ -174,7 +175,8 @@ BENCHMARK(L2Mrc)->Args({0, 0})->Args({0, 1})->Args({100, 0})->Unit(benchmark::kM
 void EndToEnd(benchmark::State& state) {
   const Fixture& f = fixture();
   SimOptions so;
-  so.per_invocation = state.range(0) != 0;
+  so.per_invocation = state.range(0) == 1;
+  so.l1_mrc = so.l2_mrc = state.range(0) == 2;  // the exact L1 and L2 curves as well
   for (auto _ : state) {
     Simulator sim(f.preset, f.trace.header, so);
     auto r = sim.run_pass(f.trace.passes[0], f.trace.records[0]);
@@ -182,9 +184,9 @@ void EndToEnd(benchmark::State& state) {
   }
   state.SetItemsProcessed(int64_t(state.iterations() * f.trace.records[0].size()));
   state.counters["lane_accesses"] = double(f.trace.records[0].size());
-  state.SetLabel(so.per_invocation ? "with per-invocation counts" : "totals only");
+  state.SetLabel(so.per_invocation ? "with per-invocation counts" : so.l2_mrc ? "totals + exact L1 and L2 curves" : "totals only");
 }
-BENCHMARK(EndToEnd)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(EndToEnd)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
