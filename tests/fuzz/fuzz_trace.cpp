@@ -1,20 +1,54 @@
 // Trace file fuzz target: the bytes as a trace file, opened with hp::trace::TraceReader, then every pass
-// read (which validates each record). Success or hp::InputError only.
+// read whole (which validates each record) and slice by slice, and small passes replayed slice by slice
+// through the cache simulator (the streamed path of `hybridprof cachesim`). Success or hp::InputError only.
 #include <cstddef>
 #include <cstdint>
+#include <span>
 
+#include "cachesim/simulator.hpp"
 #include "error.hpp"
 #include "fuzz_common.hpp"
 #include "trace/trace_file.hpp"
+
+namespace {
+
+hp::cachesim::Preset small_preset() {
+  hp::cachesim::Preset p;
+  p.name = "fuzz";
+  p.compute_units = 3;
+  p.wave_width = 16;
+  p.max_waves_per_cu = 4;
+  p.l1 = hp::cachesim::CacheConfig{1024, 64, 64, 4};
+  p.l2 = hp::cachesim::CacheConfig{8192, 64, 64, 8};
+  return p;
+}
+
+}  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string path = hp::fuzz::write_input("input.hptrace", data, size);
   try {
     hp::trace::TraceReader reader(path);
+    hp::cachesim::SimOptions so;
+    so.l2_mrc = true;
+    hp::cachesim::Simulator sim(small_preset(), reader.header(), so);
     for (uint32_t p = 0; p < reader.passes().size(); ++p) {
       const auto records = reader.read_pass(p);
-      // read_pass must return what the directory promised.
+      // read_pass must return what the directory promised, and the slices must add up to it.
       if (records.size() != reader.record_count(p)) __builtin_trap();
+      uint64_t sliced = 0;
+      reader.read_slices(p, [&](std::span<const hp::trace::TraceRecord> r, uint64_t, uint64_t) { sliced += r.size(); });
+      if (sliced != records.size()) __builtin_trap();
+      // Replay only dispatches small enough to keep an input fast (the fuzzer's timeout is 5 s).
+      const auto& d = reader.passes()[p].dispatch;
+      if (d.invocations() > (1u << 16) || d.workgroups() > (1u << 12) || d.invocations_per_workgroup() > 1024) continue;
+      sim.begin_pass(reader.passes()[p]);
+      reader.read_slices(p, [&](std::span<const hp::trace::TraceRecord> r, uint64_t first, uint64_t end) {
+        sim.feed(r, first, end);
+      });
+      const hp::cachesim::PassResult res = sim.end_pass();
+      if (res.lane_accesses != records.size() || res.stats.l1.hits + res.stats.l1.misses != res.stats.l1.requests)
+        __builtin_trap();
     }
   } catch (const hp::InputError&) {
   }
