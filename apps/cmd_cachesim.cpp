@@ -96,20 +96,25 @@ void run_trace(const CachesimArgs& a) {
   bool exported = a.export_din_path.empty();
   for (uint32_t p = 0; p < reader.passes().size(); ++p) {
     const auto& pass = reader.passes()[p];
-    if (!a.export_din_path.empty() && (a.export_pass.empty() ? p == 0 : pass.name == a.export_pass)) {
-      std::ofstream din(a.export_din_path);
+    // The Dinero export watches this very replay (the request stream does not depend on cache state).
+    const bool export_here =
+        !a.export_din_path.empty() && (a.export_pass.empty() ? p == 0 : pass.name == a.export_pass);
+    // Written to PATH.tmp and renamed when complete; a failed replay leaves no file behind.
+    std::ofstream din;
+    uint64_t din_lines = 0;
+    const std::string din_tmp = a.export_din_path + ".tmp";
+    struct RemoveUnlessDone {
+      std::string path;
+      bool armed = false;
+      ~RemoveUnlessDone() {
+        if (armed) std::filesystem::remove(path);
+      }
+    } din_guard{din_tmp};
+    if (export_here) {
+      sim.set_observer(din_observer(din, preset, a.export_cu, false, din_lines));  // checks the CU first
+      din.open(din_tmp);
       if (!din) throw InputError(a.export_din_path + ": cannot write");
-      const uint64_t n = export_din(
-          din, preset, header, pass,
-          [&](Simulator& s) {
-            reader.read_slices(p, [&](std::span<const trace::TraceRecord> recs, uint64_t first, uint64_t end) {
-              s.feed(recs, first, end);
-            });
-          },
-          a.export_cu);
-      std::printf("exported %llu L1 requests of CU %u in pass '%s' to %s\n", (unsigned long long)n, a.export_cu,
-                  pass.name.c_str(), a.export_din_path.c_str());
-      exported = true;
+      din_guard.armed = true;
     }
     // Slice by slice as captured: memory bounded by the largest slice, whatever the frame's size.
     sim.begin_pass(pass);
@@ -117,6 +122,18 @@ void run_trace(const CachesimArgs& a) {
       sim.feed(recs, first, end);
     });
     const PassResult r = sim.end_pass();
+    if (export_here) {
+      sim.set_observer(nullptr);
+      din.close();
+      if (!din) throw InputError(a.export_din_path + ": write failed");
+      std::error_code ec;
+      std::filesystem::rename(din_tmp, a.export_din_path, ec);
+      if (ec) throw InputError(a.export_din_path + ": cannot rename into place: " + ec.message());
+      din_guard.armed = false;
+      std::printf("exported %llu L1 requests of CU %u in pass '%s' to %s\n", (unsigned long long)din_lines,
+                  a.export_cu, pass.name.c_str(), a.export_din_path.c_str());
+      exported = true;
+    }
     const auto& s = r.stats;
     std::printf("\npass '%s': %llu lane accesses, %llu workgroups, %llu wavefront steps, %u slice(s) (at most %llu "
                 "records held at once)\n",

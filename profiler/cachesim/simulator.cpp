@@ -455,18 +455,14 @@ uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceH
       include_stores);
 }
 
-uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceHeader& header,
-                    const trace::PassInfo& pass, const std::function<void(Simulator&)>& feed, uint32_t cu,
-                    bool include_stores) {
+std::function<void(uint32_t, const Request&)> din_observer(std::ostream& out, const Preset& preset, uint32_t cu,
+                                                          bool include_stores, uint64_t& lines) {
   if (cu >= preset.compute_units)
     throw InputError("--export-din: compute unit " + std::to_string(cu) + " does not exist (preset '" +
                      preset.name + "' has " + std::to_string(preset.compute_units) + ")");
-  uint64_t lines = 0;
   const uint32_t line_shift = uint32_t(std::countr_zero(preset.l1.line_bytes));
   const uint32_t sector_bytes = preset.l1.sector_bytes;
-  SimOptions opt;
-  opt.per_invocation = false;
-  opt.observer = [&](uint32_t c, const Request& r) {
+  return [&out, &lines, cu, include_stores, line_shift, sector_bytes](uint32_t c, const Request& r) {
     if (c != cu || r.kind == AccessKind::atomic) return;  // atomics bypass the L1
     if (r.kind == AccessKind::store && !include_stores) return;
     // One Dinero access per contiguous run of sectors: it covers exactly what the L1 was asked for.
@@ -480,6 +476,15 @@ uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceH
       m &= run == 32 ? 0u : ~(((1u << run) - 1) << s0);
     }
   };
+}
+
+uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceHeader& header,
+                    const trace::PassInfo& pass, const std::function<void(Simulator&)>& feed, uint32_t cu,
+                    bool include_stores) {
+  uint64_t lines = 0;
+  SimOptions opt;
+  opt.per_invocation = false;
+  opt.observer = din_observer(out, preset, cu, include_stores, lines);
   Simulator sim(preset, header, std::move(opt));
   sim.begin_pass(pass);
   feed(sim);

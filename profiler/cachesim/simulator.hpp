@@ -75,6 +75,9 @@ class Simulator {
   // End of the frame: dirty L2 sectors written back, in bytes.
   uint64_t finish();
 
+  // Replaces SimOptions::observer from the next wave step on (empty: none).
+  void set_observer(std::function<void(uint32_t cu, const Request&)> observer) { options_.observer = std::move(observer); }
+
   const Preset& preset() const { return preset_; }
 
  private:
@@ -95,6 +98,12 @@ class Simulator {
 uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceHeader& header,
                     const trace::PassInfo& pass, std::span<const trace::TraceRecord> records, uint32_t cu,
                     bool include_stores = false);
+// The observer export_din attaches: writes compute unit `cu`'s L1 requests to `out` as Dinero lines and
+// counts them in `lines`. Attach it to a simulator that replays anyway (Simulator::set_observer) to export
+// without a second replay: the request stream does not depend on the caches' state.
+std::function<void(uint32_t cu, const Request&)> din_observer(std::ostream& out, const Preset& preset, uint32_t cu,
+                                                             bool include_stores, uint64_t& lines);
+
 // The same, streamed: `feed` hands the pass's slices to the simulator (Simulator::feed), e.g. from
 // TraceReader::read_slices, so a frame of any size exports in bounded memory.
 uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceHeader& header,

@@ -67,6 +67,33 @@ TEST(Cli, RenderWritesPngAndAov) {
   fs::remove_all(d);
 }
 
+TEST(Cli, CachesimExportsOneComputeUnitOrNamesTheLimitAndWritesNothing) {
+  if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
+  const fs::path d = temp_dir();
+  const fs::path trace = d / "t.hptrace", din = d / "cu.din";
+  CmdResult r = run("trace --scene builtin:cornell --width 64 --height 48 --out " + trace.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run("cachesim " + trace.string() + " --preset vega56 --export-din " + din.string() + " --export-cu 56");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("compute unit 56 does not exist (preset 'vega56' has 56)"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(din));
+  EXPECT_FALSE(fs::exists(din.string() + ".tmp"));
+  // A good export: the file has exactly the lines the command reports.
+  r = run("cachesim " + trace.string() + " --preset vega56 --export-din " + din.string() + " --export-cu 0");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const size_t at = r.output.find("exported ");
+  ASSERT_NE(at, std::string::npos) << r.output;
+  const unsigned long reported = std::stoul(r.output.substr(at + 9));
+  std::ifstream in(din);
+  std::string line;
+  unsigned long lines = 0;
+  while (std::getline(in, line)) ++lines;
+  EXPECT_EQ(lines, reported);
+  EXPECT_GT(lines, 0u);
+  EXPECT_FALSE(fs::exists(din.string() + ".tmp"));
+  fs::remove_all(d);
+}
+
 TEST(Cli, CpuReferenceNeedsNoDevice) {
   const fs::path d = temp_dir();
   const fs::path out = d / "ref.exr";
