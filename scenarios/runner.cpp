@@ -286,10 +286,11 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       ao.heatmap_dir = cell_dir.string();
       // The capture streams each slice into the simulator (and into a trace file only when the scenario
       // keeps one): memory stays bounded by a couple of slices whatever the resolution.
-      CacheAnalysis analysis(frame.trace_header(co.tiled_images), ao);
+      const trace::TraceHeader header = frame.trace_header(co.tiled_images);
+      CacheAnalysis analysis(header, ao);
       std::vector<CapturedPass> captured;
       if (s.trace_keep) {
-        trace::TraceWriter writer(trace_path, frame.trace_header(co.tiled_images));
+        trace::TraceWriter writer(trace_path, header);
         trace::TeeSink both(writer, analysis);
         captured = frame.render_captured(co, both);
         writer.finish();
