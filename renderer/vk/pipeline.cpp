@@ -74,37 +74,33 @@ void DescriptorSet::reset() {
   set_ = VK_NULL_HANDLE;
 }
 
-void DescriptorSet::write_buffer(uint32_t binding, VkDescriptorType type, VkBuffer buffer, VkDeviceSize range) {
-  VkDescriptorBufferInfo bi{buffer, 0, range};
+// One descriptor write; exactly one of the three infos is set, as the descriptor type needs.
+void DescriptorSet::write(uint32_t binding, VkDescriptorType type, const VkDescriptorBufferInfo* buffer,
+                          const VkDescriptorImageInfo* image, const VkBufferView* texel_view) {
   VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
   w.dstSet = set_;
   w.dstBinding = binding;
   w.descriptorCount = 1;
   w.descriptorType = type;
-  w.pBufferInfo = &bi;
+  w.pBufferInfo = buffer;
+  w.pImageInfo = image;
+  w.pTexelBufferView = texel_view;
   vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
 }
 
+void DescriptorSet::write_buffer(uint32_t binding, VkDescriptorType type, VkBuffer buffer, VkDeviceSize range) {
+  const VkDescriptorBufferInfo bi{buffer, 0, range};
+  write(binding, type, &bi, nullptr, nullptr);
+}
+
 void DescriptorSet::write_texel_buffer(uint32_t binding, VkDescriptorType type, VkBufferView view) {
-  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-  w.dstSet = set_;
-  w.dstBinding = binding;
-  w.descriptorCount = 1;
-  w.descriptorType = type;
-  w.pTexelBufferView = &view;
-  vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
+  write(binding, type, nullptr, nullptr, &view);
 }
 
 void DescriptorSet::write_image(uint32_t binding, VkDescriptorType type, VkImageView view, VkImageLayout layout,
                                 VkSampler sampler) {
-  VkDescriptorImageInfo ii{sampler, view, layout};
-  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-  w.dstSet = set_;
-  w.dstBinding = binding;
-  w.descriptorCount = 1;
-  w.descriptorType = type;
-  w.pImageInfo = &ii;
-  vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
+  const VkDescriptorImageInfo ii{sampler, view, layout};
+  write(binding, type, nullptr, &ii, nullptr);
 }
 
 Pipeline::~Pipeline() {

@@ -35,6 +35,8 @@ class DescriptorSet {
 
  private:
   void reset();
+  void write(uint32_t binding, VkDescriptorType type, const VkDescriptorBufferInfo* buffer,
+             const VkDescriptorImageInfo* image, const VkBufferView* texel_view);
   VkDevice device_ = VK_NULL_HANDLE;
   VkDescriptorSetLayout layout_ = VK_NULL_HANDLE;
   VkDescriptorPool pool_ = VK_NULL_HANDLE;
