@@ -378,24 +378,22 @@ uint64_t TraceReader::record_count(uint32_t pass) const {
   return n;
 }
 
-std::vector<TraceRecord> TraceReader::read_chunk(const Chunk& c) const {
-  std::vector<TraceRecord> out(c.count);
+void TraceReader::read_chunk(const Chunk& c, TraceRecord* out) const {
   std::fseek(file_, long(c.file_offset), SEEK_SET);
-  if (c.count && std::fread(out.data(), sizeof(TraceRecord), c.count, file_) != c.count)
+  if (c.count && std::fread(out, sizeof(TraceRecord), c.count, file_) != c.count)
     fail("truncated records of pass " + std::to_string(c.pass));
-  validate_records(path_.string() + ": pass '" + passes_[c.pass].name + "'", header_, passes_[c.pass], out,
-                   c.first_workgroup, c.end_workgroup);
-  return out;
+  validate_records(path_.string() + ": pass '" + passes_[c.pass].name + "'", header_, passes_[c.pass],
+                   std::span<const TraceRecord>(out, c.count), c.first_workgroup, c.end_workgroup);
 }
 
 std::vector<TraceRecord> TraceReader::read_pass(uint32_t pass) const {
   if (pass >= passes_.size()) fail("no pass " + std::to_string(pass));
-  std::vector<TraceRecord> out;
-  out.reserve(record_count(pass));
+  std::vector<TraceRecord> out(record_count(pass));
+  size_t at = 0;
   for (const Chunk& c : chunks_) {
     if (c.pass != pass) continue;
-    const auto part = read_chunk(c);
-    out.insert(out.end(), part.begin(), part.end());
+    read_chunk(c, out.data() + at);
+    at += c.count;
   }
   return out;
 }
@@ -409,9 +407,11 @@ uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
   std::stable_sort(order.begin(), order.end(),
                    [](const Chunk* a, const Chunk* b) { return a->first_workgroup < b->first_workgroup; });
   uint64_t largest = 0;
+  std::vector<TraceRecord> records;  // reused: one allocation for every slice
   for (const Chunk* c : order) {
-    const auto records = read_chunk(*c);
-    largest = std::max<uint64_t>(largest, records.size());
+    records.resize(c->count);
+    read_chunk(*c, records.data());
+    largest = std::max<uint64_t>(largest, c->count);
     consume(records, c->first_workgroup, c->end_workgroup);
   }
   return largest;

@@ -161,7 +161,7 @@ class TraceReader {
     uint64_t count;
     uint64_t first_workgroup, end_workgroup;
   };
-  std::vector<TraceRecord> read_chunk(const Chunk& c) const;
+  void read_chunk(const Chunk& c, TraceRecord* out) const;  // c.count records to `out`, validated
   [[noreturn]] void fail(const std::string& what) const;
   std::filesystem::path path_;
   std::FILE* file_ = nullptr;
