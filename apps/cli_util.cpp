@@ -3,9 +3,30 @@
 #include "error.hpp"
 
 #include <cmath>
+#include <filesystem>
 #include <sstream>
 
 namespace hp::cli {
+
+AtomicOutput::AtomicOutput(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp"), out_(tmp_) {
+  if (!out_) throw InputError(path_ + ": cannot write");
+}
+
+AtomicOutput::~AtomicOutput() {
+  if (committed_) return;
+  out_.close();
+  std::error_code ec;
+  std::filesystem::remove(tmp_, ec);
+}
+
+void AtomicOutput::commit() {
+  out_.close();
+  if (!out_) throw InputError(path_ + ": write failed");
+  std::error_code ec;
+  std::filesystem::rename(tmp_, path_, ec);
+  if (ec) throw InputError(path_ + ": cannot rename into place: " + ec.message());
+  committed_ = true;
+}
 
 glm::vec3 parse_vec3(const std::string& option, const std::string& text) {
   std::vector<float> v;

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -16,7 +17,9 @@
 #include "cachesim/din_replay.hpp"
 #include "cachesim/preset.hpp"
 #include "cachesim/simulator.hpp"
+#include "apps/cli_util.hpp"
 #include "commands.hpp"
+#include "report.hpp"
 #include "error.hpp"
 #include "trace/din.hpp"
 #include "trace/trace_file.hpp"
@@ -63,20 +66,6 @@ nlohmann::json curve_json(const MissRatioCurve& c) {
   return {{"sampling_rate", c.sampling_rate}, {"accesses", c.accesses}, {"cold", c.cold}, {"points", pts}};
 }
 
-// Results go to a temporary file renamed into place, so readers never see half a file.
-void write_atomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp);
-    if (!out) throw InputError(path + ": cannot write");
-    out << text;
-    if (!out.flush()) throw InputError(path + ": write failed");
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) throw InputError(path + ": cannot rename into place: " + ec.message());
-}
-
 void run_trace(const CachesimArgs& a) {
   const Preset preset = scale_for_sampling(find_preset(a.preset), a.scale_model);
   trace::TraceReader reader(a.trace_path);
@@ -100,36 +89,19 @@ void run_trace(const CachesimArgs& a) {
     const bool export_here =
         !a.export_din_path.empty() && (a.export_pass.empty() ? p == 0 : pass.name == a.export_pass);
     // Written to PATH.tmp and renamed when complete; a failed replay leaves no file behind.
-    std::ofstream din;
+    std::optional<cli::AtomicOutput> din;
     uint64_t din_lines = 0;
-    const std::string din_tmp = a.export_din_path + ".tmp";
-    struct RemoveUnlessDone {
-      std::string path;
-      bool armed = false;
-      ~RemoveUnlessDone() {
-        if (armed) std::filesystem::remove(path);
-      }
-    } din_guard{din_tmp};
     if (export_here) {
-      sim.set_observer(din_observer(din, preset, a.export_cu, false, din_lines));  // checks the CU first
-      din.open(din_tmp);
-      if (!din) throw InputError(a.export_din_path + ": cannot write");
-      din_guard.armed = true;
+      din.emplace(a.export_din_path);
+      sim.set_observer(din_observer(din->stream(), preset, a.export_cu, false, din_lines));
     }
     // Slice by slice as captured: memory bounded by the largest slice, whatever the frame's size.
     sim.begin_pass(pass);
-    reader.read_slices(p, [&](std::span<const trace::TraceRecord> recs, uint64_t first, uint64_t end) {
-      sim.feed(recs, first, end);
-    });
+    feed_slices(sim, reader, p);
     const PassResult r = sim.end_pass();
     if (export_here) {
       sim.set_observer(nullptr);
-      din.close();
-      if (!din) throw InputError(a.export_din_path + ": write failed");
-      std::error_code ec;
-      std::filesystem::rename(din_tmp, a.export_din_path, ec);
-      if (ec) throw InputError(a.export_din_path + ": cannot rename into place: " + ec.message());
-      din_guard.armed = false;
+      din->commit();
       std::printf("exported %llu L1 requests of CU %u in pass '%s' to %s\n", (unsigned long long)din_lines,
                   a.export_cu, pass.name.c_str(), a.export_din_path.c_str());
       exported = true;
@@ -194,8 +166,8 @@ void run_trace(const CachesimArgs& a) {
   const uint64_t flushed = sim.finish();
   std::printf("\nend of frame: %llu dirty bytes written back from the L2\n", (unsigned long long)flushed);
   out["final_writeback_bytes"] = flushed;
-  if (!a.out_path.empty()) write_atomically(a.out_path, out.dump(1) + "\n");
-  if (!a.mrc_path.empty()) write_atomically(a.mrc_path, csv);
+  if (!a.out_path.empty()) write_text_atomically(a.out_path, out.dump(1) + "\n");
+  if (!a.mrc_path.empty()) write_text_atomically(a.mrc_path, csv);
 }
 
 void print_din_level(const char* name, const DinLevelStats& s) {
@@ -221,7 +193,7 @@ void run_din(const CachesimArgs& a) {
     c << "level,size_bytes,lines,miss_ratio\n";
     write_mrc_csv(c, "l1", r.l1_curve);
     write_mrc_csv(c, "l2", r.l2_curve);
-    write_atomically(a.mrc_path, c.str());
+    write_text_atomically(a.mrc_path, c.str());
   }
 }
 

@@ -100,18 +100,11 @@ void run_trace(const TraceArgs& a) {
       throw InputError("--din-cu " + std::to_string(a.din_cu) + ": preset " + preset.name + " has " +
                        std::to_string(preset.compute_units) + " compute units");
     }
-    const std::string tmp = a.din_out + ".tmp";
-    std::ofstream out(tmp);
+    cli::AtomicOutput out(a.din_out);
     const uint64_t lines = cachesim::export_din(
-        out, preset, reader.header(), reader.passes()[pass],
-        [&](cachesim::Simulator& sim) {
-          reader.read_slices(uint32_t(pass), [&](std::span<const trace::TraceRecord> recs, uint64_t first,
-                                                 uint64_t end) { sim.feed(recs, first, end); });
-        },
-        a.din_cu);
-    out.close();
-    if (!out) throw InputError(a.din_out + ": cannot write");
-    std::rename(tmp.c_str(), a.din_out.c_str());
+        out.stream(), preset, reader.header(), reader.passes()[pass],
+        [&](cachesim::Simulator& sim) { cachesim::feed_slices(sim, reader, uint32_t(pass)); }, a.din_cu);
+    out.commit();
     std::printf("Dinero export: %llu requests of CU %u (%s, pass %s) -> %s\n", (unsigned long long)lines, a.din_cu,
                 preset.name.c_str(), reader.passes()[pass].name.c_str(), a.din_out.c_str());
   }

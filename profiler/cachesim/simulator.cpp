@@ -441,6 +441,12 @@ void Simulator::advance() {
   }
 }
 
+void feed_slices(Simulator& sim, const trace::TraceReader& reader, uint32_t pass) {
+  reader.read_slices(pass, [&](std::span<const trace::TraceRecord> records, uint64_t first, uint64_t end) {
+    sim.feed(records, first, end);
+  });
+}
+
 uint64_t Simulator::finish() {
   const uint64_t before = hierarchy_.stats().dram_write_bytes;
   hierarchy_.flush();

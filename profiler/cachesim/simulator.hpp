@@ -91,6 +91,10 @@ class Simulator {
   std::unique_ptr<PassState> pass_;
 };
 
+// Feeds pass `pass` of a trace file to `sim` (between its begin_pass and end_pass), one validated slice at
+// a time in workgroup order (TraceReader::read_slices).
+void feed_slices(Simulator& sim, const trace::TraceReader& reader, uint32_t pass);
+
 // Writes the coalesced request stream that compute unit `cu` sends to its L1 during one pass, in
 // Dinero IV text ("r ADDR SIZE", one line per contiguous run of sectors), loads only unless
 // include_stores (stores as "w": replay them in Dinero with -l1-dwalloc n to mirror our L1).

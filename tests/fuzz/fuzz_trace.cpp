@@ -43,9 +43,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       const auto& d = reader.passes()[p].dispatch;
       if (d.invocations() > (1u << 16) || d.workgroups() > (1u << 12) || d.invocations_per_workgroup() > 1024) continue;
       sim.begin_pass(reader.passes()[p]);
-      reader.read_slices(p, [&](std::span<const hp::trace::TraceRecord> r, uint64_t first, uint64_t end) {
-        sim.feed(r, first, end);
-      });
+      hp::cachesim::feed_slices(sim, reader, p);
       const hp::cachesim::PassResult res = sim.end_pass();
       if (res.lane_accesses != records.size() || res.stats.l1.hits + res.stats.l1.misses != res.stats.l1.requests)
         __builtin_trap();
