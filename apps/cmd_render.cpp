@@ -119,6 +119,15 @@ void run_render(const RenderArgs& a) {
                 (unsigned long long)total.get(pass, counter::nodes_visited),
                 (unsigned long long)total.get(pass, counter::triangles_tested), a.frames);
   }
+  if (!timings.frame_invocations().empty()) {
+    std::printf("  compute invocations per frame (pipeline statistics, counted in an untimed frame):");
+    const char* sep = " ";
+    for (const auto& [pass, c] : timings.frame_invocations().passes()) {
+      std::printf("%s%s %llu", sep, pass.c_str(), (unsigned long long)timings.frame_invocations().get(pass, counter::compute_invocations));
+      sep = ", ";
+    }
+    std::printf("\n");
+  }
 }
 
 }  // namespace

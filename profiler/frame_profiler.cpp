@@ -15,7 +15,6 @@ FrameSample to_frame_sample(const FrameTiming& timing, const RayCounters* c) {
   FrameSample s;
   for (const auto& p : timing.passes) s.passes.push_back({p.name, p.begin_ns, p.end_ns, "graphics"});
   s.cpu_wall_ns = timing.cpu_wall_ns;
-  for (const auto& [pass, n] : timing.compute_invocations) s.counters.set(pass, counter::compute_invocations, n);
   if (c) {
     s.counters.set("shadows", counter::rays_cast, c->shadow_rays);
     s.counters.set("shadows", counter::nodes_visited, c->shadow_nodes);
@@ -37,19 +36,32 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o) {
   const bool gpu = frame.timestamps_supported();
   FrameTimings timings(o.warmup, o.frames, gpu ? TimingSource::GpuTimestamps : TimingSource::CpuWall);
   const bool counters = frame.settings().rt.counters && (frame.settings().rt.shadows || frame.settings().rt.reflections);
+  // Invocation counts come from a frame of their own, so that the timed frames carry timestamps only:
+  // the last warm-up frame (its times are discarded anyway), or one extra frame before the measured
+  // ones when there is no warm-up.
+  const bool statistics = frame.pipeline_statistics_available();
+  auto count_invocations = [&] {
+    const FrameTiming t = frame.render(FrameQueries::pipeline_statistics);
+    Counters per_frame;
+    for (const auto& [pass, n] : t.compute_invocations) per_frame.set(pass, counter::compute_invocations, n);
+    timings.set_frame_invocations(std::move(per_frame));
+    return t;
+  };
+  if (statistics && o.warmup == 0) count_invocations();
+  for (uint32_t i = 0; i < o.warmup; ++i)
+    timings.add(to_frame_sample(statistics && i + 1 == o.warmup ? count_invocations() : frame.render(), nullptr));
   std::vector<double> with_queries, without_queries;
-  for (uint32_t i = 0; i < o.warmup; ++i) timings.add(to_frame_sample(frame.render(), nullptr));
   for (uint32_t i = 0; i < o.frames; ++i) {
     // Frames without queries alternate before and after the measured one (A B B A ...), so that neither
     // side is always the first after a readback.
     const bool overhead = o.measure_query_overhead && gpu;
-    if (overhead && i % 2 == 1) without_queries.push_back(double(frame.render(false).cpu_wall_ns));
+    if (overhead && i % 2 == 1) without_queries.push_back(double(frame.render(FrameQueries::none).cpu_wall_ns));
     const FrameTiming t = frame.render();
     with_queries.push_back(double(t.cpu_wall_ns));
     RayCounters c;
     if (counters) c = frame.read_counters();
     timings.add(to_frame_sample(t, counters ? &c : nullptr));
-    if (overhead && i % 2 == 0) without_queries.push_back(double(frame.render(false).cpu_wall_ns));
+    if (overhead && i % 2 == 0) without_queries.push_back(double(frame.render(FrameQueries::none).cpu_wall_ns));
   }
   // Frame i with queries pairs with the frame without that ran next to it (after it for even i, before
   // it for odd i): both vectors hold one entry per i.

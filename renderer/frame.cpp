@@ -125,9 +125,9 @@ void Frame::set_light(const DirectionalLight& light) {
   reset_accumulation();
 }
 
-void Frame::record_passes(VkCommandBuffer cmd, bool ts) {
-  // Invocation counts are a counter: recorded with the timed frames when counters are asked for.
-  const bool count = ts && settings_.rt.counters && invocations_.supported();
+void Frame::record_passes(VkCommandBuffer cmd, FrameQueries queries) {
+  const bool ts = queries == FrameQueries::timestamps;
+  const bool count = queries == FrameQueries::pipeline_statistics && pipeline_statistics_available();
   if (count) invocations_.reset(cmd);
   auto pass = [&](const char* name, auto&& body) {
     const bool compute = std::string_view(name) != "gbuffer";
@@ -155,22 +155,23 @@ void Frame::record_passes(VkCommandBuffer cmd, bool ts) {
   pass("composite", [&] { composite_pass_->record(cmd, color_); });
 }
 
-FrameTiming Frame::render(bool with_timestamps) {
+FrameTiming Frame::render(FrameQueries queries) {
   upload_uniforms();
   if (rt_passes_) rt_passes_->begin_frame(sample_index_);
   FrameTiming timing;
   const auto t0 = std::chrono::steady_clock::now();
-  if (!with_timestamps) {
+  if (queries != FrameQueries::timestamps) {
     timing.source = "none";
-    ctx_.submit_and_wait([&](VkCommandBuffer cmd) { record_passes(cmd, false); });
+    ctx_.submit_and_wait([&](VkCommandBuffer cmd) { record_passes(cmd, queries); });
+    if (queries == FrameQueries::pipeline_statistics && pipeline_statistics_available())
+      timing.compute_invocations = invocations_.read();
   } else if (timestamps_.supported()) {
     timing.source = "gpu-timestamps";
     ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
       timestamps_.reset(cmd);
-      record_passes(cmd, true);
+      record_passes(cmd, queries);
     });
     for (const auto& iv : timestamps_.read(ctx_)) timing.passes.push_back({iv.pass, iv.begin_ns, iv.end_ns});
-    if (settings_.rt.counters && invocations_.supported()) timing.compute_invocations = invocations_.read();
   } else {
     // No timestamps on this queue: one submission per pass, timed on the host (includes submit latency).
     timing.source = "cpu-wall";

@@ -44,6 +44,15 @@ Aov parse_aov(const std::string& name);  // throws InputError listing the choice
 
 /// What one frame cost. `source` says how the pass times were taken: "gpu-timestamps", or "cpu-wall"
 /// (one submission per pass, timed on the host) where the queue has no timestamps.
+/// The queries a frame records. Timed frames carry timestamps only: pipeline statistics queries cost
+/// lavapipe about as much again as the timestamps (0.8% of a 640x360 frame), so the invocation counts,
+/// which do not change from frame to frame, are taken in a frame of their own.
+enum class FrameQueries {
+  none,                 ///< no query (cpu_wall_ns only): the other side of the query-overhead pairs
+  timestamps,           ///< a timestamp at each pass boundary
+  pipeline_statistics,  ///< compute invocations per compute pass, no timestamps (needs counters on)
+};
+
 struct FrameTiming {
   struct Pass {
     std::string name;
@@ -83,10 +92,11 @@ class Frame {
  public:
   Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const FrameSettings& settings);
 
-  /// Records, submits and waits for one frame; accumulation advances by one sample. With
-  /// `timestamps == false` no query is recorded (passes empty, cpu_wall_ns only): frames with and without
-  /// queries measure the queries' own overhead.
-  FrameTiming render(bool timestamps = true);
+  /// Records, submits and waits for one frame; accumulation advances by one sample. Passes are timed with
+  /// FrameQueries::timestamps; with `none` no query is recorded (passes empty, cpu_wall_ns only): frames
+  /// with and without queries measure the queries' own overhead; with `pipeline_statistics` the frame
+  /// fills compute_invocations (when counters are on and the device has the queries) and no pass times.
+  FrameTiming render(FrameQueries queries = FrameQueries::timestamps);
   /// Renders one frame like render(), with the chosen ray-tracing passes run as their instrumented variants
   /// in slices that each fit the trace buffer; each slice's records go to `sink` (a trace file, the cache
   /// simulator, both) before the next slice runs (bounded memory). A slice that overflows is re-run with fewer workgroup rows; a single row that
@@ -108,6 +118,8 @@ class Frame {
   const RayTracingPasses* rt_passes() const { return rt_passes_.get(); }
   uint32_t samples_accumulated() const { return sample_index_; }
   bool timestamps_supported() const { return timestamps_.supported(); }
+  /// Whether render(FrameQueries::pipeline_statistics) counts invocations: counters on, queries supported.
+  bool pipeline_statistics_available() const { return settings_.rt.counters && invocations_.supported(); }
 
   Image4f read_color() const;
   /// G-buffer and ray-tracing views: depth in r (raw depth-buffer value), normal rgb (world, unit), albedo
@@ -120,7 +132,7 @@ class Frame {
 
  private:
   void upload_uniforms();
-  void record_passes(VkCommandBuffer cmd, bool with_timestamps);
+  void record_passes(VkCommandBuffer cmd, FrameQueries queries);
 
   vk::Context& ctx_;
   const Scene& scene_;

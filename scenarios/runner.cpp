@@ -86,7 +86,7 @@ json measure_error(Frame& frame, const Scenario& s, const Scene& ref_scene, cons
   }
 
   frame.reset_accumulation();
-  for (uint32_t i = 0; i < s.error_frames; ++i) frame.render(false);
+  for (uint32_t i = 0; i < s.error_frames; ++i) frame.render(FrameQueries::none);
   FrameReadback gpu;
   gpu.color = frame.read_color();
   if (s.frame.rt.shadows) gpu.shadow = frame.read_aov(Aov::shadow);

@@ -126,8 +126,9 @@ Counters FrameTimings::total_counters() const {
 
 FrameTimings FrameTimings::from_measured(std::uint32_t warmup, TimingSource source,
                                          std::vector<FrameSample> measured,
-                                         std::optional<QueryOverhead> overhead) {
+                                         std::optional<QueryOverhead> overhead, Counters frame_invocations) {
   FrameTimings t(warmup, static_cast<std::uint32_t>(measured.size()), source);
+  t.invocations_ = std::move(frame_invocations);
   t.warmup_seen_ = warmup;
   t.measured_ = std::move(measured);
   t.overhead_ = overhead;

@@ -126,10 +126,17 @@ class FrameTimings {
   // Sum of every measured frame's counters.
   Counters total_counters() const;
 
+  // Compute-shader invocations per pass in one frame (counter::compute_invocations), from pipeline
+  // statistics queries recorded in a frame outside the timed ones, so that those carry timestamps only
+  // (profile_frames); empty when not counted. Invocations are fixed by the dispatch sizes, so one
+  // frame's count holds for every frame of the run.
+  void set_frame_invocations(Counters per_frame) { invocations_ = std::move(per_frame); }
+  const Counters& frame_invocations() const { return invocations_; }
+
   // Rebuilds a finished collector from stored frames (reading a result back).
   static FrameTimings from_measured(std::uint32_t warmup, TimingSource source,
                                     std::vector<FrameSample> measured,
-                                    std::optional<QueryOverhead> overhead);
+                                    std::optional<QueryOverhead> overhead, Counters frame_invocations = {});
 
   bool operator==(const FrameTimings&) const = default;
 
@@ -140,6 +147,7 @@ class FrameTimings {
   TimingSource source_ = TimingSource::GpuTimestamps;
   std::vector<FrameSample> measured_;
   std::optional<QueryOverhead> overhead_;
+  Counters invocations_;
 };
 
 }  // namespace hp

@@ -237,7 +237,8 @@ json timing_result_json(const Environment& env, const FrameTimings& timings,
             {"cpu_wall_ns", s.cpu_wall_ns},
             {"passes", std::move(passes)}}},
           {"frames", std::move(frames)},
-          {"counters", timings.total_counters()}};
+          {"counters", timings.total_counters()},
+          {"invocations_per_frame", timings.frame_invocations()}};
 }
 
 TimingResult parse_timing_result(const json& doc) {
@@ -303,8 +304,11 @@ TimingResult parse_timing_result(const json& doc) {
   }
   Counters counters = within("counters", [&] { return field(doc, "counters").get<Counters>(); });
 
-  FrameTimings timings = FrameTimings::from_measured(summary.warmup_frames, summary.source,
-                                                     std::move(frames), summary.query_overhead);
+  Counters invocations;
+  if (doc.contains("invocations_per_frame"))
+    invocations = within("invocations_per_frame", [&] { return doc["invocations_per_frame"].get<Counters>(); });
+  FrameTimings timings = FrameTimings::from_measured(summary.warmup_frames, summary.source, std::move(frames),
+                                                     summary.query_overhead, std::move(invocations));
   return TimingResult{std::move(env), std::move(timings), std::move(summary), std::move(counters)};
 }
 

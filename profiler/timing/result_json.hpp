@@ -16,6 +16,8 @@
 //   frames: [{index, begin_ns, end_ns (null when derived from the passes), cpu_wall_ns,
 //             passes: [{pass, queue, begin_ns, end_ns}], counters: {pass: {name: value}}}]
 //   counters: {pass: {name: value}}  (sum over the measured frames)
+//   invocations_per_frame: {pass: {compute_invocations: value}}  (pipeline statistics of one frame
+//             rendered outside the timed ones; {} when not counted; optional when read)
 #pragma once
 
 #include <filesystem>

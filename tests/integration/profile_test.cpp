@@ -51,13 +51,17 @@ TEST(Profile, RealRunGivesNestedTimelineAndStableCounters) {
   // Pipeline statistics: every invocation of the 8x8-tiled dispatch counts, the ragged edge's idle lanes too.
   VkPhysicalDeviceFeatures features{};
   vkGetPhysicalDeviceFeatures(ctx->physical_device(), &features);
+  // They are counted in an untimed frame, so no measured frame carries them.
   if (features.pipelineStatisticsQuery) {
-    for (const auto& f : frames) {
-      EXPECT_EQ(f.counters.get("shadows", counter::compute_invocations), 96u * 56u);
-      EXPECT_EQ(f.counters.get("composite", counter::compute_invocations), 96u * 56u);
-      EXPECT_EQ(f.counters.get("reflections", counter::compute_invocations), 96u * 56u);
-    }
+    const Counters& inv = t.frame_invocations();
+    EXPECT_EQ(inv.get("shadows", counter::compute_invocations), 96u * 56u);
+    EXPECT_EQ(inv.get("composite", counter::compute_invocations), 96u * 56u);
+    EXPECT_EQ(inv.get("reflections", counter::compute_invocations), 96u * 56u);
+    EXPECT_EQ(inv.passes().count("gbuffer"), 0u) << "the G-buffer is not a compute pass";
+  } else {
+    EXPECT_TRUE(t.frame_invocations().empty());
   }
+  for (const auto& f : frames) EXPECT_EQ(f.counters.total(counter::compute_invocations), 0u);
 
   TimelineFixes fixes;
   const nlohmann::json timeline = build_timeline(t, &fixes);
@@ -71,7 +75,35 @@ TEST(Profile, RealRunGivesNestedTimelineAndStableCounters) {
   const TimingResult back = read_timing_result(path);
   EXPECT_EQ(back.environment.device.name, ctx->info().name);
   EXPECT_EQ(back.summary, sum);
+  EXPECT_EQ(back.timings.frame_invocations(), t.frame_invocations());
   std::filesystem::remove(path);
+}
+
+// Without warm-up the invocations are counted in one extra frame before the measured ones (it accumulates
+// like any frame); the measured frames still carry no pipeline statistics.
+TEST(Profile, InvocationsWithoutWarmupTakeOneExtraFrame) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:cornell");
+  FrameSettings s;
+  s.width = 40;
+  s.height = 24;
+  s.rt.shadows = true;
+  s.rt.counters = true;
+  Frame frame(*ctx, scene, scene.camera, s);
+  ProfileOptions o;
+  o.warmup = 0;
+  o.frames = 2;
+  o.measure_query_overhead = false;
+  const FrameTimings t = profile_frames(frame, o);
+  ASSERT_EQ(t.measured().size(), 2u);
+  for (const auto& f : t.measured()) EXPECT_EQ(f.counters.total(counter::compute_invocations), 0u);
+  if (frame.pipeline_statistics_available()) {
+    EXPECT_EQ(frame.samples_accumulated(), 3u);
+    EXPECT_EQ(t.frame_invocations().get("shadows", counter::compute_invocations), 40u * 24u);
+  } else {
+    EXPECT_EQ(frame.samples_accumulated(), 2u);
+    EXPECT_TRUE(t.frame_invocations().empty());
+  }
 }
 
 }  // namespace

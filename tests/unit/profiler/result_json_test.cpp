@@ -34,6 +34,10 @@ FrameTimings finished_run() {
                                                               1'001'000.0, 1'000'500.0, 1'000'550.0, 1'000'450.0},
                                           std::vector<double>(8, 1'000'000.0));
   t.set_query_overhead(q);
+  Counters invocations;
+  invocations.set("shadows", counter::compute_invocations, 3600);
+  invocations.set("composite", counter::compute_invocations, 3600);
+  t.set_frame_invocations(invocations);
   return t;
 }
 
@@ -79,6 +83,8 @@ TEST(ResultJson, SchemaFieldsAreWhereTheReportLooks) {
   EXPECT_EQ(doc["frames"][0]["passes"][0]["begin_ns"], 5'002'000'000ull);  // frame 2: first kept
   EXPECT_EQ(doc["frames"][0]["counters"]["shadows"]["rays_cast"], 4096);
   EXPECT_EQ(doc["counters"]["reflections"]["nodes_visited"], 8 * 80'000);
+  EXPECT_EQ(doc["invocations_per_frame"]["shadows"]["compute_invocations"], 3600);
+  EXPECT_EQ(doc["counters"]["shadows"].count("compute_invocations"), 0u) << "not summed over frames";
   EXPECT_FALSE(doc["environment"]["cpu_model"].get<std::string>().empty());
   EXPECT_EQ(doc["environment"]["device"]["driver_name"], "llvmpipe");
 }
@@ -109,6 +115,16 @@ TEST(ResultJson, BadDocumentsNameTheField) {
     nlohmann::json bad = doc;
     bad["frames"].erase(0);
     EXPECT_THROW(parse_timing_result(bad), InputError);
+  }
+  {
+    nlohmann::json bad = doc;
+    bad["invocations_per_frame"]["shadows"]["compute_invocations"] = -1;
+    EXPECT_THROW(parse_timing_result(bad), InputError);
+  }
+  {  // results written before invocations were counted apart still read, without them
+    nlohmann::json old = doc;
+    old.erase("invocations_per_frame");
+    EXPECT_TRUE(parse_timing_result(old).timings.frame_invocations().empty());
   }
   EXPECT_THROW(parse_timing_result(nlohmann::json{{"schema", "other"}}), InputError);
 }
