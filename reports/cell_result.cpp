@@ -131,6 +131,10 @@ std::map<std::string, double> deterministic_metrics(const CellResult& c) {
   for (const auto& [pass, counters] : c.timing.counters.passes()) {
     for (const auto& [name, value] : counters) m[pass + "/" + name] = double(value);
   }
+  // Pipeline statistics of the one untimed frame that counted them (not a sum over frames).
+  for (const auto& [pass, counters] : c.timing.timings.frame_invocations().passes()) {
+    for (const auto& [name, value] : counters) m[pass + "/" + name + "_per_frame"] = double(value);
+  }
   if (c.bvh.is_object()) {
     for (const char* k : {"nodes", "leaves", "max_depth", "sah_cost"}) {
       if (c.bvh.contains(k) && c.bvh[k].is_number()) m[std::string("bvh.") + k] = c.bvh[k].get<double>();

@@ -129,6 +129,14 @@ TEST(Report, RendersCacheTablesWhenPresent) {
   EXPECT_EQ(m.at("cache/reflections/l1/hits"), 4873530);
   EXPECT_EQ(m.at("cache/reflections/buffers/bvh_nodes/l1_misses"), 100000);
   EXPECT_EQ(m.count("cache/reflections/mrc/l1/points"), 0u);
+  // Invocations counted in the run's untimed frame are a per-frame metric of their own.
+  auto counted = with_cache("indexed", 4873530, 1);
+  Counters invocations;
+  invocations.set("shadows", counter::compute_invocations, 2304);
+  counted.timing.timings.set_frame_invocations(invocations);
+  const auto mi = deterministic_metrics(counted);
+  EXPECT_EQ(mi.at("shadows/compute_invocations_per_frame"), 2304);
+  EXPECT_EQ(mi.count("shadows/compute_invocations"), 0u);
 }
 
 TEST(Report, SingleCellAndFewFrames) {
