@@ -10,6 +10,9 @@
 //                    (items = requests; lane_accesses = the same work counted in lane accesses),
 //                    one request per call (/0) or one CU's run of requests per call (/1), as
 //                    Simulator::run_pass issues a wave step.
+//   L1Only/*         the same requests' L1 lookups alone: through the 56 L1s (/0), or all through one
+//                    16 KiB L1 whose whole state stays in the host's L1 cache (/1): what one lookup
+//                    costs without host cache misses.
 //   DineroStyle      one 16k:64:4 L1 + one 4m:64:16 L2 on the same line stream, as `--din` does.
 //   L2Fixed / L2Mrc  the L2 request stream (9.6 M) through one fixed-size L2, vs the exact all-sizes
 //                    stack-distance curve (one by one, and batched as the hierarchy feeds it), vs
@@ -127,6 +130,23 @@ void Hierarchy_L1L2_withL2Mrc(benchmark::State& state) {
   state.SetItemsProcessed(int64_t(state.iterations() * f.requests.size()));
 }
 BENCHMARK(Hierarchy_L1L2_withL2Mrc)->Unit(benchmark::kMillisecond);
+
+void L1Only(benchmark::State& state) {
+  const Fixture& f = fixture();
+  const bool one = state.range(0) == 1;
+  uint64_t loads = 0;
+  for (const auto& [cu, r] : f.requests) loads += r.kind == AccessKind::load;
+  for (auto _ : state) {
+    std::vector<Cache> l1(one ? 1 : f.preset.compute_units, Cache(f.preset.l1));
+    uint64_t misses = 0;
+    for (const auto& [cu, r] : f.requests)
+      if (r.kind == AccessKind::load) misses += l1[one ? 0 : cu].load(r.line, r.sectors).missing != 0;
+    benchmark::DoNotOptimize(misses);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * loads));
+  state.SetLabel(one ? "all through one L1" : "one L1 per CU");
+}
+BENCHMARK(L1Only)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 void DineroStyle_L1L2(benchmark::State& state) {
   const Fixture& f = fixture();
