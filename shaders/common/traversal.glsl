@@ -174,6 +174,32 @@ bool hp_watertight(HpRay r, vec3 p0, vec3 p1, vec3 p2, out float t, out float u,
 #endif
 shared uint hp_stack[HP_BVH_STACK_SIZE * HP_TRAVERSAL_MAX_GROUP];
 
+// The traversal stack: its top 8 entries live in registers (s0 the top), the deeper ones in hp_stack.
+// A push shifts the registers down and spills the 8th to memory only when the stack is deeper than 8; a
+// pop shifts them up and refills the 8th from memory likewise. Same LIFO order and bound as one array,
+// but most pushes and pops touch no memory: shared-memory accesses at per-lane addresses are a loop over
+// the lanes on a CPU driver (lavapipe), register shifts are whole-vector selects.
+struct HpStack {
+  uint s0, s1, s2, s3, s4, s5, s6, s7;
+  int sp;
+};
+
+void hp_push(inout HpStack st, uint x, uint lane) {
+  if (st.sp >= 8) hp_stack[uint(st.sp - 8) * HP_TRAVERSAL_MAX_GROUP + lane] = st.s7;
+  st.s7 = st.s6; st.s6 = st.s5; st.s5 = st.s4; st.s4 = st.s3;
+  st.s3 = st.s2; st.s2 = st.s1; st.s1 = st.s0; st.s0 = x;
+  st.sp++;
+}
+
+uint hp_pop(inout HpStack st, uint lane) {
+  uint x = st.s0;
+  st.s0 = st.s1; st.s1 = st.s2; st.s2 = st.s3; st.s3 = st.s4;
+  st.s4 = st.s5; st.s5 = st.s6; st.s6 = st.s7;
+  st.sp--;
+  if (st.sp >= 8) st.s7 = hp_stack[uint(st.sp - 8) * HP_TRAVERSAL_MAX_GROUP + lane];
+  return x;
+}
+
 // any_hit: stop at the first hit in [tmin, tmax]; else the closest, ties to the smallest scene index.
 // Loop shape "while-while" (Aila & Laine 2009): an inner loop walks interior nodes until every SIMD lane has
 // found a leaf whose box it hits (or finished), then the lanes test their leaves' triangles together. The
@@ -183,7 +209,9 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
   best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
   float best_t = r.tmax;
   uint lane = gl_LocalInvocationIndex;
-  int sp = 0;
+  HpStack st;
+  st.s0 = 0u; st.s1 = 0u; st.s2 = 0u; st.s3 = 0u; st.s4 = 0u; st.s5 = 0u; st.s6 = 0u; st.s7 = 0u;
+  st.sp = 0;
   uint node = 0u;
   bool done = false;
   while (!done) {
@@ -212,13 +240,12 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
         uint far_child = uint(n.offset);
         if (r.neg[axis] != 0) { uint tmp = near_child; near_child = far_child; far_child = tmp; }
         // The builder bounds the depth by HP_BVH_STACK_SIZE, so this never drops a node.
-        if (sp < HP_BVH_STACK_SIZE) { hp_stack[uint(sp) * HP_TRAVERSAL_MAX_GROUP + lane] = far_child; sp++; }
+        if (st.sp < HP_BVH_STACK_SIZE) hp_push(st, far_child, lane);
         node = near_child;
         continue;
       }
-      if (sp == 0) { done = true; break; }
-      --sp;
-      node = hp_stack[uint(sp) * HP_TRAVERSAL_MAX_GROUP + lane];
+      if (st.sp == 0) { done = true; break; }
+      node = hp_pop(st, lane);
     }
     if (HP_OBJECT_LEAVES != 0u && first != last) {
       HP_REC_LOAD(HP_TBUF_OBJECT_FIRST, first * 4u, 4u);
@@ -253,9 +280,8 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
       }
     }
     if (!done) {
-      if (sp == 0) break;
-      --sp;
-      node = hp_stack[uint(sp) * HP_TRAVERSAL_MAX_GROUP + lane];
+      if (st.sp == 0) break;
+      node = hp_pop(st, lane);
     }
   }
   return best;
