@@ -122,8 +122,8 @@ void run_render(const RenderArgs& a) {
   if (!timings.frame_invocations().empty()) {
     std::printf("  compute invocations per frame (pipeline statistics, counted in an untimed frame):");
     const char* sep = " ";
-    for (const auto& [pass, c] : timings.frame_invocations().passes()) {
-      std::printf("%s%s %llu", sep, pass.c_str(), (unsigned long long)timings.frame_invocations().get(pass, counter::compute_invocations));
+    for (const auto& [pass, names] : timings.frame_invocations().passes()) {
+      std::printf("%s%s %llu", sep, pass.c_str(), (unsigned long long)names.at(counter::compute_invocations));
       sep = ", ";
     }
     std::printf("\n");
