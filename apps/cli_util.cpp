@@ -104,6 +104,9 @@ void FrameOptions::add_to(CLI::App* cmd) {
       ->capture_default_str();
   cmd->add_option("--device", device, "Vulkan device: index or name substring (default: discrete GPU, else lavapipe)");
   cmd->add_flag("--validate", validate, "enable the Khronos validation layer; any message fails the run");
+  cmd->add_flag("--host-timing", host_timing,
+                "time each pass on the host (one submission per pass, labelled cpu-wall), as on a queue "
+                "without timestamps");
   view.add_to(cmd);
 }
 
@@ -113,6 +116,7 @@ FrameSettings FrameOptions::settings() const {
   s.width = width;
   s.height = height;
   s.reversed_z = reversed_z;
+  s.host_timing = host_timing;
   s.geometry = parse_geometry_layout(geometry);
   s.rt.shadows = !no_shadows;
   s.rt.reflections = !no_reflections;

@@ -47,6 +47,7 @@ struct FrameOptions {
   std::string reflection_path = "direct", sort = "none", writeback = "index";
   std::string device;
   bool validate = false;
+  bool host_timing = false;
   ViewOptions view;
 
   void add_to(CLI::App* cmd);

@@ -73,6 +73,7 @@ void run_render(const RenderArgs& a) {
   const Camera camera = a.frame.view.camera_for(scene, float(settings.width) / float(settings.height));
   vk::Context ctx({a.frame.device, a.frame.validate, true});
   Frame frame(ctx, scene, camera, settings);
+  if (!frame.timestamps_supported()) std::fprintf(stderr, "hybridprof: %s\n", host_timing_note(settings.host_timing).c_str());
   const auto t0 = std::chrono::steady_clock::now();
   ProfileOptions po;
   po.warmup = a.warmup;

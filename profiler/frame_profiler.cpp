@@ -6,6 +6,14 @@
 
 namespace hp {
 
+std::string host_timing_note(bool asked) {
+  return std::string(asked ? "passes timed on the host as asked (--host-timing)"
+                           : "this queue has no timestamp support (timestampValidBits = 0), so passes are timed "
+                             "on the host") +
+         ": one submission per pass, each time including its submit and wait (labelled cpu-wall); the query "
+         "overhead is not measured";
+}
+
 DeviceDescription describe_device(const vk::Context& ctx) {
   const vk::DeviceInfo& i = ctx.info();
   return {i.name, i.type, i.driver_name, i.driver_info, i.api_version};

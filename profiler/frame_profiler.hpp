@@ -18,6 +18,10 @@ struct ProfileOptions {
   bool measure_query_overhead = true;
 };
 
+/// The one-line note for a run whose passes are timed on the host (Frame::timestamps_supported() false):
+/// why — the queue has no timestamps, or `asked` (FrameSettings::host_timing) — and what the times include.
+std::string host_timing_note(bool asked);
+
 /// The device part of the environment.
 DeviceDescription describe_device(const vk::Context& ctx);
 

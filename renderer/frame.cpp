@@ -74,7 +74,7 @@ Frame::Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const F
              VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT),
       sampler_(ctx),
       gbuffer_pass_(ctx, uniforms_, settings.reversed_z),
-      timestamps_(ctx, kMaxPasses),
+      timestamps_(ctx, settings.host_timing ? 0 : kMaxPasses),
       invocations_(ctx, kMaxPasses) {
   const bool traced = settings.rt.shadows || settings.rt.reflections;
   if (traced) {

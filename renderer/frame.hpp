@@ -30,6 +30,9 @@ struct FrameSettings {
   GeometryLayout geometry = GeometryLayout::indexed;
   RayTracingOptions rt{.shadows = false, .reflections = false};
   bvh::BuildOptions bvh;
+  /// Time the passes on the host (one submission each, "cpu-wall") even where the queue has timestamps:
+  /// what a queue without timestamp support gets, selectable so that path can be run and compared anywhere.
+  bool host_timing = false;
 };
 
 /// Largest image side accepted (Vulkan guarantees 4096 for 2D images; lavapipe and GPUs allow 16384).

@@ -216,6 +216,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   if (todo.empty()) return sum;
 
   vk::Context ctx({o.device, o.validate, true});
+  if (ctx.info().timestamp_valid_bits == 0) std::fprintf(stderr, "hybridprof run: %s\n", host_timing_note(false).c_str());
   const Environment env = capture_environment(describe_device(ctx));
   std::map<std::string, Scene> scenes;
   const bool tty = o.progress && ::isatty(::fileno(stderr));

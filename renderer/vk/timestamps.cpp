@@ -10,7 +10,7 @@ namespace hp::vk {
 TimestampQueries::TimestampQueries(Context& ctx, uint32_t max_passes)
     : device_(ctx.device()), capacity_(2 * max_passes) {
   const uint32_t bits = ctx.info().timestamp_valid_bits;
-  if (bits == 0) return;  // unsupported: supported() is false
+  if (bits == 0 || max_passes == 0) return;  // unsupported or not wanted: supported() is false
   mask_ = bits >= 64 ? ~uint64_t(0) : ((uint64_t(1) << bits) - 1);
   period_ns_ = ctx.info().timestamp_period_ns;
   VkQueryPoolCreateInfo ci{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};

@@ -15,6 +15,7 @@ namespace hp::vk {
 
 class TimestampQueries {
  public:
+  /// max_passes == 0 creates no pool: supported() is false, as on a queue without timestamps.
   TimestampQueries(Context& ctx, uint32_t max_passes);
   ~TimestampQueries();
   TimestampQueries(const TimestampQueries&) = delete;

@@ -67,6 +67,20 @@ TEST(Cli, RenderWritesPngAndAov) {
   fs::remove_all(d);
 }
 
+TEST(Cli, HostTimingSaysSoAndLabelsTheTimes) {
+  if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
+  const fs::path d = temp_dir();
+  CmdResult r = run("render --scene builtin:cornell --width 32 --height 24 --frames 2 --host-timing --out " +
+                    (d / "c.png").string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("hybridprof: passes timed on the host as asked (--host-timing)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("measured frames (cpu-wall)"), std::string::npos) << r.output;
+  r = run("render --scene builtin:cornell --width 32 --height 24 --frames 2 --out " + (d / "c.png").string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(r.output.find("timed on the host"), std::string::npos) << "lavapipe and GPUs have timestamps";
+  fs::remove_all(d);
+}
+
 TEST(Cli, CachesimExportsOneComputeUnitOrNamesTheLimitAndWritesNothing) {
   if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
   const fs::path d = temp_dir();

@@ -79,6 +79,45 @@ TEST(Profile, RealRunGivesNestedTimelineAndStableCounters) {
   std::filesystem::remove(path);
 }
 
+// The fallback for a queue without timestamps, run on purpose: each pass is its own submission timed on the
+// host, in order and without overlap, labelled cpu-wall; no query overhead is measured (there are no
+// queries), the counters are still read, and the timeline still nests.
+TEST(Profile, HostTimingFallbackTimesEachPassInOrder) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:cornell");
+  FrameSettings s;
+  s.width = 48;
+  s.height = 32;
+  s.rt.shadows = true;
+  s.rt.reflections = true;
+  s.rt.counters = true;
+  s.host_timing = true;
+  Frame frame(*ctx, scene, scene.camera, s);
+  ASSERT_FALSE(frame.timestamps_supported());
+  ProfileOptions o;
+  o.warmup = 1;
+  o.frames = 3;
+  const FrameTimings t = profile_frames(frame, o);
+  EXPECT_EQ(t.source(), TimingSource::CpuWall);
+  EXPECT_FALSE(t.query_overhead().has_value());
+  const std::vector<std::string> order = {"gbuffer", "shadows", "reflections", "accumulate", "composite"};
+  for (const FrameSample& f : t.measured()) {
+    ASSERT_EQ(f.passes.size(), order.size());
+    for (size_t k = 0; k < order.size(); ++k) {
+      EXPECT_EQ(f.passes[k].pass, order[k]);
+      EXPECT_GT(f.passes[k].end_ns, f.passes[k].begin_ns) << order[k];
+      if (k > 0) EXPECT_LE(f.passes[k - 1].end_ns, f.passes[k].begin_ns) << order[k];
+    }
+    EXPECT_LE(f.passes.back().end_ns, f.cpu_wall_ns) << "passes lie inside the frame's own wall time";
+    EXPECT_GT(f.counters.get("shadows", counter::rays_cast), 0u);
+  }
+  EXPECT_EQ(t.summarize().source, TimingSource::CpuWall);
+  const std::vector<std::string> problems = check_timeline(build_timeline(t));
+  EXPECT_TRUE(problems.empty()) << problems.front();
+  EXPECT_NE(host_timing_note(true).find("cpu-wall"), std::string::npos);
+  EXPECT_NE(host_timing_note(false).find("timestampValidBits = 0"), std::string::npos);
+}
+
 // Without warm-up the invocations are counted in one extra frame before the measured ones (it accumulates
 // like any frame); the measured frames still carry no pipeline statistics.
 TEST(Profile, InvocationsWithoutWarmupTakeOneExtraFrame) {
