@@ -30,10 +30,11 @@ DeviceDescription describe_device(const vk::Context& ctx);
 FrameSample to_frame_sample(const FrameTiming& timing, const RayCounters* counters);
 
 /// Profiles `frame`: W warm-up frames, then F measured ones. Counters are read after each measured frame
-/// when the frame's settings ask for them (outside the timed interval). Compute invocations per pass
-/// (pipeline statistics) are counted in the last warm-up frame, or in one extra frame before the
-/// measured ones when W is 0, and stored as FrameTimings::frame_invocations(): the measured frames
-/// record timestamps and nothing else.
+/// when the frame's settings ask for them (outside the timed interval). The first warm-up frame records
+/// no query (on lavapipe, timestamps in a Frame's first frame slow its G-buffer pass for good). Compute
+/// invocations per pass (pipeline statistics) are counted in the last warm-up frame, and stored as
+/// FrameTimings::frame_invocations(): the measured frames record timestamps and nothing else. With W = 0,
+/// one extra untimed frame is rendered first for both purposes.
 FrameTimings profile_frames(Frame& frame, const ProfileOptions& options);
 
 }  // namespace hp

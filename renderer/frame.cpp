@@ -156,6 +156,7 @@ void Frame::record_passes(VkCommandBuffer cmd, FrameQueries queries) {
 }
 
 FrameTiming Frame::render(FrameQueries queries) {
+  if (!first_queries_) first_queries_ = queries;
   upload_uniforms();
   if (rt_passes_) rt_passes_->begin_frame(sample_index_);
   FrameTiming timing;

@@ -120,6 +120,9 @@ class Frame {
   const RtGeometry* rt_geometry() const { return rt_geometry_ ? &*rt_geometry_ : nullptr; }
   const RayTracingPasses* rt_passes() const { return rt_passes_.get(); }
   uint32_t samples_accumulated() const { return sample_index_; }
+  /// The queries of the first frame this Frame rendered (none before any): profilers keep timestamps out
+  /// of it (see profile_frames).
+  std::optional<FrameQueries> first_frame_queries() const { return first_queries_; }
   bool timestamps_supported() const { return timestamps_.supported(); }
   /// Whether render(FrameQueries::pipeline_statistics) counts invocations: counters on, queries supported.
   bool pipeline_statistics_available() const { return settings_.rt.counters && invocations_.supported(); }
@@ -136,6 +139,7 @@ class Frame {
  private:
   void upload_uniforms();
   void record_passes(VkCommandBuffer cmd, FrameQueries queries);
+  std::optional<FrameQueries> first_queries_;
 
   vk::Context& ctx_;
   const Scene& scene_;
