@@ -44,26 +44,30 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o) {
   const bool gpu = frame.timestamps_supported();
   FrameTimings timings(o.warmup, o.frames, gpu ? TimingSource::GpuTimestamps : TimingSource::CpuWall);
   const bool counters = frame.settings().rt.counters && (frame.settings().rt.shadows || frame.settings().rt.reflections);
-  // The first frame records no timestamps. On lavapipe (Mesa 22.3) timestamps in a Frame's very first
-  // frame leave its G-buffer pass slower in every later frame, timed or not (15-18 ms instead of 24 ms at
-  // 640x360; a 320x180 G-buffer + composite frame 20 ms instead of 10-13 ms: README, "Query overhead").
-  // One untimed frame first avoids it. Invocation counts come from a frame of their own too, so that the
-  // timed frames carry timestamps only: the last warm-up frame (its times are discarded anyway). Without
-  // warm-up, one extra untimed frame does both.
+  // The first frame records no query. On lavapipe (Mesa 22.3) timestamps or pipeline statistics in a
+  // Frame's very first frame leave its G-buffer pass slower in every later frame, timed or not (19-24 ms
+  // instead of 13-18 ms at 640x360; a 320x180 G-buffer + composite frame 20 ms instead of 10-13 ms:
+  // README, "Query overhead"). One frame without queries first avoids it: the first warm-up frame, or an
+  // extra frame without warm-up. Invocation counts come from a frame of their own too, so that the timed
+  // frames carry timestamps only: the last warm-up frame when there are two or more (its times are
+  // discarded anyway), else one extra frame after the first.
   const bool statistics = frame.pipeline_statistics_available();
-  auto untimed = [&](bool count) {
-    if (!count) return frame.render(FrameQueries::none);
+  auto count_invocations = [&] {
     const FrameTiming t = frame.render(FrameQueries::pipeline_statistics);
     Counters per_frame;
     for (const auto& [pass, n] : t.compute_invocations) per_frame.set(pass, counter::compute_invocations, n);
     timings.set_frame_invocations(std::move(per_frame));
     return t;
   };
-  if (o.warmup == 0 && (gpu || statistics)) untimed(statistics);
+  if (o.warmup == 0 && (gpu || statistics)) frame.render(FrameQueries::none);
+  bool counted = false;
   for (uint32_t i = 0; i < o.warmup; ++i) {
-    const bool count = statistics && i + 1 == o.warmup;
-    timings.add(to_frame_sample(i == 0 || count ? untimed(count) : frame.render(), nullptr));
+    const bool count = statistics && i > 0 && i + 1 == o.warmup;
+    counted = counted || count;
+    timings.add(to_frame_sample(i == 0 ? frame.render(FrameQueries::none) : count ? count_invocations() : frame.render(),
+                                nullptr));
   }
+  if (statistics && !counted) count_invocations();
   std::vector<double> with_queries, without_queries;
   for (uint32_t i = 0; i < o.frames; ++i) {
     // Frames without queries alternate before and after the measured one (A B B A ...), so that neither

@@ -31,10 +31,10 @@ FrameSample to_frame_sample(const FrameTiming& timing, const RayCounters* counte
 
 /// Profiles `frame`: W warm-up frames, then F measured ones. Counters are read after each measured frame
 /// when the frame's settings ask for them (outside the timed interval). The first warm-up frame records
-/// no query (on lavapipe, timestamps in a Frame's first frame slow its G-buffer pass for good). Compute
-/// invocations per pass (pipeline statistics) are counted in the last warm-up frame, and stored as
-/// FrameTimings::frame_invocations(): the measured frames record timestamps and nothing else. With W = 0,
-/// one extra untimed frame is rendered first for both purposes.
+/// no query (on lavapipe, queries in a Frame's first frame slow its G-buffer pass for good; with W = 0 an
+/// extra frame does this). Compute invocations per pass (pipeline statistics) are counted in the last
+/// warm-up frame (with W < 2, in one extra frame after the first) and stored as
+/// FrameTimings::frame_invocations(): the measured frames record timestamps and nothing else.
 FrameTimings profile_frames(Frame& frame, const ProfileOptions& options);
 
 }  // namespace hp
