@@ -120,7 +120,7 @@ class Frame {
   const RtGeometry* rt_geometry() const { return rt_geometry_ ? &*rt_geometry_ : nullptr; }
   const RayTracingPasses* rt_passes() const { return rt_passes_.get(); }
   uint32_t samples_accumulated() const { return sample_index_; }
-  /// The queries of the first frame this Frame rendered (none before any): profilers keep timestamps out
+  /// The queries of the first frame this Frame rendered (none before any): profilers keep every query out
   /// of it (see profile_frames).
   std::optional<FrameQueries> first_frame_queries() const { return first_queries_; }
   bool timestamps_supported() const { return timestamps_.supported(); }
