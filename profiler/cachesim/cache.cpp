@@ -58,11 +58,12 @@ Cache::Cache(const CacheConfig& config) : config_(config) {
   ways_per_set_ = config.ways;
   channels_ = config.channels;
   sets_per_channel_ = config.size_bytes / (uint64_t(config.line_bytes) * config.ways * config.channels);
-  set_mask_ = sets_per_channel_ - 1;
-  set_bits_ = uint32_t(std::countr_zero(sets_per_channel_));
   sets_ = uint32_t(sets_per_channel_ * channels_);
-  channel_pow2_ = std::has_single_bit(channels_);
-  channel_shift_ = channel_pow2_ ? uint32_t(std::countr_zero(channels_)) : 0;
+  plain_index_ = std::has_single_bit(channels_);
+  // A plain index covers all sets; a sliced one the sets of one channel.
+  const uint64_t indexed = plain_index_ ? sets_ : sets_per_channel_;
+  set_mask_ = indexed - 1;
+  set_bits_ = uint32_t(std::countr_zero(indexed));
   const uint32_t interleave = config.channel_interleave_bytes ? config.channel_interleave_bytes : config.line_bytes;
   interleave_shift_ = uint32_t(std::countr_zero(interleave / config.line_bytes));
   interleave_mask_ = (uint64_t(1) << interleave_shift_) - 1;
@@ -74,34 +75,43 @@ Cache::Cache(const CacheConfig& config) : config_(config) {
   replacement_ = config.replacement;
   lru_ = replacement_ == Replacement::lru;
   rng_ = config.seed ? config.seed : 0x9E3779B97F4A7C15ull;  // xorshift must not start at 0
-  compact_ = replacement_ != Replacement::random && ways_per_set_ <= 16;
-  if (compact_) {
+  if (replacement_ != Replacement::random && ways_per_set_ <= 16) {
+    engine_ = sectored_ ? Engine::compact : Engine::ordered;
     stride_ = ways_per_set_ <= 4 ? 4 : ways_per_set_ <= 8 ? 8 : 16;
     tag32_ = aligned_array<uint32_t>(size_t(sets_) * stride_);
-    state_ = aligned_array<SetState>(sets_);
-    if (sectored_) meta_.assign(size_t(sets_) * stride_, Meta{0, 0});
-    init_compact();
+    if (engine_ == Engine::compact) {
+      order_ = aligned_array<uint64_t>(sets_);
+      meta_.assign(size_t(sets_) * stride_, Meta{0, 0});
+    }
+    // The first line whose tag reaches kEmptyEntry (locate's tag is monotonic in the line), saturated.
+    unsigned __int128 limit = static_cast<unsigned __int128>(kEmptyEntry);
+    if (plain_index_) {
+      limit <<= set_bits_;
+    } else {
+      limit = ((limit << (set_bits_ - interleave_shift_)) * channels_) << interleave_shift_;
+    }
+    ordered_limit_ = limit > ~uint64_t(0) ? ~uint64_t(0) : uint64_t(limit);
+    init_small();
   } else {
     init_general();
   }
 }
 
 Cache::Cache(const Cache& o)
-    : config_(o.config_), compact_(o.compact_), sectored_(o.sectored_), lru_(o.lru_),
+    : config_(o.config_), engine_(o.engine_), sectored_(o.sectored_), lru_(o.lru_),
       ways_per_set_(o.ways_per_set_), stride_(o.stride_), sets_(o.sets_), set_mask_(o.set_mask_),
-      set_bits_(o.set_bits_), channels_(o.channels_), channel_pow2_(o.channel_pow2_),
-      channel_shift_(o.channel_shift_), interleave_shift_(o.interleave_shift_),
-      interleave_mask_(o.interleave_mask_), sets_per_channel_(o.sets_per_channel_),
-      line_shift_(o.line_shift_), sector_shift_(o.sector_shift_), full_mask_(o.full_mask_),
-      replacement_(o.replacement_), rng_(o.rng_), meta_(o.meta_), tags_(o.tags_), gmeta_(o.gmeta_),
-      stamp_(o.stamp_), clock_(o.clock_) {
+      set_bits_(o.set_bits_), channels_(o.channels_), plain_index_(o.plain_index_),
+      interleave_shift_(o.interleave_shift_), interleave_mask_(o.interleave_mask_),
+      sets_per_channel_(o.sets_per_channel_), line_shift_(o.line_shift_), sector_shift_(o.sector_shift_),
+      full_mask_(o.full_mask_), replacement_(o.replacement_), rng_(o.rng_), ordered_limit_(o.ordered_limit_),
+      meta_(o.meta_), tags_(o.tags_), gmeta_(o.gmeta_), stamp_(o.stamp_), clock_(o.clock_) {
   if (o.tag32_) {
     tag32_ = aligned_array<uint32_t>(size_t(sets_) * stride_);
     std::memcpy(tag32_.get(), o.tag32_.get(), size_t(sets_) * stride_ * sizeof(uint32_t));
   }
-  if (o.state_) {
-    state_ = aligned_array<SetState>(sets_);
-    std::memcpy(static_cast<void*>(state_.get()), o.state_.get(), size_t(sets_) * sizeof(SetState));
+  if (o.order_) {
+    order_ = aligned_array<uint64_t>(sets_);
+    std::memcpy(order_.get(), o.order_.get(), size_t(sets_) * sizeof(uint64_t));
   }
 }
 
@@ -110,7 +120,12 @@ Cache& Cache::operator=(const Cache& o) {
   return *this;
 }
 
-void Cache::init_compact() {
+void Cache::init_small() {
+  if (engine_ == Engine::ordered) {
+    // Every entry empty (padding entries too: they are never shifted into, never match).
+    std::fill(tag32_.get(), tag32_.get() + size_t(sets_) * stride_, kEmptyEntry);
+    return;
+  }
   std::fill(tag32_.get(), tag32_.get() + size_t(sets_) * stride_, kEmpty32);
   // Way 0 at the back (the first victim), then way 1, ...; unused positions 0xF.
   uint64_t order = ~uint64_t(0);
@@ -118,7 +133,7 @@ void Cache::init_compact() {
     const uint64_t way = ways_per_set_ - 1 - p;
     order = (order & ~(uint64_t(0xF) << (4 * p))) | (way << (4 * p));
   }
-  for (uint32_t s = 0; s < sets_; ++s) state_[s] = SetState{order, 0, 0};
+  std::fill(order_.get(), order_.get() + sets_, order);
   std::fill(meta_.begin(), meta_.end(), Meta{0, 0});
 }
 
@@ -131,7 +146,7 @@ void Cache::init_general() {
 }
 
 uint64_t Cache::line_of(uint32_t set, uint64_t tag) const {
-  if (channels_ == 1) return (tag << set_bits_) | set;
+  if (plain_index_) return (tag << set_bits_) | set;
   const uint64_t channel = set / sets_per_channel_;
   const uint64_t in_channel = set % sets_per_channel_;
   const uint64_t within = in_channel & interleave_mask_;
@@ -141,37 +156,51 @@ uint64_t Cache::line_of(uint32_t set, uint64_t tag) const {
 }
 
 void Cache::to_general() {
-  // Full lines, the same sector state, and stamps that order each set as its permutation did:
-  // the most recent position gets the highest stamp, empty ways stamp 0; the clock starts above
-  // them all, so every later access is newer than any converted one, as it would have been.
+  // Full lines, the same sector state, and stamps that order each set as the small engine did: the
+  // most recent position gets the highest stamp, empty ways stamp 0; the clock starts above them
+  // all, so every later access is newer than any converted one, as it would have been.
+  const Engine from = engine_;
   init_general();
   for (uint32_t s = 0; s < sets_; ++s) {
     const uint32_t* tags = tag32_.get() + size_t(s) * stride_;
-    const SetState& st = state_[s];
     for (uint32_t p = 0; p < ways_per_set_; ++p) {
-      const uint32_t w = uint32_t(st.order >> (4 * p)) & 0xF;
-      if (tags[w] == kEmpty32) continue;
+      // Ordered: position p is entry p (kept in way p); compact: the way at position p.
+      const uint32_t w = from == Engine::ordered ? p : uint32_t(order_[s] >> (4 * p)) & 0xF;
+      const uint32_t t = tags[w];
+      if (from == Engine::ordered ? t == kEmptyEntry : t == kEmpty32) continue;
       const size_t g = size_t(s) * ways_per_set_ + w;
-      tags_[g] = line_of(s, tags[w]);
       stamp_[g] = ways_per_set_ - p;
-      gmeta_[g] = sectored_ ? meta_[size_t(s) * stride_ + w] : Meta{1u, (st.dirty >> w) & 1u};
+      if (from == Engine::ordered) {
+        tags_[g] = line_of(s, t & ~kDirtyBit);
+        gmeta_[g] = Meta{1u, t >> 31};
+      } else {
+        tags_[g] = line_of(s, t);
+        gmeta_[g] = meta_[size_t(s) * stride_ + w];
+      }
     }
   }
   clock_ = ways_per_set_;
-  compact_ = false;
+  engine_ = Engine::general;
   tag32_.reset();
-  state_.reset();
+  order_.reset();
   meta_ = {};
 }
 
 bool Cache::contains(uint64_t line, uint32_t sectors) const {
-  if (compact_) {
+  if (engine_ == Engine::ordered) {
+    if (line >= ordered_limit_) return false;  // never stored: the engine holds only narrow tags
+    uint64_t tag;
+    const uint32_t* e = tag32_.get() + size_t(locate(line, tag)) * stride_;
+    for (uint32_t i = 0; i < ways_per_set_; ++i)
+      if ((e[i] & ~kDirtyBit) == tag) return true;
+    return false;
+  }
+  if (engine_ == Engine::compact) {
     uint64_t tag;
     const uint32_t set = locate(line, tag);
     if (tag >= kEmpty32) return false;  // never stored: the compact engine holds only narrow tags
     const uint32_t match = match_ways(tag32_.get() + size_t(set) * stride_, uint32_t(tag));
     if (!match) return false;
-    if (!sectored_) return true;
     return (sectors & ~meta_[size_t(set) * stride_ + uint32_t(std::countr_zero(match))].valid) == 0;
   }
   const size_t base = size_t(set_index(line)) * ways_per_set_;
@@ -182,21 +211,15 @@ bool Cache::contains(uint64_t line, uint32_t sectors) const {
 
 uint64_t Cache::flush_dirty_sectors() {
   uint64_t n = 0;
-  if (compact_) {
-    if (sectored_) {
-      for (Meta& m : meta_) {
-        n += count_bits(m.dirty);
-        m.dirty = 0;
-      }
-    } else {
-      for (uint32_t s = 0; s < sets_; ++s) {
-        n += count_bits(state_[s].dirty);
-        state_[s].dirty = 0;
-      }
+  if (engine_ == Engine::ordered) {
+    uint32_t* e = tag32_.get();
+    for (size_t i = 0, end = size_t(sets_) * stride_; i < end; ++i) {
+      n += e[i] >> 31;
+      e[i] &= ~kDirtyBit;
     }
     return n;
   }
-  for (Meta& m : gmeta_) {
+  for (Meta& m : engine_ == Engine::compact ? meta_ : gmeta_) {
     n += count_bits(m.dirty);
     m.dirty = 0;
   }
@@ -215,8 +238,8 @@ void Cache::renumber_stamps() {
 }
 
 void Cache::invalidate() {
-  if (compact_) {
-    init_compact();
+  if (engine_ != Engine::general) {
+    init_small();
     return;
   }
   std::fill(tags_.begin(), tags_.end(), kEmpty);

@@ -1,21 +1,29 @@
 // One set-associative cache level: tags only (no data), sector valid and dirty masks per line.
 //
-// Speed is the point (over a hundred million lookups per second on one host core), and a replay's
-// time goes almost entirely to host cache misses on the tag arrays, so the state is kept as small
-// and as contiguous per set as the configuration allows. Two engines give identical results:
+// Speed is the point (well over a hundred million lookups per second on one host core), so the state
+// is kept as small and as contiguous per set as the configuration allows, and the common case runs
+// without a data-dependent branch. Three engines give identical results:
 //
-//  - compact (LRU or FIFO, at most 16 ways, every tag seen so far below 2^32 - 1): a set is its
-//    ways' 32-bit partial tags (the line number without the set-index bits), padded to 4, 8 or 16
-//    ways and aligned so that a 16-way set is one 64-byte host line, compared four at a time; plus a
-//    16-byte state word pair: the recency order of the ways as a permutation of 4-bit way numbers
-//    (position 0 most recent, the last used position the victim) and, without sectors, one dirty bit
-//    per way. LRU moves the used way to the front, FIFO only a filled one. Empty ways start at the
-//    back in index order, so they fill first and lowest first, as in the general engine. A sectored
-//    cache keeps valid/dirty sector masks per way in a separate array.
-//  - general (random replacement, more than 16 ways, or a tag that does not fit 32 bits): full line
+//  - ordered (unsectored, LRU or FIFO, at most 16 ways, every tag seen so far below 2^31 - 1): a set
+//    is its lines' 32-bit partial tags (the line number without the set-index bits) in recency order
+//    (LRU; insertion order for FIFO), most recent first, padded to 4, 8 or 16 entries with an empty
+//    marker and aligned so that a 16-way set is one 64-byte host line. Bit 31 of an entry is the
+//    line's dirty bit. A lookup compares the set four entries at a time; a hit at position p (or a
+//    miss, p = the last way) shifts positions 0..p-1 down by one and writes the line at the front,
+//    which drops the victim: one masked vector shift, the same instructions for a hit and a miss.
+//    Empty entries sit at the back, so they fill first.
+//  - compact (sectored, LRU or FIFO, at most 16 ways, tags below 2^32 - 1): the ways' partial tags
+//    in way order, a 64-bit recency permutation of 4-bit way numbers per set (position 0 most
+//    recent, the last used position the victim), and valid/dirty sector masks per way. LRU moves
+//    the used way to the front, FIFO only a filled one. Empty ways start at the back in index order,
+//    so they fill first and lowest first, as in the general engine.
+//  - general (random replacement, more than 16 ways, or a tag too wide for the others): full line
 //    numbers, sector masks and a 32-bit stamp per way; the victim is the oldest stamp (empty ways
-//    have stamp 0). A compact cache that meets a line whose tag does not fit converts itself, once,
-//    to this engine, carrying its state over exactly (the recency order becomes stamps 1..ways).
+//    have stamp 0). An ordered or compact cache that meets a line whose tag does not fit converts
+//    itself, once, to this engine, carrying its state over exactly (the recency order becomes stamps
+//    1..ways).
+// A power-of-two number of L2 channels only renumbers the sets (the channel and the set within it
+// are fixed bit fields of the line number), so such a cache indexes its sets by the low line bits.
 // Nothing allocates after construction except that one conversion.
 #pragma once
 
@@ -86,6 +94,18 @@ struct Outcome {
   uint32_t written_back_sectors = 0;
 };
 
+namespace detail {
+struct alignas(64) ShiftMasks {
+  uint32_t row[16][16];
+};
+constexpr ShiftMasks make_shift_masks() {
+  ShiftMasks t{};
+  for (uint32_t p = 0; p < 16; ++p)
+    for (uint32_t lane = 1; lane <= p; ++lane) t.row[p][lane] = ~0u;
+  return t;
+}
+}  // namespace detail
+
 class Cache {
  public:
   // The configuration must pass check_config.
@@ -99,8 +119,13 @@ class Cache {
   uint32_t line_shift() const { return line_shift_; }
   uint32_t sector_shift() const { return sector_shift_; }
   uint32_t full_mask() const { return full_mask_; }
-  // Whether the compact engine is in use (for tests and benchmarks; results do not depend on it).
-  bool compact() const { return compact_; }
+  enum class Engine : uint8_t { ordered, compact, general };
+  // The engine in use (for tests and benchmarks; results do not depend on it).
+  Engine engine() const { return engine_; }
+  // Whether a 32-bit-tag engine (ordered or compact) is in use.
+  bool compact() const { return engine_ != Engine::general; }
+  bool sectored() const { return sectored_; }
+  uint32_t stride() const { return stride_; }  // ordered and compact engines: ways padded to 4, 8 or 16
 
   // `sectors` is always a non-empty subset of full_mask() (1 without sectors).
   // Load: allocate on miss, fetch the missing requested sectors (lazy sector fill).
@@ -109,40 +134,42 @@ class Cache {
   [[gnu::always_inline]] Outcome store(uint64_t line, uint32_t sectors) { return access<kStore>(line, sectors); }
   // Read-modify-write (atomics at the L2, write-allocate writes): allocate, fetch missing, mark dirty.
   [[gnu::always_inline]] Outcome update(uint64_t line, uint32_t sectors) { return access<kUpdate>(line, sectors); }
-  // The same as load (kOp 0), store (1) or update (2) of (line, 1), for a caller that has checked
-  // once that the cache is unsectored with compact sets of exactly kStride ways (config().ways ==
-  // stride() == kStride): the set width is a constant of the caller's code, not a branch per access.
-  template <int kOp, uint32_t kStride>
-  [[gnu::always_inline]] Outcome access_unsectored(uint64_t line) {
-    if (compact_) [[likely]] {
-      uint64_t tag;
-      const uint32_t set = locate(line, tag);
-      if (tag < kEmpty32) [[likely]] return compact_access<Op(kOp), false, kStride, kStride>(set, uint32_t(tag), 1);
-    }
-    return slow_access<Op(kOp)>(line, 1);
-  }
-  bool sectored() const { return sectored_; }
-  uint32_t stride() const { return stride_; }  // compact engine: ways padded to 4, 8 or 16
 
+  // For a caller replaying many unsectored requests through caches of one shape (Hierarchy). With
+  // engine() == ordered and config().ways == stride() == kStride checked once, the set width is a
+  // constant of its code. Lines below ordered_line_limit() have tags the ordered engine holds; for
+  // them ordered_access is the same as load (kOp 0), store (1) or update (2) of (line, 1).
+  uint64_t ordered_line_limit() const { return engine_ == Engine::ordered ? ordered_limit_ : 0; }
+  template <int kOp, uint32_t kStride>
+  [[gnu::always_inline]] Outcome ordered_access(uint64_t line) {
+    uint64_t tag;
+    const uint32_t set = locate(line, tag);
+    return ordered_set_access<Op(kOp), kStride>(tag32_.get() + size_t(set) * kStride, uint32_t(tag), kStride - 1, lru_);
+  }
+  // The same without a call per request: the geometry of a cache whose sets are indexed by the low
+  // line bits (plain_index()), read once, and its entries, which stay put until the cache leaves the
+  // ordered engine (ordered_line_limit() becomes 0). ordered_access(geometry, entries, line) on a
+  // line below ordered_line_limit() is ordered_access(line). kLru: the caller checked that g.lru is
+  // set; kClean: the caller only ever loads through this cache (nothing in it is dirty).
+  struct OrderedGeometry {
+    uint64_t set_mask;
+    uint32_t set_bits;
+    bool lru;
+  };
+  bool plain_index() const { return plain_index_; }
+  OrderedGeometry ordered_geometry() const { return {set_mask_, set_bits_, lru_}; }
+  uint32_t* ordered_entries() { return engine_ == Engine::ordered ? tag32_.get() : nullptr; }
+  template <int kOp, uint32_t kStride, bool kLru = false, bool kClean = false>
+  [[gnu::always_inline]] static Outcome ordered_access(const OrderedGeometry& g, uint32_t* entries, uint64_t line) {
+    return ordered_set_access<Op(kOp), kStride, kLru, kClean>(entries + size_t(line & g.set_mask) * kStride,
+                                                             uint32_t(line >> g.set_bits), kStride - 1, g.lru);
+  }
   // Presence of the sectors without any state change (write-through store probing an L1).
   bool contains(uint64_t line, uint32_t sectors) const;
 
   uint32_t set_index(uint64_t line) const {
     uint64_t tag;
     return locate(line, tag);
-  }
-
-  // Hints the host CPU to fetch the line's set: replaying a known stream, the sets of upcoming
-  // requests load in parallel instead of one host cache miss after another.
-  void prefetch(uint64_t line) const {
-    const size_t set = set_index(line);
-    if (compact_) {
-      __builtin_prefetch(tag32_.get() + set * stride_);
-      __builtin_prefetch(state_.get() + set);
-    } else {
-      __builtin_prefetch(tags_.data() + set * ways_per_set_);
-      __builtin_prefetch(stamp_.data() + set * ways_per_set_);
-    }
   }
 
   // Counts and clears dirty sectors (end-of-frame write-back).
@@ -152,19 +179,13 @@ class Cache {
 
  private:
   static constexpr uint64_t kEmpty = ~uint64_t(0);
-  static constexpr uint32_t kEmpty32 = ~0u;
+  static constexpr uint32_t kEmpty32 = ~0u;          // compact engine: an empty or padding way
+  static constexpr uint32_t kEmptyEntry = 0x7FFFFFFFu;  // ordered engine: an empty or padding entry
+  static constexpr uint32_t kDirtyBit = 0x80000000u;    // ordered engine: the entry's line is dirty
   enum Op { kLoad, kStore, kUpdate };
   struct Meta {
     uint32_t valid;  // sector masks
     uint32_t dirty;
-  };
-  // Compact engine, per set: recency permutation (4 bits per position, position 0 most recent;
-  // positions past the last way hold 0xF, which no searched way number equals) and dirty bits per
-  // way (unsectored caches only; sectored ones keep Meta per way).
-  struct alignas(16) SetState {
-    uint64_t order;
-    uint32_t dirty;
-    uint32_t unused;
   };
   struct AlignedFree {
     void operator()(void* p) const { ::operator delete[](p, std::align_val_t(64)); }
@@ -179,24 +200,82 @@ class Cache {
   // Set of a line and the line's tag within that set (the line number without the set-index bits;
   // (set, tag) determines the line).
   [[gnu::always_inline]] uint32_t locate(uint64_t line, uint64_t& tag) const {
-    if (channels_ == 1) {
+    if (plain_index_) [[likely]] {
       tag = line >> set_bits_;
       return uint32_t(line & set_mask_);
     }
     const uint64_t chunk = line >> interleave_shift_;
     const uint64_t within = line & interleave_mask_;
-    uint64_t channel, rest;
-    if (channel_pow2_) {
-      channel = chunk & (channels_ - 1);
-      rest = chunk >> channel_shift_;
-    } else {
-      channel = chunk % channels_;
-      rest = chunk / channels_;
-    }
+    const uint64_t channel = chunk % channels_;
+    const uint64_t rest = chunk / channels_;
     tag = rest >> (set_bits_ - interleave_shift_);
     return uint32_t((channel << set_bits_) | (((rest << interleave_shift_) | within) & set_mask_));
   }
   uint64_t line_of(uint32_t set, uint64_t tag) const;  // inverse of locate
+
+  // Rows p = 0..15: lanes 1..p all ones (the entries a move of position p to the front shifts).
+  static constexpr detail::ShiftMasks kShiftMask = detail::make_shift_masks();
+
+  // The ordered engine on one set's entries `e`: `tag` below kEmptyEntry, `last` the last way
+  // (ways - 1); kLru: lru is known to be set; kClean: no entry is dirty and op is a load. Without
+  // branches on the outcome under LRU.
+  template <Op op, uint32_t kStride, bool kLru = false, bool kClean = false>
+  [[gnu::always_inline]] static Outcome ordered_set_access(uint32_t* e, uint32_t tag, uint32_t last, bool lru) {
+    static_assert(!kClean || op == kLoad);
+#if defined(__SSE2__)
+    constexpr uint32_t kVec = kStride / 4;
+    const __m128i key = _mm_set1_epi32(int(tag));
+    const __m128i tag_bits = _mm_set1_epi32(int(~kDirtyBit));
+    __m128i x[kVec], eq[kVec];
+    for (uint32_t v = 0; v < kVec; ++v) {
+      x[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(e) + v);
+      eq[v] = _mm_cmpeq_epi32(kClean ? x[v] : _mm_and_si128(x[v], tag_bits), key);
+    }
+    // One bit per entry: the comparison masks (all ones or zeros) narrowed by saturating packs.
+    uint32_t match;
+    if constexpr (kVec == 1) {
+      match = uint32_t(_mm_movemask_ps(_mm_castsi128_ps(eq[0])));
+    } else if constexpr (kVec == 2) {
+      match = uint32_t(_mm_movemask_epi8(_mm_packs_epi16(_mm_packs_epi32(eq[0], eq[1]), _mm_setzero_si128())));
+    } else {
+      match = uint32_t(_mm_movemask_epi8(_mm_packs_epi16(_mm_packs_epi32(eq[0], eq[1]), _mm_packs_epi32(eq[2], eq[3]))));
+    }
+#else
+    uint32_t match = 0;
+    for (uint32_t i = 0; i < kStride; ++i) match |= uint32_t((e[i] & ~kDirtyBit) == tag) << i;
+#endif
+    const uint32_t miss = match == 0;
+    const uint32_t p = uint32_t(std::countr_zero(match | (1u << last)));  // the hit, or the victim
+    const uint32_t old = kClean ? 0u : e[p];
+    Outcome o;
+    o.missing = miss;
+    o.line_hit = !miss;
+    o.written_back_sectors = miss & (old >> 31);  // an empty entry is never dirty
+    if (!kLru && !lru) [[unlikely]] {
+      if (!miss) {  // FIFO: a hit keeps the order; a store or update only dirties the line
+        if constexpr (op != kLoad) e[p] = old | kDirtyBit;
+        return o;
+      }
+    }
+    const uint32_t dirty = op == kLoad ? (old >> 31) & (miss ^ 1u) : 1u;
+    const uint32_t front = tag | (dirty << 31);
+#if defined(__SSE2__)
+    // Entries 1..p take their predecessor's value: x shifted by one entry across the vectors.
+    const uint32_t* mask = kShiftMask.row[p];
+    for (uint32_t v = kVec; v-- > 0;) {
+      __m128i shifted = _mm_slli_si128(x[v], 4);
+      if (v > 0) shifted = _mm_or_si128(shifted, _mm_srli_si128(x[v - 1], 12));
+      const __m128i m = _mm_load_si128(reinterpret_cast<const __m128i*>(mask) + v);
+      x[v] = _mm_or_si128(_mm_and_si128(m, shifted), _mm_andnot_si128(m, x[v]));
+    }
+    x[0] = _mm_castps_si128(_mm_move_ss(_mm_castsi128_ps(x[0]), _mm_castsi128_ps(_mm_cvtsi32_si128(int(front)))));
+    for (uint32_t v = 0; v < kVec; ++v) _mm_store_si128(reinterpret_cast<__m128i*>(e) + v, x[v]);
+#else
+    for (uint32_t i = p; i > 0; --i) e[i] = e[i - 1];
+    e[0] = front;
+#endif
+    return o;
+  }
 
   // Position (0 = most recent) of way w in a recency permutation.
   [[gnu::always_inline]] static uint32_t position_of(uint64_t order, uint32_t w) {
@@ -211,34 +290,32 @@ class Cache {
     return (order & ~upto) | ((order & below) << 4) | w;
   }
 
-  // The hot path (compact, unsectored) is small enough to inline into the caller; sectored sets,
-  // the general engine and the conversion to it stay out of line.
+  // The ordered engine is small enough to inline into the caller; the compact (sectored) and general
+  // engines and the conversion to the latter stay out of line.
   template <Op op>
   [[gnu::always_inline]] Outcome access(uint64_t line, uint32_t sectors) {
-    if (compact_) {
+    if (engine_ == Engine::ordered && line < ordered_limit_) [[likely]] {
       uint64_t tag;
-      const uint32_t set = locate(line, tag);
-      if (tag < kEmpty32) [[likely]] {
-        const uint32_t t = uint32_t(tag);
-        if (!sectored_) [[likely]] {
-          if (stride_ == 4) return compact_access<op, false, 4>(set, t, sectors);
-          if (stride_ == 8) return compact_access<op, false, 8>(set, t, sectors);
-          return compact_access<op, false, 16>(set, t, sectors);
-        }
-        return sectored_access<op>(set, t, sectors);
-      }
+      uint32_t* e = tag32_.get() + size_t(locate(line, tag)) * stride_;
+      const uint32_t last = ways_per_set_ - 1;
+      if (stride_ == 4) return ordered_set_access<op, 4>(e, uint32_t(tag), last, lru_);
+      if (stride_ == 8) return ordered_set_access<op, 8>(e, uint32_t(tag), last, lru_);
+      return ordered_set_access<op, 16>(e, uint32_t(tag), last, lru_);
     }
     return slow_access<op>(line, sectors);
   }
   template <Op op>
-  [[gnu::noinline]] Outcome sectored_access(uint32_t set, uint32_t t, uint32_t sectors) {
-    if (stride_ == 4) return compact_access<op, true, 4>(set, t, sectors);
-    if (stride_ == 8) return compact_access<op, true, 8>(set, t, sectors);
-    return compact_access<op, true, 16>(set, t, sectors);
-  }
-  template <Op op>
   [[gnu::noinline]] Outcome slow_access(uint64_t line, uint32_t sectors) {
-    if (compact_) to_general();  // only reached with a tag that does not fit 32 bits
+    if (engine_ == Engine::compact) {
+      uint64_t tag;
+      const uint32_t set = locate(line, tag);
+      if (tag < kEmpty32) {
+        if (stride_ == 4) return compact_access<op, 4>(set, uint32_t(tag), sectors);
+        if (stride_ == 8) return compact_access<op, 8>(set, uint32_t(tag), sectors);
+        return compact_access<op, 16>(set, uint32_t(tag), sectors);
+      }
+    }
+    if (engine_ != Engine::general) to_general();  // only reached with a tag that does not fit
     return general_access<op>(line, sectors);
   }
 
@@ -264,43 +341,30 @@ class Cache {
     return stride_ == 4 ? match_ways<4>(tags, tag) : stride_ == 8 ? match_ways<8>(tags, tag) : match_ways<16>(tags, tag);
   }
 
-  // kWays: the number of ways when the caller knows it (then == kStride), else 0: read at run time.
-  template <Op op, bool sectored, uint32_t kStride, uint32_t kWays = 0>
-  [[gnu::always_inline]] Outcome compact_access(uint32_t set, uint32_t tag, uint32_t sectors) {
+  // The compact engine (sectored caches).
+  template <Op op, uint32_t kStride>
+  Outcome compact_access(uint32_t set, uint32_t tag, uint32_t sectors) {
     uint32_t* tags = tag32_.get() + size_t(set) * kStride;
-    SetState& st = state_[set];
+    uint64_t& order = order_[set];
     const uint32_t match = match_ways<kStride>(tags, tag);
     Outcome o;
     if (match) {
       const uint32_t w = uint32_t(std::countr_zero(match));
       o.line_hit = true;
-      if constexpr (sectored) {
-        Meta& m = meta_[size_t(set) * kStride + w];
-        o.missing = sectors & ~m.valid;
-        m.valid |= sectors;
-        if constexpr (op != kLoad) m.dirty |= sectors;
-      } else {
-        // Without sectors a present line is wholly valid.
-        if constexpr (op != kLoad) st.dirty |= 1u << w;
-      }
-      if (lru_) st.order = move_to_front(st.order, position_of(st.order, w), w);
+      Meta& m = meta_[size_t(set) * kStride + w];
+      o.missing = sectors & ~m.valid;
+      m.valid |= sectors;
+      if constexpr (op != kLoad) m.dirty |= sectors;
+      if (lru_) order = move_to_front(order, position_of(order, w), w);
       return o;
     }
     o.missing = sectors;
-    const uint32_t last = (kWays ? kWays : ways_per_set_) - 1;
-    const uint32_t v = uint32_t(st.order >> (4 * last)) & 0xF;
-    st.order = move_to_front(st.order, last, v);
-    if constexpr (sectored) {
-      Meta& m = meta_[size_t(set) * kStride + v];
-      if (tags[v] != kEmpty32) o.written_back_sectors = count_bits(m.dirty);
-      m = Meta{sectors, op == kLoad ? 0u : sectors};
-    } else {
-      o.written_back_sectors = (st.dirty >> v) & 1u;  // an empty way is never dirty
-      if constexpr (op == kLoad)
-        st.dirty &= ~(1u << v);
-      else
-        st.dirty |= 1u << v;
-    }
+    const uint32_t last = ways_per_set_ - 1;
+    const uint32_t v = uint32_t(order >> (4 * last)) & 0xF;
+    order = move_to_front(order, last, v);
+    Meta& m = meta_[size_t(set) * kStride + v];
+    if (tags[v] != kEmpty32) o.written_back_sectors = count_bits(m.dirty);
+    m = Meta{sectors, op == kLoad ? 0u : sectors};
     tags[v] = tag;
     return o;
   }
@@ -359,20 +423,20 @@ class Cache {
     return ++clock_;
   }
   void renumber_stamps();
-  void init_compact();
+  void init_small();  // the ordered or compact engine's empty state
   void init_general();
-  void to_general();  // converts the compact state, exactly
+  void to_general();  // converts the ordered or compact state, exactly
 
   CacheConfig config_;
-  bool compact_ = false, sectored_ = false, lru_ = true;
+  Engine engine_ = Engine::general;
+  bool sectored_ = false, lru_ = true;
   uint32_t ways_per_set_ = 1;
   uint32_t stride_ = 4;  // compact: ways padded to 4, 8 or 16
   uint32_t sets_ = 1;
   uint64_t set_mask_ = 0;  // of the sets within one channel
   uint32_t set_bits_ = 0;  // log2(sets per channel)
   uint32_t channels_ = 1;
-  bool channel_pow2_ = true;
-  uint32_t channel_shift_ = 0;
+  bool plain_index_ = true;  // one channel or a power of two: the set is the low line bits
   uint32_t interleave_shift_ = 0;  // log2(interleave in lines)
   uint64_t interleave_mask_ = 0;
   uint64_t sets_per_channel_ = 1;
@@ -380,10 +444,12 @@ class Cache {
   Replacement replacement_ = Replacement::lru;
   uint64_t rng_ = 1;
 
+  // Ordered and compact engines.
+  Aligned<uint32_t> tag32_;    // sets_ * stride_ entries (ordered) or partial tags (compact)
+  uint64_t ordered_limit_ = 0;  // ordered: the first line whose tag does not fit below kEmptyEntry
   // Compact engine.
-  Aligned<uint32_t> tag32_;    // sets_ * stride_ partial tags, kEmpty32 when invalid or padding
-  Aligned<SetState> state_;    // sets_
-  std::vector<Meta> meta_;     // sectored only: sets_ * stride_
+  Aligned<uint64_t> order_;    // sets_ recency permutations
+  std::vector<Meta> meta_;     // sets_ * stride_
 
   // General engine.
   std::vector<uint64_t> tags_;   // line number (address >> line_shift); kEmpty when invalid

@@ -1,5 +1,6 @@
 #include "cachesim/hierarchy.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace hp::cachesim {
@@ -34,13 +35,136 @@ Hierarchy::Hierarchy(const CacheConfig& l1, uint32_t compute_units, const CacheC
     c.seed = l1.seed + cu;  // random replacement: independent but reproducible streams per CU
     l1_.emplace_back(c);
   }
-  // Set width codes for issue(): 0 other (general engine, sectored, ways not 4/8/16), 1/2/3 compact
-  // sets of exactly 4/8/16 ways.
+  // Set width codes for issue(): 0 other (general or compact engine, ways not 4/8/16, sets not
+  // indexed by the low line bits), 1/2/3 ordered sets of exactly 4/8/16 ways.
   auto code = [](const Cache& c) -> uint32_t {
-    if (!c.compact() || c.sectored() || c.config().ways != c.stride()) return 0;
+    if (c.engine() != Cache::Engine::ordered || c.config().ways != c.stride() || !c.plain_index()) return 0;
     return c.stride() == 4 ? 1 : c.stride() == 8 ? 2 : 3;
   };
   widths_ = (l1_.empty() ? 0 : code(l1_[0])) * 4 + code(l2_);
+  pending_.resize(kChunk);
+  refresh_fast_limit();
+}
+
+void Hierarchy::refresh_fast_limit() {
+  fast_limit_ = l2_.ordered_line_limit();
+  l1_entries_.clear();
+  for (Cache& c : l1_) {
+    fast_limit_ = std::min(fast_limit_, c.ordered_line_limit());
+    l1_entries_.push_back(c.ordered_entries());
+  }
+  if (!l1_.empty()) l1_geometry_ = l1_[0].ordered_geometry();
+  l2_geometry_ = l2_.ordered_geometry();
+  l2_entries_ = l2_.ordered_entries();
+}
+
+void Hierarchy::issue(std::span<const Request> rs, std::span<const uint32_t> cus, IssueResult* out) {
+  if (!sectored_) {
+    switch (widths_) {
+      case 1 * 4 + 3: return issue_batch<4, 16>(rs, cus, out);  // vega56-like: 4-way L1, 16-way L2
+      case 1 * 4 + 2: return issue_batch<4, 8>(rs, cus, out);
+      case 1 * 4 + 1: return issue_batch<4, 4>(rs, cus, out);
+      case 2 * 4 + 3: return issue_batch<8, 16>(rs, cus, out);
+      case 2 * 4 + 2: return issue_batch<8, 8>(rs, cus, out);
+      case 3 * 4 + 3: return issue_batch<16, 16>(rs, cus, out);
+      default: break;
+    }
+  }
+  for (size_t i = 0; i < rs.size(); ++i) {
+    const IssueResult res = issue(cus[i], rs[i]);
+    if (out) out[i] = res;
+  }
+}
+
+template <uint32_t S1, uint32_t S2>
+void Hierarchy::issue_batch(std::span<const Request> rs, std::span<const uint32_t> cus, IssueResult* out) {
+  for (size_t begin = 0; begin < rs.size(); begin += kChunk) {
+    const size_t n = std::min(kChunk, rs.size() - begin);
+    const Request* r = rs.data() + begin;
+    IssueResult* o = out ? out + begin : nullptr;
+    // LRU on both levels (the usual case) is a constant of the code; FIFO reads the flag.
+    const bool lru = l1_geometry_.lru && l2_geometry_.lru;
+    const uint32_t* c = cus.data() + begin;
+    const size_t done = o ? (lru ? issue_chunk<S1, S2, true, true>(r, c, n, o) : issue_chunk<S1, S2, true, false>(r, c, n, o))
+                          : (lru ? issue_chunk<S1, S2, false, true>(r, c, n, nullptr)
+                                 : issue_chunk<S1, S2, false, false>(r, c, n, nullptr));
+    if (done == n) continue;
+    // Request `done` has a line whose tag one of the caches cannot hold in the ordered engine: the
+    // rest of the chunk goes one by one (converting that cache), and the two-round path stays off.
+    for (size_t i = done; i < n; ++i) {
+      const IssueResult res = issue(c[i], r[i]);
+      if (o) o[i] = res;
+    }
+    refresh_fast_limit();
+  }
+}
+
+template <uint32_t S1, uint32_t S2, bool kOut, bool kLru>
+size_t Hierarchy::issue_chunk(const Request* rs, const uint32_t* cus, size_t n, IssueResult* out) {
+  // Round 1: the L1 lookups, in order; every request that goes on to the L2 is queued (written
+  // always, kept by advancing the count only when it goes on: no branch on the outcome). It stops
+  // before a line too wide for the ordered engine; round 2 then completes the requests before it.
+  uint16_t* pending = pending_.data();
+  size_t queued = 0;
+  const bool l1_curves = !l1_mrc_.empty();
+  const Cache::OrderedGeometry g1 = l1_geometry_, g2 = l2_geometry_;
+  uint32_t* const* l1_entries = l1_entries_.data();
+  uint32_t* const l2_entries = l2_entries_;
+  const uint64_t limit = fast_limit_;
+  size_t done = 0;
+  for (; done < n; ++done) {
+    const size_t i = done;
+    const Request& r = rs[i];
+    const uint64_t line = r.line;
+    if (line >= limit) [[unlikely]] break;
+    uint32_t to_l2 = 1;
+    Counts& c = counts_[r.buffer];
+    if (r.kind == AccessKind::load) {
+      ++c.l1_requests;
+      if (l1_curves) feed_l1_mrc(cus[i], line);
+      // Only loads reach an L1 (stores write through it, atomics bypass it): nothing in it is dirty.
+      to_l2 = Cache::ordered_access<0, S1, kLru, true>(g1, l1_entries[cus[i]], line).missing;
+      c.l1_misses += to_l2;
+      if constexpr (kOut) out[i] = IssueResult{to_l2 != 0, false};
+    } else {
+      ++c.l2_direct;
+      if (r.kind == AccessKind::store)
+        ++stats_.stores;
+      else
+        ++stats_.atomics;
+      if constexpr (kOut) out[i] = IssueResult{false, false};
+    }
+    pending[queued] = uint16_t(i);
+    queued += to_l2;
+  }
+  // Round 2: the L2, in the same order as one by one.
+  const bool l2_curve = l2_mrc_ != nullptr;
+  uint64_t written_back = 0;
+  constexpr size_t kAhead = 8;  // host prefetch of the L2 set that many accesses ahead
+  for (size_t k = 0; k < std::min(queued, kAhead); ++k)
+    __builtin_prefetch(l2_entries + size_t(rs[pending[k]].line & g2.set_mask) * S2);
+  for (size_t k = 0; k < queued; ++k) {
+    if (k + kAhead < queued) __builtin_prefetch(l2_entries + size_t(rs[pending[k + kAhead]].line & g2.set_mask) * S2);
+    const uint32_t i = pending[k];
+    const Request& r = rs[i];
+    const uint64_t line = r.line;
+    Counts& c = counts_[r.buffer];
+    if (l2_curve) feed_l2_mrc(line);
+    Outcome o;
+    if (r.kind == AccessKind::load) {
+      o = Cache::ordered_access<0, S2, kLru>(g2, l2_entries, line);
+    } else if (r.kind == AccessKind::store) {
+      o = Cache::ordered_access<1, S2, kLru>(g2, l2_entries, line);
+      c.l2_store_misses += o.missing;
+    } else {
+      o = Cache::ordered_access<2, S2, kLru>(g2, l2_entries, line);
+    }
+    c.l2_misses += o.missing;  // 0 or 1
+    written_back += o.written_back_sectors;
+    if constexpr (kOut) out[i].l2_miss = o.missing != 0;
+  }
+  written_back_ += written_back;
+  return done;
 }
 
 void Hierarchy::enable_mrc(bool l1, bool l2, double sampling_rate) {
@@ -70,6 +194,7 @@ void Hierarchy::begin_pass() {
   for (Cache& c : l1_) c.invalidate();
   stats_ = {};
   buffers_ = {};
+  counts_ = {};
   written_back_ = 0;
   // Curves describe one pass too: restart them with the same settings.
   if (!l1_mrc_.empty() || l2_mrc_) {

@@ -69,17 +69,11 @@ class Hierarchy {
   // Curves of the L1 load stream (each CU's own stack, merged) and of the L2 request stream.
   void enable_mrc(bool l1, bool l2, double sampling_rate = 1.0);
 
-  // Host-side prefetch of the sets a request may touch (see Cache::prefetch); no simulated effect.
-  void prefetch(uint32_t cu, uint64_t line) const {
-    l1_[cu].prefetch(line);
-    l2_.prefetch(line);
-  }
-
   IssueResult issue(uint32_t cu, const Request& r) {
     if (!sectored_) {
       // The set widths of the L1s and the L2 become constants of the code (picked at construction;
-      // a cache that left the compact engine is still handled: access_unsectored checks it).
-      switch (widths_) {  // codes: 0 unknown, 1/2/3 compact sets of 4/8/16 ways
+      // a cache that left the ordered engine is still handled: access1 checks it).
+      switch (widths_) {  // codes: 0 unknown, 1/2/3 ordered sets of 4/8/16 ways
         case 1 * 4 + 3: return issue_unsectored<4, 16>(cu, r);  // vega56-like: 4-way L1, 16-way L2
         case 1 * 4 + 2: return issue_unsectored<4, 8>(cu, r);
         case 1 * 4 + 1: return issue_unsectored<4, 4>(cu, r);
@@ -122,28 +116,15 @@ class Hierarchy {
     return res;
   }
 
-  // The requests of one wave step (one CU), in order: the same as issue() on each, with the set-width
-  // dispatch done once per step instead of once per request. `out` (may be null) receives each
-  // request's IssueResult.
-  void issue(uint32_t cu, std::span<const Request> rs, IssueResult* out) {
-    if (sectored_) {
-      for (size_t i = 0; i < rs.size(); ++i) {
-        const IssueResult res = issue(cu, rs[i]);
-        if (out) out[i] = res;
-      }
-      return;
-    }
-    switch (widths_) {
-      case 1 * 4 + 3: return issue_steps<4, 16>(cu, rs, out);
-      case 1 * 4 + 2: return issue_steps<4, 8>(cu, rs, out);
-      case 1 * 4 + 1: return issue_steps<4, 4>(cu, rs, out);
-      case 2 * 4 + 3: return issue_steps<8, 16>(cu, rs, out);
-      case 2 * 4 + 2: return issue_steps<8, 8>(cu, rs, out);
-      case 3 * 4 + 3: return issue_steps<16, 16>(cu, rs, out);
-      case 0 * 4 + 3: return issue_steps<0, 16>(cu, rs, out);
-      default: return issue_steps<0, 0>(cu, rs, out);
-    }
-  }
+  // A batch of requests, in order, request i issued by compute unit cus[i]: the same as issue() on
+  // each. Unsectored hierarchies whose caches use the ordered engine run it in two rounds per chunk
+  // of requests: every L1 lookup, then the L2 accesses of the requests that missed (and of stores
+  // and atomics). Each L1 and the L2 see their requests in the same order as one by one, and
+  // nothing in one cache depends on another's state, so every count and curve is the same; the
+  // rounds avoid a branch on each L1 outcome (close to a coin toss on ray-tracing traces) and the
+  // host-side cost of switching between wave steps. `out` (may be null) receives each request's
+  // IssueResult.
+  void issue(std::span<const Request> rs, std::span<const uint32_t> cus, IssueResult* out);
 
   // Start of a pass: L1s are invalidated (a barrier between dispatches does that on GPUs); the L2
   // keeps its contents and counters start from zero.
@@ -151,13 +132,13 @@ class Hierarchy {
   // Writes back every dirty L2 sector (counted in dram_write_bytes); end of a frame.
   void flush();
 
-  // Unsectored hierarchies count only per-buffer requests and misses per access; the level totals
-  // are their sums, and the other counters follow from them (a request is one sector: hits = line
-  // hits = sector hits = requests - misses).
+  // Unsectored hierarchies count per buffer only what does not follow from other counts (Counts);
+  // the per-buffer figures and the level totals are derived here (a request is one sector: hits =
+  // line hits = sector hits = requests - misses).
   HierarchyStats stats() const {
     HierarchyStats s = stats_;
     if (!sectored_) {
-      for (const BufferStats& b : buffers_) {
+      for (const BufferStats& b : buffers()) {
         s.l1.requests += b.l1_requests;
         s.l1.misses += b.l1_misses;
         s.l2.requests += b.l2_requests;
@@ -174,7 +155,20 @@ class Hierarchy {
     }
     return s;
   }
-  const std::array<BufferStats, 256>& buffers() const { return buffers_; }
+  std::array<BufferStats, 256> buffers() const {
+    if (sectored_) return buffers_;
+    std::array<BufferStats, 256> out{};
+    for (size_t k = 0; k < out.size(); ++k) {
+      const Counts& c = counts_[k];
+      out[k].l1_requests = c.l1_requests;
+      out[k].l1_misses = c.l1_misses;
+      out[k].l2_requests = c.l1_misses + c.l2_direct;  // L1 load misses, stores, atomics
+      out[k].l2_misses = c.l2_misses;
+      // write-validate: a store miss reads nothing
+      out[k].dram_read_bytes = (c.l2_misses - c.l2_store_misses) * sector_bytes_;
+    }
+    return out;
+  }
   MissRatioCurve l1_curve() const;
   MissRatioCurve l2_curve() const;
   uint32_t compute_units() const { return uint32_t(l1_.size()); }
@@ -184,53 +178,65 @@ class Hierarchy {
  private:
   // The same counts as the general path for one-sector lines, with fewer counters (see stats())
   // and no branch on the L2 outcome, which is close to a coin toss on ray-tracing traces.
-  // S1, S2: the set widths of the L1s and of the L2 (compact engine), 0 when not known.
+  // S1, S2: the set widths of the L1s and of the L2 (ordered engine), 0 when not known.
   template <uint32_t S, int kOp>
   [[gnu::always_inline]] static Outcome access1(Cache& c, uint64_t line) {
-    if constexpr (S != 0) return c.template access_unsectored<kOp, S>(line);
-    else if constexpr (kOp == 0) return c.load(line, 1);
+    if constexpr (S != 0) {
+      if (line < c.ordered_line_limit()) [[likely]] return c.template ordered_access<kOp, S>(line);
+    }
+    if constexpr (kOp == 0) return c.load(line, 1);
     else if constexpr (kOp == 1) return c.store(line, 1);
     else return c.update(line, 1);
   }
   template <uint32_t S1, uint32_t S2>
   [[gnu::always_inline]] IssueResult issue_unsectored(uint32_t cu, const Request& r) {
     IssueResult res;
-    BufferStats& b = buffers_[r.buffer];
+    Counts& c = counts_[r.buffer];
     const AccessKind kind = r.kind;
     const uint64_t line = r.line;
     if (kind == AccessKind::load) {
-      ++b.l1_requests;
+      ++c.l1_requests;
       if (!l1_mrc_.empty()) feed_l1_mrc(cu, line);
       if (access1<S1, 0>(l1_[cu], line).line_hit) return res;
-      ++b.l1_misses;
+      ++c.l1_misses;
       res.l1_miss = true;
-    } else if (kind == AccessKind::store) {
-      ++stats_.stores;
     } else {
-      ++stats_.atomics;
+      ++c.l2_direct;
+      if (kind == AccessKind::store)
+        ++stats_.stores;
+      else
+        ++stats_.atomics;
     }
-    ++b.l2_requests;
     if (l2_mrc_) feed_l2_mrc(line);
-    const Outcome o = kind == AccessKind::load    ? access1<S2, 0>(l2_, line)
-                      : kind == AccessKind::store ? access1<S2, 1>(l2_, line)
-                                                  : access1<S2, 2>(l2_, line);
-    const uint32_t miss = o.missing;  // 0 or 1
-    b.l2_misses += miss;
-    written_back_ += o.written_back_sectors;
-    // write-validate: a store miss reads nothing
-    b.dram_read_bytes += uint64_t(miss & uint32_t(kind != AccessKind::store)) * sector_bytes_;
+    uint32_t miss;  // 0 or 1
+    if (kind == AccessKind::load) {
+      const Outcome o = access1<S2, 0>(l2_, line);
+      miss = o.missing;
+      written_back_ += o.written_back_sectors;
+    } else if (kind == AccessKind::store) {
+      const Outcome o = access1<S2, 1>(l2_, line);
+      miss = o.missing;
+      written_back_ += o.written_back_sectors;
+      c.l2_store_misses += miss;
+    } else {
+      const Outcome o = access1<S2, 2>(l2_, line);
+      miss = o.missing;
+      written_back_ += o.written_back_sectors;
+    }
+    c.l2_misses += miss;
     res.l2_miss = miss;
     return res;
   }
 
   template <uint32_t S1, uint32_t S2>
-  void issue_steps(uint32_t cu, std::span<const Request> rs, IssueResult* out) {
-    if (out) {
-      for (size_t i = 0; i < rs.size(); ++i) out[i] = issue_unsectored<S1, S2>(cu, rs[i]);
-    } else {
-      for (const Request& r : rs) issue_unsectored<S1, S2>(cu, r);
-    }
-  }
+  void issue_batch(std::span<const Request> rs, std::span<const uint32_t> cus, IssueResult* out);
+  // Issues rs[0, k) in two rounds and returns k: n, or the first request whose line is not below
+  // fast_limit_.
+  template <uint32_t S1, uint32_t S2, bool kOut, bool kLru>
+  size_t issue_chunk(const Request* rs, const uint32_t* cus, size_t n, IssueResult* out);
+  // fast_limit_: the lowest ordered_line_limit() of all caches (0 once one has left the ordered
+  // engine); and the geometry and entries the two-round path uses.
+  void refresh_fast_limit();
 
   // Curve accesses are queued and handed to StackDistance in batches, which fetches the host memory
   // of queued lines ahead; the order of each stream is kept, so the curves are the same. The queues
@@ -293,7 +299,21 @@ class Hierarchy {
   HierarchyStats stats_;
   uint64_t written_back_ = 0;  // unsectored: dirty lines written back by evictions (see stats())
   uint32_t widths_ = 0;        // unsectored: 4 * code(L1 set width) + code(L2 set width), see issue()
-  std::array<BufferStats, 256> buffers_{};
+  uint64_t fast_limit_ = 0;    // batches whose lines are all below this take the two-round path
+  // The two-round path: the caches' ordered geometry and entries (see refresh_fast_limit), and the
+  // indices (in their chunk) of the requests that go on to the L2.
+  Cache::OrderedGeometry l1_geometry_{}, l2_geometry_{};
+  std::vector<uint32_t*> l1_entries_;
+  uint32_t* l2_entries_ = nullptr;
+  static constexpr size_t kChunk = 1024;
+  std::vector<uint16_t> pending_;
+  std::array<BufferStats, 256> buffers_{};  // sectored hierarchies
+  // Unsectored hierarchies, per buffer: L2 requests are L1 misses + l2_direct (stores, atomics);
+  // DRAM reads are the L2 misses that are not store misses, a sector each.
+  struct Counts {
+    uint64_t l1_requests = 0, l1_misses = 0, l2_direct = 0, l2_misses = 0, l2_store_misses = 0;
+  };
+  std::array<Counts, 256> counts_{};
   std::vector<std::unique_ptr<StackDistance>> l1_mrc_;
   std::unique_ptr<StackDistance> l2_mrc_;
   mutable std::vector<std::vector<uint64_t>> l1_mrc_queue_;

@@ -230,6 +230,11 @@ struct Simulator::PassState {
   bool refilling = true;  // the replay stopped inside a refill (or has not started)
   bool done = false;
   Coalescer co;
+  // Coalesced requests not yet issued to the hierarchy, their compute units, and (per-invocation
+  // counts) which invocation's lane each served; outcomes of the batch when it is issued.
+  std::vector<Request> batch;
+  std::vector<uint32_t> batch_cu;
+  std::vector<std::pair<uint32_t, uint32_t>> batch_lanes;
   std::vector<IssueResult> outcome;
   GroupScratch scratch;
 
@@ -331,9 +336,35 @@ PassResult Simulator::end_pass() {
 
 namespace {
 constexpr uint32_t kPrefetchAhead = 4;
+constexpr size_t kIssueBatch = 4096;  // requests queued before the hierarchy takes them
 }  // namespace
 
 void Simulator::advance() {
+  schedule();
+  issue_batch();
+}
+
+void Simulator::issue_batch() {
+  PassState& ps = *pass_;
+  if (ps.batch.empty()) return;
+  const bool per_inv = options_.per_invocation;
+  if (per_inv && ps.outcome.size() < ps.batch.size()) ps.outcome.resize(ps.batch.size());
+  hierarchy_.issue(std::span<const Request>(ps.batch), std::span<const uint32_t>(ps.batch_cu),
+                   per_inv ? ps.outcome.data() : nullptr);
+  if (per_inv) {
+    PassResult& res = ps.res;
+    const IssueResult* o = ps.outcome.data();
+    for (const auto& [inv, r] : ps.batch_lanes) {
+      res.l1_misses[inv] += o[r].l1_miss;
+      res.l2_misses[inv] += o[r].l2_miss;
+    }
+  }
+  ps.batch.clear();
+  ps.batch_cu.clear();
+  ps.batch_lanes.clear();
+}
+
+void Simulator::schedule() {
   PassState& ps = *pass_;
   if (ps.done) return;
   PassResult& res = ps.res;
@@ -416,20 +447,16 @@ void Simulator::advance() {
       co.begin();
       for (uint32_t k = e0; k < e1; ++k) co.add(ga.address[k], ga.info[k], uint32_t(lane_base + ga.lane[k]), per_inv);
       ++res.wave_steps;
-      for (const Request& r : co.requests) hierarchy_.prefetch(i, r.line);
       if (options_.observer)
         for (const Request& r : co.requests) options_.observer(i, r);
-      if (per_inv) {
-        if (ps.outcome.size() < co.requests.size()) ps.outcome.resize(co.requests.size());
-        IssueResult* o = ps.outcome.data();
-        hierarchy_.issue(i, std::span<const Request>(co.requests), o);
-        for (const auto& [inv, r] : co.lane_request) {
-          res.l1_misses[inv] += o[r].l1_miss;
-          res.l2_misses[inv] += o[r].l2_miss;
-        }
-      } else {
-        hierarchy_.issue(i, std::span<const Request>(co.requests), nullptr);
-      }
+      // Queued for the hierarchy, which takes them in batches (the same results: nothing the
+      // scheduler does depends on them).
+      const uint32_t base = uint32_t(ps.batch.size());
+      ps.batch.insert(ps.batch.end(), co.requests.begin(), co.requests.end());
+      ps.batch_cu.insert(ps.batch_cu.end(), co.requests.size(), i);
+      if (per_inv)
+        for (const auto& [inv, r] : co.lane_request) ps.batch_lanes.emplace_back(inv, base + r);
+      if (ps.batch.size() >= kIssueBatch) issue_batch();
       if (++w.next_step == w.end_step) {
         const uint64_t g = w.workgroup;
         c.waves.erase(c.waves.begin() + int64_t(c.next));  // next now points at the following wave

@@ -82,7 +82,11 @@ class Simulator {
 
  private:
   struct PassState;
+  // Schedules as far as the fed workgroups allow, then issues the queued requests.
   void advance();
+  void schedule();
+  // Issues the queued requests to the hierarchy and adds their misses to per-invocation counts.
+  void issue_batch();
   Preset preset_;
   const trace::BufferInfo* buffers_[256] = {};
   std::vector<trace::BufferInfo> buffer_storage_;

@@ -8,8 +8,8 @@
 // Benchmarks:
 //   Hierarchy/*      the coalesced request stream of vega56 replayed through 56 L1s + the L2
 //                    (items = requests; lane_accesses = the same work counted in lane accesses),
-//                    one request per call (/0) or one CU's run of requests per call (/1), as
-//                    Simulator::run_pass issues a wave step.
+//                    one request per call (/0) or in batches of 4096 requests of any CUs (/1), as
+//                    Simulator::run_pass issues them.
 //   L1Only/*         the same requests' L1 lookups alone: through the 56 L1s (/0), or all through one
 //                    16 KiB L1 whose whole state stays in the host's L1 cache (/1): what one lookup
 //                    costs without host cache misses.
@@ -45,14 +45,10 @@ struct Fixture {
   Preset preset;
   std::vector<std::pair<uint32_t, Request>> requests;  // coalesced, in issue order
   std::vector<uint64_t> l2_lines;                       // the L2's request stream
-  // The same requests as runs of one CU (a wave step, or consecutive steps of one CU), the way
-  // Simulator::run_pass hands them to Hierarchy::issue(cu, span, out).
+  // The same requests and their CUs as two arrays, the way Simulator::run_pass hands them to
+  // Hierarchy::issue(span, cus, out).
   std::vector<Request> flat;
-  struct Run {
-    uint32_t cu;
-    uint32_t begin, end;
-  };
-  std::vector<Run> runs;
+  std::vector<uint32_t> flat_cu;
   Fixture() {
     if (const char* path = std::getenv("HP_BENCH_TRACE")) {
       // A captured trace (hybridprof trace --out FILE): its pass HP_BENCH_PASS, default the first.
@@ -83,9 +79,8 @@ struct Fixture {
     Simulator sim(preset, trace.header, so);
     sim.run_pass(trace.passes[0], trace.records[0]);
     for (const auto& [cu, r] : requests) {
-      if (runs.empty() || runs.back().cu != cu) runs.push_back({cu, uint32_t(flat.size()), uint32_t(flat.size())});
       flat.push_back(r);
-      ++runs.back().end;
+      flat_cu.push_back(cu);
     }
     // The L2 stream: what misses the L1s (plus stores, atomics), recomputed with plain caches.
     std::vector<Cache> l1(preset.compute_units, Cache(preset.l1));
@@ -99,13 +94,19 @@ const Fixture& fixture() {
   return f;
 }
 
+constexpr size_t kBatch = 4096;  // Simulator's batch
+
 void Hierarchy_L1L2(benchmark::State& state) {
   const Fixture& f = fixture();
   for (auto _ : state) {
     Hierarchy h(f.preset.l1, f.preset.compute_units, f.preset.l2);
     if (state.range(0)) {
-      for (const Fixture::Run& run : f.runs)
-        h.issue(run.cu, std::span<const Request>(f.flat.data() + run.begin, run.end - run.begin), nullptr);
+      const std::span<const Request> all(f.flat);
+      const std::span<const uint32_t> cus(f.flat_cu);
+      for (size_t b = 0; b < all.size(); b += kBatch) {
+        const size_t n = std::min(kBatch, all.size() - b);
+        h.issue(all.subspan(b, n), cus.subspan(b, n), nullptr);
+      }
     } else {
       for (const auto& [cu, r] : f.requests) h.issue(cu, r);
     }
@@ -115,7 +116,7 @@ void Hierarchy_L1L2(benchmark::State& state) {
   // The same work counted in the lane accesses the coalescer turned into these requests.
   state.counters["lane_accesses"] =
       benchmark::Counter(double(f.trace.records[0].size()), benchmark::Counter::kIsIterationInvariantRate);
-  state.SetLabel(state.range(0) ? "per step, as the simulator issues" : "one by one");
+  state.SetLabel(state.range(0) ? "batched, as the simulator issues" : "one by one");
 }
 BENCHMARK(Hierarchy_L1L2)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 

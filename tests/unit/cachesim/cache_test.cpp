@@ -89,8 +89,9 @@ TEST(Cache, MatchesReferenceOnAdversarialTraces) {
   compare(f, s);
 }
 
-// The compact engine (32-bit partial tags, recency permutation) serves LRU/FIFO caches of up to 16
-// ways; every associativity it pads (to 4, 8 or 16 ways) must behave exactly like the reference.
+// The ordered engine (unsectored: recency-ordered 32-bit entries with a dirty bit) and the compact one
+// (sectored: partial tags and a recency permutation) serve LRU/FIFO caches of up to 16 ways; every
+// associativity they pad (to 4, 8 or 16 ways) must behave exactly like the reference.
 TEST(Cache, CompactEngineMatchesReferenceAtEveryAssociativity) {
   uint64_t seed = 100;
   for (uint32_t ways = 1; ways <= 16; ++ways) {
@@ -99,7 +100,7 @@ TEST(Cache, CompactEngineMatchesReferenceAtEveryAssociativity) {
         const CacheConfig c = make(uint64_t(64) * ways * 8, 64, sector, ways, r);  // 8 sets
         SCOPED_TRACE(describe(c));
         Cache probe(c);
-        ASSERT_TRUE(probe.compact());
+        ASSERT_EQ(probe.engine(), sector == 64 ? Cache::Engine::ordered : Cache::Engine::compact);
         compare(c, random_stream(seed++, 6000, c.lines() * 4, probe.full_mask(), true));
       }
     }
@@ -133,6 +134,32 @@ TEST(Cache, WideTagConvertsCompactStateExactly) {
     EXPECT_TRUE(x.compact());
     x.load(uint64_t(1) << 62, 1);
     EXPECT_FALSE(x.compact());
+  }
+}
+
+// The ordered engine keeps a dirty bit in bit 31 of each entry, so it holds tags below 2^31 - 1 only:
+// the first line with a wider tag (2^31 - 1 itself, not only 2^32 and up) converts it, exactly, and
+// the line just below stays in it.
+TEST(Cache, OrderedEngineTagLimitIsExact) {
+  for (const CacheConfig& c : {make(4 << 20, 64, 64, 16, Replacement::lru, 16), make(16 << 10, 64, 64, 4),
+                               make(48 << 10, 64, 64, 4, Replacement::fifo, 3, 256)}) {
+    SCOPED_TRACE(describe(c));
+    Cache probe(c);
+    ASSERT_EQ(probe.engine(), Cache::Engine::ordered);
+    const uint64_t limit = probe.ordered_line_limit();
+    // The limit is the first line whose tag reaches 2^31 - 1 (locate's tag grows with the line).
+    uint64_t below = limit - 1;
+    Cache x(c);
+    x.store(below, 1);  // dirty, so the conversion must carry the dirty bit
+    EXPECT_EQ(x.engine(), Cache::Engine::ordered);
+    x.load(limit, 1);
+    EXPECT_EQ(x.engine(), Cache::Engine::general);
+    EXPECT_FALSE(x.load(below, 1).missing);
+    EXPECT_EQ(x.flush_dirty_sectors(), 1u);
+    auto s = random_stream(500, 20000, c.lines() * 3, probe.full_mask(), true);
+    s.insert(s.begin() + 5000, {below, 1u, 1});
+    s.insert(s.begin() + 12000, {limit, 1u, 0});
+    compare(c, s);
   }
 }
 
