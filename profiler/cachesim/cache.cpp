@@ -76,25 +76,31 @@ Cache::Cache(const CacheConfig& config) : config_(config) {
   lru_ = replacement_ == Replacement::lru;
   rng_ = config.seed ? config.seed : 0x9E3779B97F4A7C15ull;  // xorshift must not start at 0
   if (replacement_ != Replacement::random && ways_per_set_ <= 16) {
-    engine_ = sectored_ ? Engine::compact : Engine::ordered;
     stride_ = ways_per_set_ <= 4 ? 4 : ways_per_set_ <= 8 ? 8 : 16;
-    tag32_ = aligned_array<uint32_t>(size_t(sets_) * stride_);
-    if (engine_ == Engine::compact) {
+    if (sectored_) {
+      engine_ = Engine::compact;
+      tag32_ = aligned_array<uint32_t>(size_t(sets_) * stride_);
       order_ = aligned_array<uint64_t>(sets_);
       meta_.assign(size_t(sets_) * stride_, Meta{0, 0});
-    }
-    // The first line whose tag reaches kEmptyEntry (locate's tag is monotonic in the line), saturated.
-    unsigned __int128 limit = static_cast<unsigned __int128>(kEmptyEntry);
-    if (plain_index_) {
-      limit <<= set_bits_;
     } else {
-      limit = ((limit << (set_bits_ - interleave_shift_)) * channels_) << interleave_shift_;
+      engine_ = Engine::ordered16;
+      tag16_ = aligned_array<uint16_t>(size_t(sets_) * stride_);
+      ordered16_limit_ = first_line_with_tag(kTagBits<uint16_t>);
+      ordered32_limit_ = first_line_with_tag(kTagBits<uint32_t>);
     }
-    ordered_limit_ = limit > ~uint64_t(0) ? ~uint64_t(0) : uint64_t(limit);
     init_small();
   } else {
     init_general();
   }
+}
+
+uint64_t Cache::first_line_with_tag(uint64_t tag) const {
+  unsigned __int128 line = tag;
+  if (plain_index_)
+    line <<= set_bits_;
+  else
+    line = ((line << (set_bits_ - interleave_shift_)) * channels_) << interleave_shift_;
+  return line > ~uint64_t(0) ? ~uint64_t(0) : uint64_t(line);
 }
 
 Cache::Cache(const Cache& o)
@@ -103,8 +109,13 @@ Cache::Cache(const Cache& o)
       set_bits_(o.set_bits_), channels_(o.channels_), plain_index_(o.plain_index_),
       interleave_shift_(o.interleave_shift_), interleave_mask_(o.interleave_mask_),
       sets_per_channel_(o.sets_per_channel_), line_shift_(o.line_shift_), sector_shift_(o.sector_shift_),
-      full_mask_(o.full_mask_), replacement_(o.replacement_), rng_(o.rng_), ordered_limit_(o.ordered_limit_),
-      meta_(o.meta_), tags_(o.tags_), gmeta_(o.gmeta_), stamp_(o.stamp_), clock_(o.clock_) {
+      full_mask_(o.full_mask_), replacement_(o.replacement_), rng_(o.rng_), ordered16_limit_(o.ordered16_limit_),
+      ordered32_limit_(o.ordered32_limit_), meta_(o.meta_), tags_(o.tags_), gmeta_(o.gmeta_), stamp_(o.stamp_),
+      clock_(o.clock_) {
+  if (o.tag16_) {
+    tag16_ = aligned_array<uint16_t>(size_t(sets_) * stride_);
+    std::memcpy(tag16_.get(), o.tag16_.get(), size_t(sets_) * stride_ * sizeof(uint16_t));
+  }
   if (o.tag32_) {
     tag32_ = aligned_array<uint32_t>(size_t(sets_) * stride_);
     std::memcpy(tag32_.get(), o.tag32_.get(), size_t(sets_) * stride_ * sizeof(uint32_t));
@@ -121,9 +132,13 @@ Cache& Cache::operator=(const Cache& o) {
 }
 
 void Cache::init_small() {
-  if (engine_ == Engine::ordered) {
-    // Every entry empty (padding entries too: they are never shifted into, never match).
-    std::fill(tag32_.get(), tag32_.get() + size_t(sets_) * stride_, kEmptyEntry);
+  // Ordered: every entry empty (padding entries too: they are never shifted into, never match).
+  if (engine_ == Engine::ordered16) {
+    std::fill(tag16_.get(), tag16_.get() + size_t(sets_) * stride_, uint16_t(kTagBits<uint16_t>));
+    return;
+  }
+  if (engine_ == Engine::ordered32) {
+    std::fill(tag32_.get(), tag32_.get() + size_t(sets_) * stride_, kTagBits<uint32_t>);
     return;
   }
   std::fill(tag32_.get(), tag32_.get() + size_t(sets_) * stride_, kEmpty32);
@@ -155,24 +170,38 @@ uint64_t Cache::line_of(uint32_t set, uint64_t tag) const {
   return (chunk << interleave_shift_) | within;
 }
 
+void Cache::widen() {
+  if (engine_ != Engine::ordered16) return;
+  // Same positions, same dirty bits; the empty marker becomes the wider one.
+  const size_t n = size_t(sets_) * stride_;
+  tag32_ = aligned_array<uint32_t>(n);
+  for (size_t i = 0; i < n; ++i) {
+    const uint32_t t = tag16_[i] & kTagBits<uint16_t>, dirty = uint32_t(tag16_[i]) >> kDirtyShift<uint16_t>;
+    tag32_[i] = t == kTagBits<uint16_t> ? kTagBits<uint32_t> : t | (dirty << kDirtyShift<uint32_t>);
+  }
+  tag16_.reset();
+  engine_ = Engine::ordered32;
+}
+
 void Cache::to_general() {
   // Full lines, the same sector state, and stamps that order each set as the small engine did: the
   // most recent position gets the highest stamp, empty ways stamp 0; the clock starts above them
   // all, so every later access is newer than any converted one, as it would have been.
+  widen();  // ordered16 → ordered32: one layout to read below
   const Engine from = engine_;
   init_general();
   for (uint32_t s = 0; s < sets_; ++s) {
     const uint32_t* tags = tag32_.get() + size_t(s) * stride_;
     for (uint32_t p = 0; p < ways_per_set_; ++p) {
       // Ordered: position p is entry p (kept in way p); compact: the way at position p.
-      const uint32_t w = from == Engine::ordered ? p : uint32_t(order_[s] >> (4 * p)) & 0xF;
+      const uint32_t w = from == Engine::ordered32 ? p : uint32_t(order_[s] >> (4 * p)) & 0xF;
       const uint32_t t = tags[w];
-      if (from == Engine::ordered ? t == kEmptyEntry : t == kEmpty32) continue;
+      if (from == Engine::ordered32 ? t == kTagBits<uint32_t> : t == kEmpty32) continue;
       const size_t g = size_t(s) * ways_per_set_ + w;
       stamp_[g] = ways_per_set_ - p;
-      if (from == Engine::ordered) {
-        tags_[g] = line_of(s, t & ~kDirtyBit);
-        gmeta_[g] = Meta{1u, t >> 31};
+      if (from == Engine::ordered32) {
+        tags_[g] = line_of(s, t & kTagBits<uint32_t>);
+        gmeta_[g] = Meta{1u, t >> kDirtyShift<uint32_t>};
       } else {
         tags_[g] = line_of(s, t);
         gmeta_[g] = meta_[size_t(s) * stride_ + w];
@@ -186,14 +215,23 @@ void Cache::to_general() {
   meta_ = {};
 }
 
+namespace {
+template <typename T>
+bool ordered_holds(const T* e, uint32_t ways, uint32_t tag, uint32_t tag_bits) {
+  for (uint32_t i = 0; i < ways; ++i)
+    if ((e[i] & tag_bits) == tag) return true;
+  return false;
+}
+}  // namespace
+
 bool Cache::contains(uint64_t line, uint32_t sectors) const {
-  if (engine_ == Engine::ordered) {
-    if (line >= ordered_limit_) return false;  // never stored: the engine holds only narrow tags
+  if (engine_ == Engine::ordered16 || engine_ == Engine::ordered32) {
+    if (line >= ordered_line_limit()) return false;  // never stored: the engine holds only narrow tags
     uint64_t tag;
-    const uint32_t* e = tag32_.get() + size_t(locate(line, tag)) * stride_;
-    for (uint32_t i = 0; i < ways_per_set_; ++i)
-      if ((e[i] & ~kDirtyBit) == tag) return true;
-    return false;
+    const size_t at = size_t(locate(line, tag)) * stride_;
+    return engine_ == Engine::ordered16
+               ? ordered_holds(tag16_.get() + at, ways_per_set_, uint32_t(tag), kTagBits<uint16_t>)
+               : ordered_holds(tag32_.get() + at, ways_per_set_, uint32_t(tag), kTagBits<uint32_t>);
   }
   if (engine_ == Engine::compact) {
     uint64_t tag;
@@ -211,11 +249,19 @@ bool Cache::contains(uint64_t line, uint32_t sectors) const {
 
 uint64_t Cache::flush_dirty_sectors() {
   uint64_t n = 0;
-  if (engine_ == Engine::ordered) {
+  if (engine_ == Engine::ordered16) {
+    uint16_t* e = tag16_.get();
+    for (size_t i = 0, end = size_t(sets_) * stride_; i < end; ++i) {
+      n += uint32_t(e[i]) >> kDirtyShift<uint16_t>;
+      e[i] = uint16_t(e[i] & kTagBits<uint16_t>);
+    }
+    return n;
+  }
+  if (engine_ == Engine::ordered32) {
     uint32_t* e = tag32_.get();
     for (size_t i = 0, end = size_t(sets_) * stride_; i < end; ++i) {
-      n += e[i] >> 31;
-      e[i] &= ~kDirtyBit;
+      n += e[i] >> kDirtyShift<uint32_t>;
+      e[i] &= kTagBits<uint32_t>;
     }
     return n;
   }

@@ -4,14 +4,16 @@
 // is kept as small and as contiguous per set as the configuration allows, and the common case runs
 // without a data-dependent branch. Three engines give identical results:
 //
-//  - ordered (unsectored, LRU or FIFO, at most 16 ways, every tag seen so far below 2^31 - 1): a set
-//    is its lines' 32-bit partial tags (the line number without the set-index bits) in recency order
-//    (LRU; insertion order for FIFO), most recent first, padded to 4, 8 or 16 entries with an empty
-//    marker and aligned so that a 16-way set is one 64-byte host line. Bit 31 of an entry is the
-//    line's dirty bit. A lookup compares the set four entries at a time; a hit at position p (or a
-//    miss, p = the last way) shifts positions 0..p-1 down by one and writes the line at the front,
-//    which drops the victim: one masked vector shift, the same instructions for a hit and a miss.
-//    Empty entries sit at the back, so they fill first.
+//  - ordered (unsectored, LRU or FIFO, at most 16 ways): a set is its lines' partial tags (the line
+//    number without the set-index bits) in recency order (LRU; insertion order for FIFO), most recent
+//    first, padded to 4, 8 or 16 entries with an empty marker and aligned to their size. The top bit
+//    of an entry is the line's dirty bit. Entries are 16 bits wide while every tag seen is below
+//    2^15 - 1 (a 16-way set is then 32 bytes: two SSE registers), else 32 bits wide (tags below
+//    2^31 - 1; a 16-way set is one 64-byte host line); the first wider tag widens the cache, once and
+//    exactly. A lookup compares the set 8 or 4 entries at a time; a hit at position p (or a miss, p =
+//    the last way) shifts positions 0..p-1 down by one and writes the line at the front, which drops
+//    the victim: one masked vector shift, the same instructions for a hit and a miss. Empty entries
+//    sit at the back, so they fill first.
 //  - compact (sectored, LRU or FIFO, at most 16 ways, tags below 2^32 - 1): the ways' partial tags
 //    in way order, a 64-bit recency permutation of 4-bit way numbers per set (position 0 most
 //    recent, the last used position the victim), and valid/dirty sector masks per way. LRU moves
@@ -19,12 +21,12 @@
 //    so they fill first and lowest first, as in the general engine.
 //  - general (random replacement, more than 16 ways, or a tag too wide for the others): full line
 //    numbers, sector masks and a 32-bit stamp per way; the victim is the oldest stamp (empty ways
-//    have stamp 0). An ordered or compact cache that meets a line whose tag does not fit converts
-//    itself, once, to this engine, carrying its state over exactly (the recency order becomes stamps
-//    1..ways).
+//    have stamp 0). An ordered or compact cache that meets a line whose tag does not fit any of their
+//    widths converts itself, once, to this engine, carrying its state over exactly (the recency order
+//    becomes stamps 1..ways).
 // A power-of-two number of L2 channels only renumbers the sets (the channel and the set within it
 // are fixed bit fields of the line number), so such a cache indexes its sets by the low line bits.
-// Nothing allocates after construction except that one conversion.
+// Nothing allocates after construction except those conversions.
 #pragma once
 
 #include <bit>
@@ -95,13 +97,16 @@ struct Outcome {
 };
 
 namespace detail {
+// Rows p = 0..15: entries 1..p all ones (the entries a move of position p to the front shifts).
+template <typename T>
 struct alignas(64) ShiftMasks {
-  uint32_t row[16][16];
+  T row[16][16];
 };
-constexpr ShiftMasks make_shift_masks() {
-  ShiftMasks t{};
+template <typename T>
+constexpr ShiftMasks<T> make_shift_masks() {
+  ShiftMasks<T> t{};
   for (uint32_t p = 0; p < 16; ++p)
-    for (uint32_t lane = 1; lane <= p; ++lane) t.row[p][lane] = ~0u;
+    for (uint32_t lane = 1; lane <= p; ++lane) t.row[p][lane] = T(~T(0));
   return t;
 }
 }  // namespace detail
@@ -119,10 +124,10 @@ class Cache {
   uint32_t line_shift() const { return line_shift_; }
   uint32_t sector_shift() const { return sector_shift_; }
   uint32_t full_mask() const { return full_mask_; }
-  enum class Engine : uint8_t { ordered, compact, general };
+  enum class Engine : uint8_t { ordered16, ordered32, compact, general };
   // The engine in use (for tests and benchmarks; results do not depend on it).
   Engine engine() const { return engine_; }
-  // Whether a 32-bit-tag engine (ordered or compact) is in use.
+  // Whether an engine with narrow tags (ordered or compact) is in use.
   bool compact() const { return engine_ != Engine::general; }
   bool sectored() const { return sectored_; }
   uint32_t stride() const { return stride_; }  // ordered and compact engines: ways padded to 4, 8 or 16
@@ -135,20 +140,24 @@ class Cache {
   // Read-modify-write (atomics at the L2, write-allocate writes): allocate, fetch missing, mark dirty.
   [[gnu::always_inline]] Outcome update(uint64_t line, uint32_t sectors) { return access<kUpdate>(line, sectors); }
 
-  // For a caller replaying many unsectored requests through caches of one shape (Hierarchy). With
-  // engine() == ordered and config().ways == stride() == kStride checked once, the set width is a
-  // constant of its code. Lines below ordered_line_limit() have tags the ordered engine holds; for
+  // For a caller replaying many unsectored requests through caches of one shape (Hierarchy). With an
+  // ordered engine and config().ways == stride() == kStride checked once, the set width is a
+  // constant of its code. Lines below ordered_line_limit() have tags the current entries hold; for
   // them ordered_access is the same as load (kOp 0), store (1) or update (2) of (line, 1).
-  uint64_t ordered_line_limit() const { return engine_ == Engine::ordered ? ordered_limit_ : 0; }
+  uint64_t ordered_line_limit() const {
+    return engine_ == Engine::ordered16 ? ordered16_limit_ : engine_ == Engine::ordered32 ? ordered32_limit_ : 0;
+  }
   template <int kOp, uint32_t kStride>
   [[gnu::always_inline]] Outcome ordered_access(uint64_t line) {
     uint64_t tag;
-    const uint32_t set = locate(line, tag);
-    return ordered_set_access<Op(kOp), kStride>(tag32_.get() + size_t(set) * kStride, uint32_t(tag), kStride - 1, lru_);
+    const size_t at = size_t(locate(line, tag)) * kStride;
+    if (engine_ == Engine::ordered16)
+      return ordered_set_access<Op(kOp), uint16_t, kStride>(tag16_.get() + at, uint32_t(tag), kStride - 1, lru_);
+    return ordered_set_access<Op(kOp), uint32_t, kStride>(tag32_.get() + at, uint32_t(tag), kStride - 1, lru_);
   }
   // The same without a call per request: the geometry of a cache whose sets are indexed by the low
-  // line bits (plain_index()), read once, and its entries, which stay put until the cache leaves the
-  // ordered engine (ordered_line_limit() becomes 0). ordered_access(geometry, entries, line) on a
+  // line bits (plain_index()), read once, and its entries (T: uint16_t under ordered16, uint32_t under
+  // ordered32), which stay put until the engine changes. ordered_access(geometry, entries, line) on a
   // line below ordered_line_limit() is ordered_access(line). kLru: the caller checked that g.lru is
   // set; kClean: the caller only ever loads through this cache (nothing in it is dirty).
   struct OrderedGeometry {
@@ -158,12 +167,19 @@ class Cache {
   };
   bool plain_index() const { return plain_index_; }
   OrderedGeometry ordered_geometry() const { return {set_mask_, set_bits_, lru_}; }
-  uint32_t* ordered_entries() { return engine_ == Engine::ordered ? tag32_.get() : nullptr; }
-  template <int kOp, uint32_t kStride, bool kLru = false, bool kClean = false>
-  [[gnu::always_inline]] static Outcome ordered_access(const OrderedGeometry& g, uint32_t* entries, uint64_t line) {
-    return ordered_set_access<Op(kOp), kStride, kLru, kClean>(entries + size_t(line & g.set_mask) * kStride,
-                                                             uint32_t(line >> g.set_bits), kStride - 1, g.lru);
+  void* ordered_entries() {
+    return engine_ == Engine::ordered16 ? static_cast<void*>(tag16_.get())
+           : engine_ == Engine::ordered32 ? static_cast<void*>(tag32_.get())
+                                          : nullptr;
   }
+  template <int kOp, typename T, uint32_t kStride, bool kLru = false, bool kClean = false>
+  [[gnu::always_inline]] static Outcome ordered_access(const OrderedGeometry& g, T* entries, uint64_t line) {
+    return ordered_set_access<Op(kOp), T, kStride, kLru, kClean>(entries + size_t(line & g.set_mask) * kStride,
+                                                                uint32_t(line >> g.set_bits), kStride - 1, g.lru);
+  }
+  // Makes an ordered16 cache ordered32 (exactly; a caller that wants several caches in one width).
+  void widen();
+
   // Presence of the sectors without any state change (write-through store probing an L1).
   bool contains(uint64_t line, uint32_t sectors) const;
 
@@ -180,8 +196,12 @@ class Cache {
  private:
   static constexpr uint64_t kEmpty = ~uint64_t(0);
   static constexpr uint32_t kEmpty32 = ~0u;          // compact engine: an empty or padding way
-  static constexpr uint32_t kEmptyEntry = 0x7FFFFFFFu;  // ordered engine: an empty or padding entry
-  static constexpr uint32_t kDirtyBit = 0x80000000u;    // ordered engine: the entry's line is dirty
+  // Ordered engine, per entry width: the tag bits (also the empty or padding entry: no tag reaches
+  // it) and the dirty bit above them.
+  template <typename T>
+  static constexpr uint32_t kTagBits = sizeof(T) == 2 ? 0x7FFFu : 0x7FFFFFFFu;
+  template <typename T>
+  static constexpr uint32_t kDirtyShift = sizeof(T) * 8 - 1;
   enum Op { kLoad, kStore, kUpdate };
   struct Meta {
     uint32_t valid;  // sector masks
@@ -213,27 +233,37 @@ class Cache {
   }
   uint64_t line_of(uint32_t set, uint64_t tag) const;  // inverse of locate
 
-  // Rows p = 0..15: lanes 1..p all ones (the entries a move of position p to the front shifts).
-  static constexpr detail::ShiftMasks kShiftMask = detail::make_shift_masks();
+  template <typename T>
+  static constexpr detail::ShiftMasks<T> kShiftMask = detail::make_shift_masks<T>();
 
-  // The ordered engine on one set's entries `e`: `tag` below kEmptyEntry, `last` the last way
-  // (ways - 1); kLru: lru is known to be set; kClean: no entry is dirty and op is a load. Without
-  // branches on the outcome under LRU.
-  template <Op op, uint32_t kStride, bool kLru = false, bool kClean = false>
-  [[gnu::always_inline]] static Outcome ordered_set_access(uint32_t* e, uint32_t tag, uint32_t last, bool lru) {
+  // The ordered engine on one set's entries `e` (T: 16- or 32-bit entries): `tag` below kTagBits<T>,
+  // `last` the last way (ways - 1); kLru: lru is known to be set; kClean: no entry is dirty and op is
+  // a load. Without branches on the outcome under LRU.
+  template <Op op, typename T, uint32_t kStride, bool kLru = false, bool kClean = false>
+  [[gnu::always_inline]] static Outcome ordered_set_access(T* e, uint32_t tag, uint32_t last, bool lru) {
     static_assert(!kClean || op == kLoad);
+    constexpr bool k16 = sizeof(T) == 2;
+    constexpr uint32_t kShift = kDirtyShift<T>;
 #if defined(__SSE2__)
-    constexpr uint32_t kVec = kStride / 4;
-    const __m128i key = _mm_set1_epi32(int(tag));
-    const __m128i tag_bits = _mm_set1_epi32(int(~kDirtyBit));
+    // Vectors of 8 (16-bit) or 4 (32-bit) entries; a 4-entry 16-bit set is half a vector.
+    constexpr uint32_t kPerVec = 16 / sizeof(T);
+    constexpr uint32_t kVec = (kStride + kPerVec - 1) / kPerVec;
+    constexpr bool kHalf = kStride * sizeof(T) == 8;
+    const __m128i key = k16 ? _mm_set1_epi16(short(tag)) : _mm_set1_epi32(int(tag));
+    const __m128i tag_bits = k16 ? _mm_set1_epi16(short(kTagBits<T>)) : _mm_set1_epi32(int(kTagBits<T>));
     __m128i x[kVec], eq[kVec];
     for (uint32_t v = 0; v < kVec; ++v) {
-      x[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(e) + v);
-      eq[v] = _mm_cmpeq_epi32(kClean ? x[v] : _mm_and_si128(x[v], tag_bits), key);
+      x[v] = kHalf ? _mm_loadl_epi64(reinterpret_cast<const __m128i*>(e))
+                   : _mm_load_si128(reinterpret_cast<const __m128i*>(e) + v);
+      const __m128i t = kClean ? x[v] : _mm_and_si128(x[v], tag_bits);
+      eq[v] = k16 ? _mm_cmpeq_epi16(t, key) : _mm_cmpeq_epi32(t, key);
     }
     // One bit per entry: the comparison masks (all ones or zeros) narrowed by saturating packs.
     uint32_t match;
-    if constexpr (kVec == 1) {
+    if constexpr (k16) {
+      const __m128i bytes = _mm_packs_epi16(eq[0], kVec > 1 ? eq[kVec - 1] : _mm_setzero_si128());
+      match = uint32_t(_mm_movemask_epi8(bytes)) & ((1u << kStride) - 1);  // a half vector's zeros
+    } else if constexpr (kVec == 1) {
       match = uint32_t(_mm_movemask_ps(_mm_castsi128_ps(eq[0])));
     } else if constexpr (kVec == 2) {
       match = uint32_t(_mm_movemask_epi8(_mm_packs_epi16(_mm_packs_epi32(eq[0], eq[1]), _mm_setzero_si128())));
@@ -242,37 +272,43 @@ class Cache {
     }
 #else
     uint32_t match = 0;
-    for (uint32_t i = 0; i < kStride; ++i) match |= uint32_t((e[i] & ~kDirtyBit) == tag) << i;
+    for (uint32_t i = 0; i < kStride; ++i) match |= uint32_t((e[i] & kTagBits<T>) == tag) << i;
 #endif
     const uint32_t miss = match == 0;
     const uint32_t p = uint32_t(std::countr_zero(match | (1u << last)));  // the hit, or the victim
-    const uint32_t old = kClean ? 0u : e[p];
+    const uint32_t old = kClean ? 0u : uint32_t(e[p]);
     Outcome o;
     o.missing = miss;
     o.line_hit = !miss;
-    o.written_back_sectors = miss & (old >> 31);  // an empty entry is never dirty
+    o.written_back_sectors = miss & (old >> kShift);  // an empty entry is never dirty
     if (!kLru && !lru) [[unlikely]] {
       if (!miss) {  // FIFO: a hit keeps the order; a store or update only dirties the line
-        if constexpr (op != kLoad) e[p] = old | kDirtyBit;
+        if constexpr (op != kLoad) e[p] = T(old | (1u << kShift));
         return o;
       }
     }
-    const uint32_t dirty = op == kLoad ? (old >> 31) & (miss ^ 1u) : 1u;
-    const uint32_t front = tag | (dirty << 31);
+    const uint32_t dirty = op == kLoad ? (old >> kShift) & (miss ^ 1u) : 1u;
+    const uint32_t front = tag | (dirty << kShift);
 #if defined(__SSE2__)
     // Entries 1..p take their predecessor's value: x shifted by one entry across the vectors.
-    const uint32_t* mask = kShiftMask.row[p];
+    const T* mask = kShiftMask<T>.row[p];
     for (uint32_t v = kVec; v-- > 0;) {
-      __m128i shifted = _mm_slli_si128(x[v], 4);
-      if (v > 0) shifted = _mm_or_si128(shifted, _mm_srli_si128(x[v - 1], 12));
+      __m128i shifted = _mm_slli_si128(x[v], sizeof(T));
+      if (v > 0) shifted = _mm_or_si128(shifted, _mm_srli_si128(x[v - 1], 16 - sizeof(T)));
       const __m128i m = _mm_load_si128(reinterpret_cast<const __m128i*>(mask) + v);
       x[v] = _mm_or_si128(_mm_and_si128(m, shifted), _mm_andnot_si128(m, x[v]));
     }
-    x[0] = _mm_castps_si128(_mm_move_ss(_mm_castsi128_ps(x[0]), _mm_castsi128_ps(_mm_cvtsi32_si128(int(front)))));
-    for (uint32_t v = 0; v < kVec; ++v) _mm_store_si128(reinterpret_cast<__m128i*>(e) + v, x[v]);
+    if constexpr (k16)
+      x[0] = _mm_insert_epi16(x[0], int(front), 0);
+    else
+      x[0] = _mm_castps_si128(_mm_move_ss(_mm_castsi128_ps(x[0]), _mm_castsi128_ps(_mm_cvtsi32_si128(int(front)))));
+    if constexpr (kHalf)
+      _mm_storel_epi64(reinterpret_cast<__m128i*>(e), x[0]);
+    else
+      for (uint32_t v = 0; v < kVec; ++v) _mm_store_si128(reinterpret_cast<__m128i*>(e) + v, x[v]);
 #else
     for (uint32_t i = p; i > 0; --i) e[i] = e[i - 1];
-    e[0] = front;
+    e[0] = T(front);
 #endif
     return o;
   }
@@ -294,15 +330,20 @@ class Cache {
   // engines and the conversion to the latter stay out of line.
   template <Op op>
   [[gnu::always_inline]] Outcome access(uint64_t line, uint32_t sectors) {
-    if (engine_ == Engine::ordered && line < ordered_limit_) [[likely]] {
-      uint64_t tag;
-      uint32_t* e = tag32_.get() + size_t(locate(line, tag)) * stride_;
-      const uint32_t last = ways_per_set_ - 1;
-      if (stride_ == 4) return ordered_set_access<op, 4>(e, uint32_t(tag), last, lru_);
-      if (stride_ == 8) return ordered_set_access<op, 8>(e, uint32_t(tag), last, lru_);
-      return ordered_set_access<op, 16>(e, uint32_t(tag), last, lru_);
-    }
+    if (engine_ == Engine::ordered16 && line < ordered16_limit_) [[likely]]
+      return ordered_dispatch<op, uint16_t>(tag16_.get(), line);
+    if (engine_ == Engine::ordered32 && line < ordered32_limit_) [[likely]]
+      return ordered_dispatch<op, uint32_t>(tag32_.get(), line);
     return slow_access<op>(line, sectors);
+  }
+  template <Op op, typename T>
+  [[gnu::always_inline]] Outcome ordered_dispatch(T* entries, uint64_t line) {
+    uint64_t tag;
+    T* e = entries + size_t(locate(line, tag)) * stride_;
+    const uint32_t last = ways_per_set_ - 1;
+    if (stride_ == 4) return ordered_set_access<op, T, 4>(e, uint32_t(tag), last, lru_);
+    if (stride_ == 8) return ordered_set_access<op, T, 8>(e, uint32_t(tag), last, lru_);
+    return ordered_set_access<op, T, 16>(e, uint32_t(tag), last, lru_);
   }
   template <Op op>
   [[gnu::noinline]] Outcome slow_access(uint64_t line, uint32_t sectors) {
@@ -315,7 +356,11 @@ class Cache {
         return compact_access<op, 16>(set, uint32_t(tag), sectors);
       }
     }
-    if (engine_ != Engine::general) to_general();  // only reached with a tag that does not fit
+    if (engine_ == Engine::ordered16 && line < ordered32_limit_) {  // a tag too wide for 16 bits only
+      widen();
+      return ordered_dispatch<op, uint32_t>(tag32_.get(), line);
+    }
+    if (engine_ != Engine::general) to_general();  // a tag that no narrow engine holds
     return general_access<op>(line, sectors);
   }
 
@@ -426,6 +471,8 @@ class Cache {
   void init_small();  // the ordered or compact engine's empty state
   void init_general();
   void to_general();  // converts the ordered or compact state, exactly
+  // The first line whose tag is at least `tag` (saturated; locate's tag grows with the line).
+  uint64_t first_line_with_tag(uint64_t tag) const;
 
   CacheConfig config_;
   Engine engine_ = Engine::general;
@@ -445,8 +492,9 @@ class Cache {
   uint64_t rng_ = 1;
 
   // Ordered and compact engines.
-  Aligned<uint32_t> tag32_;    // sets_ * stride_ entries (ordered) or partial tags (compact)
-  uint64_t ordered_limit_ = 0;  // ordered: the first line whose tag does not fit below kEmptyEntry
+  Aligned<uint16_t> tag16_;    // ordered16: sets_ * stride_ entries
+  Aligned<uint32_t> tag32_;    // sets_ * stride_ entries (ordered32) or partial tags (compact)
+  uint64_t ordered16_limit_ = 0, ordered32_limit_ = 0;  // the first lines whose tags 16 / 32-bit entries cannot hold
   // Compact engine.
   Aligned<uint64_t> order_;    // sets_ recency permutations
   std::vector<Meta> meta_;     // sets_ * stride_

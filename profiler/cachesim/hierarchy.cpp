@@ -38,7 +38,7 @@ Hierarchy::Hierarchy(const CacheConfig& l1, uint32_t compute_units, const CacheC
   // Set width codes for issue(): 0 other (general or compact engine, ways not 4/8/16, sets not
   // indexed by the low line bits), 1/2/3 ordered sets of exactly 4/8/16 ways.
   auto code = [](const Cache& c) -> uint32_t {
-    if (c.engine() != Cache::Engine::ordered || c.config().ways != c.stride() || !c.plain_index()) return 0;
+    if (c.ordered_line_limit() == 0 || c.config().ways != c.stride() || !c.plain_index()) return 0;
     return c.stride() == 4 ? 1 : c.stride() == 8 ? 2 : 3;
   };
   widths_ = (l1_.empty() ? 0 : code(l1_[0])) * 4 + code(l2_);
@@ -47,6 +47,12 @@ Hierarchy::Hierarchy(const CacheConfig& l1, uint32_t compute_units, const CacheC
 }
 
 void Hierarchy::refresh_fast_limit() {
+  // The L1s share one entry width (the two-round path reads them with one type): once one has
+  // widened, the others widen too (exact; results never depend on the width).
+  bool any32 = false;
+  for (const Cache& c : l1_) any32 |= c.engine() == Cache::Engine::ordered32;
+  if (any32)
+    for (Cache& c : l1_) c.widen();
   fast_limit_ = l2_.ordered_line_limit();
   l1_entries_.clear();
   for (Cache& c : l1_) {
@@ -56,6 +62,16 @@ void Hierarchy::refresh_fast_limit() {
   if (!l1_.empty()) l1_geometry_ = l1_[0].ordered_geometry();
   l2_geometry_ = l2_.ordered_geometry();
   l2_entries_ = l2_.ordered_entries();
+  // Entry widths (L1s, L2) the two-round path has code for. Since the L1s have no more sets than the
+  // L2 in every shipped preset, their tags are the wider and they widen first; other combinations
+  // (and caches that left the ordered engines) go one request at a time.
+  using E = Cache::Engine;
+  const E e1 = l1_.empty() ? E::general : l1_[0].engine(), e2 = l2_.engine();
+  entry_widths_ = e1 == E::ordered16 && e2 == E::ordered16   ? EntryWidths::w16_16
+                  : e1 == E::ordered32 && e2 == E::ordered16 ? EntryWidths::w32_16
+                  : e1 == E::ordered32 && e2 == E::ordered32 ? EntryWidths::w32_32
+                                                              : EntryWidths::none;
+  if (entry_widths_ == EntryWidths::none) fast_limit_ = 0;
 }
 
 void Hierarchy::issue(std::span<const Request> rs, std::span<const uint32_t> cus, IssueResult* out) {
@@ -81,16 +97,30 @@ void Hierarchy::issue_batch(std::span<const Request> rs, std::span<const uint32_
   for (size_t begin = 0; begin < rs.size(); begin += kChunk) {
     const size_t n = std::min(kChunk, rs.size() - begin);
     const Request* r = rs.data() + begin;
+    const uint32_t* c = cus.data() + begin;
     IssueResult* o = out ? out + begin : nullptr;
     // LRU on both levels (the usual case) is a constant of the code; FIFO reads the flag.
     const bool lru = l1_geometry_.lru && l2_geometry_.lru;
-    const uint32_t* c = cus.data() + begin;
-    const size_t done = o ? (lru ? issue_chunk<S1, S2, true, true>(r, c, n, o) : issue_chunk<S1, S2, true, false>(r, c, n, o))
-                          : (lru ? issue_chunk<S1, S2, false, true>(r, c, n, nullptr)
-                                 : issue_chunk<S1, S2, false, false>(r, c, n, nullptr));
+    size_t done = 0;
+    switch (entry_widths_) {
+      case EntryWidths::w16_16:
+        done = lru ? issue_chunk<S1, uint16_t, S2, uint16_t, true>(r, c, n, o)
+                   : issue_chunk<S1, uint16_t, S2, uint16_t, false>(r, c, n, o);
+        break;
+      case EntryWidths::w32_16:
+        done = lru ? issue_chunk<S1, uint32_t, S2, uint16_t, true>(r, c, n, o)
+                   : issue_chunk<S1, uint32_t, S2, uint16_t, false>(r, c, n, o);
+        break;
+      case EntryWidths::w32_32:
+        done = lru ? issue_chunk<S1, uint32_t, S2, uint32_t, true>(r, c, n, o)
+                   : issue_chunk<S1, uint32_t, S2, uint32_t, false>(r, c, n, o);
+        break;
+      case EntryWidths::none: break;
+    }
     if (done == n) continue;
-    // Request `done` has a line whose tag one of the caches cannot hold in the ordered engine: the
-    // rest of the chunk goes one by one (converting that cache), and the two-round path stays off.
+    // Request `done` has a line whose tag one of the caches cannot hold in its current entries (or
+    // the two-round path is off): the rest of the chunk goes one by one (widening or converting that
+    // cache), then the path is set up again for the caches' new engines.
     for (size_t i = done; i < n; ++i) {
       const IssueResult res = issue(c[i], r[i]);
       if (o) o[i] = res;
@@ -99,7 +129,7 @@ void Hierarchy::issue_batch(std::span<const Request> rs, std::span<const uint32_
   }
 }
 
-template <uint32_t S1, uint32_t S2, bool kOut, bool kLru>
+template <uint32_t S1, typename T1, uint32_t S2, typename T2, bool kLru>
 size_t Hierarchy::issue_chunk(const Request* rs, const uint32_t* cus, size_t n, IssueResult* out) {
   // Round 1: the L1 lookups, in order; every request that goes on to the L2 is queued (written
   // always, kept by advancing the count only when it goes on: no branch on the outcome). It stops
@@ -108,8 +138,8 @@ size_t Hierarchy::issue_chunk(const Request* rs, const uint32_t* cus, size_t n, 
   size_t queued = 0;
   const bool l1_curves = !l1_mrc_.empty();
   const Cache::OrderedGeometry g1 = l1_geometry_, g2 = l2_geometry_;
-  uint32_t* const* l1_entries = l1_entries_.data();
-  uint32_t* const l2_entries = l2_entries_;
+  T1* const* l1_entries = reinterpret_cast<T1* const*>(l1_entries_.data());
+  T2* const l2_entries = static_cast<T2*>(l2_entries_);
   const uint64_t limit = fast_limit_;
   size_t done = 0;
   for (; done < n; ++done) {
@@ -123,16 +153,16 @@ size_t Hierarchy::issue_chunk(const Request* rs, const uint32_t* cus, size_t n, 
       ++c.l1_requests;
       if (l1_curves) feed_l1_mrc(cus[i], line);
       // Only loads reach an L1 (stores write through it, atomics bypass it): nothing in it is dirty.
-      to_l2 = Cache::ordered_access<0, S1, kLru, true>(g1, l1_entries[cus[i]], line).missing;
+      to_l2 = Cache::ordered_access<0, T1, S1, kLru, true>(g1, l1_entries[cus[i]], line).missing;
       c.l1_misses += to_l2;
-      if constexpr (kOut) out[i] = IssueResult{to_l2 != 0, false};
+      if (out) out[i] = IssueResult{to_l2 != 0, false};
     } else {
       ++c.l2_direct;
       if (r.kind == AccessKind::store)
         ++stats_.stores;
       else
         ++stats_.atomics;
-      if constexpr (kOut) out[i] = IssueResult{false, false};
+      if (out) out[i] = IssueResult{false, false};
     }
     pending[queued] = uint16_t(i);
     queued += to_l2;
@@ -152,16 +182,16 @@ size_t Hierarchy::issue_chunk(const Request* rs, const uint32_t* cus, size_t n, 
     if (l2_curve) feed_l2_mrc(line);
     Outcome o;
     if (r.kind == AccessKind::load) {
-      o = Cache::ordered_access<0, S2, kLru>(g2, l2_entries, line);
+      o = Cache::ordered_access<0, T2, S2, kLru>(g2, l2_entries, line);
     } else if (r.kind == AccessKind::store) {
-      o = Cache::ordered_access<1, S2, kLru>(g2, l2_entries, line);
+      o = Cache::ordered_access<1, T2, S2, kLru>(g2, l2_entries, line);
       c.l2_store_misses += o.missing;
     } else {
-      o = Cache::ordered_access<2, S2, kLru>(g2, l2_entries, line);
+      o = Cache::ordered_access<2, T2, S2, kLru>(g2, l2_entries, line);
     }
     c.l2_misses += o.missing;  // 0 or 1
     written_back += o.written_back_sectors;
-    if constexpr (kOut) out[i].l2_miss = o.missing != 0;
+    if (out) out[i].l2_miss = o.missing != 0;
   }
   written_back_ += written_back;
   return done;

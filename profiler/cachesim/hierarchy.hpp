@@ -232,7 +232,7 @@ class Hierarchy {
   void issue_batch(std::span<const Request> rs, std::span<const uint32_t> cus, IssueResult* out);
   // Issues rs[0, k) in two rounds and returns k: n, or the first request whose line is not below
   // fast_limit_.
-  template <uint32_t S1, uint32_t S2, bool kOut, bool kLru>
+  template <uint32_t S1, typename T1, uint32_t S2, typename T2, bool kLru>
   size_t issue_chunk(const Request* rs, const uint32_t* cus, size_t n, IssueResult* out);
   // fast_limit_: the lowest ordered_line_limit() of all caches (0 once one has left the ordered
   // engine); and the geometry and entries the two-round path uses.
@@ -303,8 +303,11 @@ class Hierarchy {
   // The two-round path: the caches' ordered geometry and entries (see refresh_fast_limit), and the
   // indices (in their chunk) of the requests that go on to the L2.
   Cache::OrderedGeometry l1_geometry_{}, l2_geometry_{};
-  std::vector<uint32_t*> l1_entries_;
-  uint32_t* l2_entries_ = nullptr;
+  std::vector<void*> l1_entries_;
+  void* l2_entries_ = nullptr;
+  // Entry widths of the L1s and of the L2 (Cache::Engine ordered16 / ordered32) the path runs with.
+  enum class EntryWidths : uint8_t { none, w16_16, w32_16, w32_32 };
+  EntryWidths entry_widths_ = EntryWidths::none;
   static constexpr size_t kChunk = 1024;
   std::vector<uint16_t> pending_;
   std::array<BufferStats, 256> buffers_{};  // sectored hierarchies

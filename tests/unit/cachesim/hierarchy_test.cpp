@@ -94,10 +94,11 @@ void expect_level(const LevelStats& a, const LevelStats& b, const char* name) {
 
 // batched: the requests go through Hierarchy::issue(span, cus, out) in batches of 1-3000 requests of
 // mixed CUs (crossing its internal chunks), as Simulator issues them (out null for some batches).
-// wide_at: the request with that index gets a line whose tag no 32-bit engine holds (the caches
-// convert mid-stream, inside a batch when batched).
+// wide_at: the request with that index gets line wide_line, whose tag needs wider entries or no
+// narrow engine at all (the caches it reaches widen or convert mid-stream, inside a batch when
+// batched).
 void run_random(const CacheConfig& c1, const CacheConfig& c2, uint32_t cus, uint64_t seed, bool batched = false,
-                int wide_at = -1) {
+                int wide_at = -1, uint64_t wide_line = (uint64_t(1) << 45) + 3) {
   Hierarchy h(c1, cus, c2);
   RefHierarchy r(c1, cus, c2);
   Cache probe(c1);
@@ -110,7 +111,7 @@ void run_random(const CacheConfig& c1, const CacheConfig& c2, uint32_t cus, uint
   for (int i = 0; i < 80000; ++i) {
     Request q;
     q.line = rng() % 3 ? rng() % (lines / 16) : rng() % lines;
-    if (i == wide_at) q.line = (uint64_t(1) << 45) + 3;
+    if (i == wide_at) q.line = wide_line;
     q.sectors = probe.full_mask() == 1 ? 1u : uint32_t(rng() % probe.full_mask()) + 1;
     const uint64_t k = rng() % 10;
     q.kind = k < 7 ? AccessKind::load : k < 9 ? AccessKind::store : AccessKind::atomic;
@@ -173,12 +174,22 @@ TEST(Hierarchy, MatchesReferenceVegaShapedAndFifo) {
   run_random(l1, l2, 3, 15, true);
 }
 
-// A line too wide for the ordered engine (tag at or above 2^31 - 1) in the middle of the stream: the
-// caches it reaches convert to the general engine inside a batch, the batch falls back to one
-// request at a time, and every count stays exact (including the rest of the stream).
+// A line too wide for the caches' entries in the middle of the stream: the caches it reaches widen
+// their entries (16 to 32 bits: the L1 alone, which the other L1s follow, or the L1 and the L2) or
+// convert to the general engine, inside a batch; the batch goes on one request at a time, the
+// two-round path resumes with the new widths where it has code for them, and every count stays exact.
 TEST(Hierarchy, WideLineMidBatchStaysExact) {
-  run_random(cfg(16 << 10, 64, 64, 4), cfg(4 << 20, 64, 64, 16, 16), 8, 16, true, 50000);
-  run_random(cfg(16 << 10, 64, 64, 4), cfg(4 << 20, 64, 64, 16, 16), 8, 17, false, 50000);
+  const CacheConfig l1 = cfg(16 << 10, 64, 64, 4), l2 = cfg(4 << 20, 64, 64, 16, 16);
+  Cache probe1(l1), probe2(l2);
+  const uint64_t l1_wide = probe1.ordered_line_limit() + 7;  // beyond 16-bit L1 tags only
+  const uint64_t both_wide = probe2.ordered_line_limit() + 7;  // beyond 16-bit L2 tags too
+  ASSERT_LT(l1_wide, probe2.ordered_line_limit());
+  uint64_t seed = 16;
+  for (uint64_t line : {l1_wide, both_wide, (uint64_t(1) << 45) + 3}) {
+    SCOPED_TRACE(line);
+    run_random(l1, l2, 8, seed++, true, 50000, line);
+    run_random(l1, l2, 8, seed++, false, 50000, line);
+  }
 }
 
 TEST(Hierarchy, MatchesReferenceSectored) {
