@@ -83,10 +83,17 @@ Cache::Cache(const CacheConfig& config) : config_(config) {
       order_ = aligned_array<uint64_t>(sets_);
       meta_.assign(size_t(sets_) * stride_, Meta{0, 0});
     } else {
-      engine_ = Engine::ordered16;
-      tag16_ = aligned_array<uint16_t>(size_t(sets_) * stride_);
+      // 16-bit entries halve the vectors of a set of 8 or 16 ways; a 4-way set is one vector of
+      // 32-bit entries already, and its 16-bit form costs more instructions (half a vector).
       ordered16_limit_ = first_line_with_tag(kTagBits<uint16_t>);
       ordered32_limit_ = first_line_with_tag(kTagBits<uint32_t>);
+      if (stride_ >= 8) {
+        engine_ = Engine::ordered16;
+        tag16_ = aligned_array<uint16_t>(size_t(sets_) * stride_);
+      } else {
+        engine_ = Engine::ordered32;
+        tag32_ = aligned_array<uint32_t>(size_t(sets_) * stride_);
+      }
     }
     init_small();
   } else {

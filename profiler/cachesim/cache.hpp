@@ -7,10 +7,10 @@
 //  - ordered (unsectored, LRU or FIFO, at most 16 ways): a set is its lines' partial tags (the line
 //    number without the set-index bits) in recency order (LRU; insertion order for FIFO), most recent
 //    first, padded to 4, 8 or 16 entries with an empty marker and aligned to their size. The top bit
-//    of an entry is the line's dirty bit. Entries are 16 bits wide while every tag seen is below
-//    2^15 - 1 (a 16-way set is then 32 bytes: two SSE registers), else 32 bits wide (tags below
-//    2^31 - 1; a 16-way set is one 64-byte host line); the first wider tag widens the cache, once and
-//    exactly. A lookup compares the set 8 or 4 entries at a time; a hit at position p (or a miss, p =
+//    of an entry is the line's dirty bit. Sets of 8 or 16 ways have 16-bit entries while every tag
+//    seen is below 2^15 - 1 (a 16-way set is then 32 bytes: two SSE registers); the first wider tag
+//    widens them, once and exactly, to 32 bits (tags below 2^31 - 1; a 16-way set is one 64-byte
+//    host line), which sets of 4 ways have from the start. A lookup compares the set 8 or 4 entries at a time; a hit at position p (or a miss, p =
 //    the last way) shifts positions 0..p-1 down by one and writes the line at the front, which drops
 //    the victim: one masked vector shift, the same instructions for a hit and a miss. Empty entries
 //    sit at the back, so they fill first.

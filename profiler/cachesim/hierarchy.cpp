@@ -62,15 +62,14 @@ void Hierarchy::refresh_fast_limit() {
   if (!l1_.empty()) l1_geometry_ = l1_[0].ordered_geometry();
   l2_geometry_ = l2_.ordered_geometry();
   l2_entries_ = l2_.ordered_entries();
-  // Entry widths (L1s, L2) the two-round path has code for. Since the L1s have no more sets than the
-  // L2 in every shipped preset, their tags are the wider and they widen first; other combinations
-  // (and caches that left the ordered engines) go one request at a time.
+  // Entry widths (L1s, L2) of the two-round path; caches that left the ordered engines go one
+  // request at a time.
   using E = Cache::Engine;
   const E e1 = l1_.empty() ? E::general : l1_[0].engine(), e2 = l2_.engine();
-  entry_widths_ = e1 == E::ordered16 && e2 == E::ordered16   ? EntryWidths::w16_16
-                  : e1 == E::ordered32 && e2 == E::ordered16 ? EntryWidths::w32_16
-                  : e1 == E::ordered32 && e2 == E::ordered32 ? EntryWidths::w32_32
-                                                              : EntryWidths::none;
+  const bool o1 = e1 == E::ordered16 || e1 == E::ordered32, o2 = e2 == E::ordered16 || e2 == E::ordered32;
+  entry_widths_ = !o1 || !o2 ? EntryWidths::none
+                  : e1 == E::ordered16 ? (e2 == E::ordered16 ? EntryWidths::w16_16 : EntryWidths::w16_32)
+                                       : (e2 == E::ordered16 ? EntryWidths::w32_16 : EntryWidths::w32_32);
   if (entry_widths_ == EntryWidths::none) fast_limit_ = 0;
 }
 
@@ -106,6 +105,10 @@ void Hierarchy::issue_batch(std::span<const Request> rs, std::span<const uint32_
       case EntryWidths::w16_16:
         done = lru ? issue_chunk<S1, uint16_t, S2, uint16_t, true>(r, c, n, o)
                    : issue_chunk<S1, uint16_t, S2, uint16_t, false>(r, c, n, o);
+        break;
+      case EntryWidths::w16_32:
+        done = lru ? issue_chunk<S1, uint16_t, S2, uint32_t, true>(r, c, n, o)
+                   : issue_chunk<S1, uint16_t, S2, uint32_t, false>(r, c, n, o);
         break;
       case EntryWidths::w32_16:
         done = lru ? issue_chunk<S1, uint32_t, S2, uint16_t, true>(r, c, n, o)

@@ -306,7 +306,7 @@ class Hierarchy {
   std::vector<void*> l1_entries_;
   void* l2_entries_ = nullptr;
   // Entry widths of the L1s and of the L2 (Cache::Engine ordered16 / ordered32) the path runs with.
-  enum class EntryWidths : uint8_t { none, w16_16, w32_16, w32_32 };
+  enum class EntryWidths : uint8_t { none, w16_16, w16_32, w32_16, w32_32 };
   EntryWidths entry_widths_ = EntryWidths::none;
   static constexpr size_t kChunk = 1024;
   std::vector<uint16_t> pending_;

@@ -89,7 +89,7 @@ TEST(Cache, MatchesReferenceOnAdversarialTraces) {
   compare(f, s);
 }
 
-// The ordered engine (unsectored: recency-ordered 16-bit entries with a dirty bit) and the compact one
+// The ordered engine (unsectored: recency-ordered 16- or 32-bit entries with a dirty bit) and the compact one
 // (sectored: partial tags and a recency permutation) serve LRU/FIFO caches of up to 16 ways; every
 // associativity they pad (to 4, 8 or 16 ways) must behave exactly like the reference.
 TEST(Cache, CompactEngineMatchesReferenceAtEveryAssociativity) {
@@ -100,7 +100,9 @@ TEST(Cache, CompactEngineMatchesReferenceAtEveryAssociativity) {
         const CacheConfig c = make(uint64_t(64) * ways * 8, 64, sector, ways, r);  // 8 sets
         SCOPED_TRACE(describe(c));
         Cache probe(c);
-        ASSERT_EQ(probe.engine(), sector == 64 ? Cache::Engine::ordered16 : Cache::Engine::compact);
+        ASSERT_EQ(probe.engine(), sector != 64  ? Cache::Engine::compact
+                                  : ways <= 4 ? Cache::Engine::ordered32
+                                              : Cache::Engine::ordered16);
         compare(c, random_stream(seed++, 6000, c.lines() * 4, probe.full_mask(), true));
       }
     }
@@ -137,37 +139,49 @@ TEST(Cache, WideTagConvertsCompactStateExactly) {
   }
 }
 
-// The ordered engine keeps a dirty bit in the top bit of each entry, so 16-bit entries hold tags below
-// 2^15 - 1 and 32-bit ones below 2^31 - 1: the first line with a wider tag (2^15 - 1 itself, not only
-// 2^16 and up) widens the entries, the first beyond 32 bits converts to the general engine, each
-// exactly (contents, order, dirt), and the lines just below the limits stay where they were.
+// The ordered engine keeps a dirty bit in the top bit of each entry, so 16-bit entries (sets of 8 or
+// 16 ways) hold tags below 2^15 - 1 and 32-bit ones below 2^31 - 1: the first line with a wider tag
+// (2^15 - 1 itself, not only 2^16 and up) widens the entries, the first beyond 32 bits converts to the
+// general engine, each exactly (contents, order, dirt), and lines just below the limits stay put.
 TEST(Cache, OrderedEngineTagLimitsAreExact) {
   for (const CacheConfig& c : {make(4 << 20, 64, 64, 16, Replacement::lru, 16), make(16 << 10, 64, 64, 4),
                                make(48 << 10, 64, 64, 4, Replacement::fifo, 3, 256),
-                               make(16 << 10, 64, 64, 8, Replacement::fifo)}) {
+                               make(16 << 10, 64, 64, 8, Replacement::fifo), make(36 << 10, 64, 64, 12, Replacement::lru, 3)}) {
     SCOPED_TRACE(describe(c));
     Cache x(c);
-    ASSERT_EQ(x.engine(), Cache::Engine::ordered16);
-    const uint64_t limit16 = x.ordered_line_limit();
-    x.store(limit16 - 1, 1);  // dirty, so each conversion must carry the dirty bit
-    EXPECT_EQ(x.engine(), Cache::Engine::ordered16);
-    x.load(limit16, 1);
-    ASSERT_EQ(x.engine(), Cache::Engine::ordered32);
+    const bool narrow = c.ways > 4;
+    ASSERT_EQ(x.engine(), narrow ? Cache::Engine::ordered16 : Cache::Engine::ordered32);
+    uint64_t dirty = 0;
+    uint64_t limit16 = 0;
+    if (narrow) {
+      limit16 = x.ordered_line_limit();
+      x.store(limit16 - 1, 1);  // dirty, so each conversion must carry the dirty bit
+      ++dirty;
+      EXPECT_EQ(x.engine(), Cache::Engine::ordered16);
+      x.load(limit16, 1);
+      ASSERT_EQ(x.engine(), Cache::Engine::ordered32);
+    }
     const uint64_t limit32 = x.ordered_line_limit();
     EXPECT_GT(limit32, limit16);
     x.update(limit32 - 1, 1);
+    ++dirty;
     EXPECT_EQ(x.engine(), Cache::Engine::ordered32);
     x.load(limit32, 1);
     EXPECT_EQ(x.engine(), Cache::Engine::general);
-    EXPECT_FALSE(x.load(limit16 - 1, 1).missing);
-    EXPECT_FALSE(x.load(limit16, 1).missing);
+    if (narrow) {
+      EXPECT_FALSE(x.load(limit16 - 1, 1).missing);
+      EXPECT_FALSE(x.load(limit16, 1).missing);
+    }
     EXPECT_FALSE(x.load(limit32 - 1, 1).missing);
-    EXPECT_EQ(x.flush_dirty_sectors(), 2u);
+    EXPECT_EQ(x.flush_dirty_sectors(), dirty);
     // The same transitions inside random streams, outcome by outcome against the reference.
     for (uint64_t seed : {500, 501}) {
       auto s = random_stream(seed, 20000, c.lines() * 3, x.full_mask(), true);
-      s.insert(s.begin() + 4000, {limit16 - 1, 1u, 1});
-      s.insert(s.begin() + 8000, {limit16, 1u, 0});
+      if (narrow) {
+        s.insert(s.begin() + 4000, {limit16 - 1, 1u, 1});
+        s.insert(s.begin() + 8000, {limit16, 1u, 0});
+      }
+      s.insert(s.begin() + 10000, {limit32 - 1, 1u, 1});
       if (seed == 501) s.insert(s.begin() + 12000, {limit32, 1u, 2});
       compare(c, s);
     }

@@ -179,14 +179,17 @@ TEST(Hierarchy, MatchesReferenceVegaShapedAndFifo) {
 // convert to the general engine, inside a batch; the batch goes on one request at a time, the
 // two-round path resumes with the new widths where it has code for them, and every count stays exact.
 TEST(Hierarchy, WideLineMidBatchStaysExact) {
-  const CacheConfig l1 = cfg(16 << 10, 64, 64, 4), l2 = cfg(4 << 20, 64, 64, 16, 16);
-  Cache probe1(l1), probe2(l2);
-  const uint64_t l1_wide = probe1.ordered_line_limit() + 7;  // beyond 16-bit L1 tags only
-  const uint64_t both_wide = probe2.ordered_line_limit() + 7;  // beyond 16-bit L2 tags too
-  ASSERT_LT(l1_wide, probe2.ordered_line_limit());
+  // vega56's shape (32-bit 4-way L1s, 16-bit 16-way L2) and 8-way L1s that start at 16 bits too.
+  const CacheConfig vega_l1 = cfg(16 << 10, 64, 64, 4), l2 = cfg(4 << 20, 64, 64, 16, 16);
+  const CacheConfig l1_8 = cfg(16 << 10, 64, 64, 8);
+  const uint64_t l2_wide = Cache(l2).ordered_line_limit() + 7;   // beyond 16-bit L2 tags
+  const uint64_t l1_wide = Cache(l1_8).ordered_line_limit() + 7;  // beyond 16-bit L1 tags only
+  ASSERT_LT(l1_wide, Cache(l2).ordered_line_limit());
+  const uint64_t general = (uint64_t(1) << 45) + 3;               // beyond every narrow engine
   uint64_t seed = 16;
-  for (uint64_t line : {l1_wide, both_wide, (uint64_t(1) << 45) + 3}) {
-    SCOPED_TRACE(line);
+  for (const auto& [l1, line] : {std::pair{vega_l1, l2_wide}, std::pair{vega_l1, general}, std::pair{l1_8, l1_wide},
+                                 std::pair{l1_8, l2_wide}, std::pair{l1_8, general}}) {
+    SCOPED_TRACE(describe(l1) + ", line " + std::to_string(line));
     run_random(l1, l2, 8, seed++, true, 50000, line);
     run_random(l1, l2, 8, seed++, false, 50000, line);
   }
