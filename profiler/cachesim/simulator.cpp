@@ -131,6 +131,7 @@ class Coalescer {
     ++gen_;
     requests.clear();
     lane_request.clear();
+    last_key_ = ~uint64_t(0);  // no key: a line number is below 2^62
   }
 
   // Adds one lane access; remembers (invocation, request) pairs when per_invocation.
@@ -149,8 +150,15 @@ class Coalescer {
         mask = uint32_t(((uint64_t(2) << s1) - 1) & ~((uint64_t(1) << s0) - 1));
       }
       const uint64_t key = (line << 2) | uint64_t(kind);
-      uint64_t h = (key * 0x9E3779B97F4A7C15ull) >> 40 & mask_;
       uint32_t req;
+      // Neighbouring lanes usually touch the line the previous lane did: no hashing then.
+      if (key == last_key_) {
+        req = last_req_;
+        requests[req].sectors |= mask;
+        if (per_invocation) lane_request.push_back({invocation, req});
+        continue;
+      }
+      uint64_t h = (key * 0x9E3779B97F4A7C15ull) >> 40 & mask_;
       while (true) {
         if (stamp_[h] != gen_) {
           stamp_[h] = gen_;
@@ -167,6 +175,8 @@ class Coalescer {
         }
         h = (h + 1) & mask_;
       }
+      last_key_ = key;
+      last_req_ = req;
       if (per_invocation) lane_request.push_back({invocation, req});
     }
   }
@@ -178,6 +188,8 @@ class Coalescer {
   std::vector<uint64_t> keys_;
   std::vector<uint32_t> stamp_, slot_req_;
   uint64_t mask_ = 0;
+  uint64_t last_key_ = ~uint64_t(0);  // the previous lane access's key and request, this step
+  uint32_t last_req_ = 0;
   uint32_t gen_ = 0;
   uint32_t line_shift_, sector_shift_, full_mask_;
   bool sectors_;
@@ -189,11 +201,19 @@ struct Slice {
   std::vector<std::unique_ptr<GroupAccesses>> groups;  // by workgroup - first_group; null: none or dispatched
 };
 
+// A resident wavefront. It reads its workgroup's arrays (GroupAccesses, laid out in issue order and
+// not changed once fed; owned by the resident workgroup until it retires) through its own copies of
+// their data pointers and the start of its next step, so that issuing a step, or prefetching the one
+// a few compute units ahead, does not first chase the workgroup's object and step table.
 struct Wave {
-  GroupAccesses* group;
-  uint32_t first_local;  // first lane's invocation within the workgroup
-  uint32_t next_step, end_step;  // its steps in group->step_end
+  const uint64_t* address;
+  const uint32_t* info;
+  const uint16_t* lane;
+  const uint32_t* step_end;
+  uint64_t lane_base;  // global index of its first lane's invocation
   uint64_t workgroup;
+  uint32_t next_step, end_step;  // its steps in step_end
+  uint32_t next_entry;           // where its next step's entries start (step_end[next_step - 1], or 0)
 };
 
 struct ResidentGroup {
@@ -384,7 +404,8 @@ void Simulator::schedule() {
     for (uint32_t w = 0; w < ps.waves_per_group; ++w) {
       const uint32_t s0 = w ? ga->wave_steps_end[w - 1] : 0, s1 = ga->wave_steps_end[w];
       if (s0 == s1) continue;  // a wavefront without accesses
-      c.waves.push_back(Wave{ga.get(), w * width, s0, s1, g});
+      c.waves.push_back(Wave{ga->address.data(), ga->info.data(), ga->lane.data(), ga->step_end.data(),
+                             ga->first_invocation + uint64_t(w) * width, g, s0, s1, s0 ? ga->step_end[s0 - 1] : 0});
       ++placed;
     }
     c.groups.push_back(ResidentGroup{g, std::move(ga), placed});
@@ -428,24 +449,22 @@ void Simulator::schedule() {
         const ComputeUnit& ca = ps.cu[a];
         if (!ca.waves.empty()) {
           const Wave& wa = ca.waves[ca.next < ca.waves.size() ? ca.next : 0];
-          const GroupAccesses& g = *wa.group;
-          const uint32_t e = wa.next_step ? g.step_end[wa.next_step - 1] : 0;
-          __builtin_prefetch(g.address.data() + e);
-          __builtin_prefetch(g.info.data() + e);
-          __builtin_prefetch(g.lane.data() + e);
-          __builtin_prefetch(g.step_end.data() + wa.next_step + 1);
+          const uint32_t e = wa.next_entry;
+          __builtin_prefetch(wa.address + e);
+          __builtin_prefetch(wa.info + e);
+          __builtin_prefetch(wa.lane + e);
+          __builtin_prefetch(wa.step_end + wa.next_step);
         }
       }
       if (c.waves.empty()) continue;
       any = true;
       if (c.next >= c.waves.size()) c.next = 0;
       Wave& w = c.waves[c.next];
-      GroupAccesses& ga = *w.group;
-      const uint32_t step = w.next_step;
-      const uint32_t e0 = step ? ga.step_end[step - 1] : 0, e1 = ga.step_end[step];
-      const uint64_t lane_base = ga.first_invocation + w.first_local;
+      const uint32_t e0 = w.next_entry, e1 = w.step_end[w.next_step];
+      w.next_entry = e1;
+      const uint64_t lane_base = w.lane_base;
       co.begin();
-      for (uint32_t k = e0; k < e1; ++k) co.add(ga.address[k], ga.info[k], uint32_t(lane_base + ga.lane[k]), per_inv);
+      for (uint32_t k = e0; k < e1; ++k) co.add(w.address[k], w.info[k], uint32_t(lane_base + w.lane[k]), per_inv);
       ++res.wave_steps;
       if (options_.observer)
         for (const Request& r : co.requests) options_.observer(i, r);
