@@ -40,6 +40,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 namespace hp::cachesim {
 
@@ -177,6 +180,42 @@ class Cache {
     return ordered_set_access<Op(kOp), T, kStride, kLru, kClean>(entries + size_t(line & g.set_mask) * kStride,
                                                                 uint32_t(line >> g.set_bits), kStride - 1, g.lru);
   }
+#if defined(__x86_64__) && defined(__GNUC__)
+  // ordered_access<kOp, uint16_t, 16, kLru> with AVX2: a 16-way set of 16-bit entries is one 256-bit
+  // register. Only for a caller compiled for AVX2 (gnu::target("avx2")) that checked the CPU.
+  template <int kOp, bool kLru>
+  [[gnu::target("avx2"), gnu::always_inline]] static Outcome ordered_access16x16_avx2(const OrderedGeometry& g,
+                                                                                      uint16_t* entries, uint64_t line) {
+    uint16_t* e = entries + size_t(line & g.set_mask) * 16;
+    const uint32_t tag = uint32_t(line >> g.set_bits);
+    const __m256i x = _mm256_load_si256(reinterpret_cast<const __m256i*>(e));
+    const __m256i key = _mm256_set1_epi16(short(tag));
+    const __m256i eq = _mm256_cmpeq_epi16(_mm256_and_si256(x, _mm256_set1_epi16(short(kTagBits<uint16_t>))), key);
+    const uint32_t match = uint32_t(_mm256_movemask_epi8(eq));  // two bits per entry
+    const uint32_t miss = match == 0;
+    const uint32_t p = uint32_t(std::countr_zero(match | (1u << 30))) >> 1;  // the hit, or entry 15
+    const uint32_t old = e[p];
+    Outcome o;
+    o.missing = miss;
+    o.line_hit = !miss;
+    o.written_back_sectors = miss & (old >> 15);
+    if (!kLru && !g.lru) [[unlikely]] {
+      if (!miss) {
+        if constexpr (kOp != kLoad) e[p] = uint16_t(old | 0x8000u);
+        return o;
+      }
+    }
+    const uint32_t dirty = kOp == kLoad ? (old >> 15) & (miss ^ 1u) : 1u;
+    // x moved up one entry across the two 128-bit halves, blended into entries 1..p, front written.
+    const __m256i shifted = _mm256_alignr_epi8(x, _mm256_permute2x128_si256(x, x, 0x08), 14);
+    const __m256i m = _mm256_load_si256(reinterpret_cast<const __m256i*>(kShiftMask<uint16_t>.row[p]));
+    __m256i y = _mm256_blendv_epi8(x, shifted, m);
+    const __m256i first = _mm256_setr_epi16(-1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0);
+    y = _mm256_blendv_epi8(y, _mm256_set1_epi16(short(tag | (dirty << 15))), first);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(e), y);
+    return o;
+  }
+#endif
   // Makes an ordered16 cache ordered32 (exactly; a caller that wants several caches in one width).
   void widen();
 

@@ -1,6 +1,7 @@
 #include "cachesim/hierarchy.hpp"
 
 #include <algorithm>
+#include <type_traits>
 #include <stdexcept>
 
 namespace hp::cachesim {
@@ -43,6 +44,7 @@ Hierarchy::Hierarchy(const CacheConfig& l1, uint32_t compute_units, const CacheC
   };
   widths_ = (l1_.empty() ? 0 : code(l1_[0])) * 4 + code(l2_);
   pending_.resize(kChunk);
+  use_avx2(true);
   refresh_fast_limit();
 }
 
@@ -111,6 +113,14 @@ void Hierarchy::issue_batch(std::span<const Request> rs, std::span<const uint32_
                    : issue_chunk<S1, uint16_t, S2, uint32_t, false>(r, c, n, o);
         break;
       case EntryWidths::w32_16:
+#if defined(__x86_64__) && defined(__GNUC__)
+        if constexpr (S1 == 4 && S2 == 16) {  // vega56's shape
+          if (avx2_) {
+            done = lru ? issue_chunk_avx2<true>(r, c, n, o) : issue_chunk_avx2<false>(r, c, n, o);
+            break;
+          }
+        }
+#endif
         done = lru ? issue_chunk<S1, uint32_t, S2, uint16_t, true>(r, c, n, o)
                    : issue_chunk<S1, uint32_t, S2, uint16_t, false>(r, c, n, o);
         break;
@@ -132,8 +142,48 @@ void Hierarchy::issue_batch(std::span<const Request> rs, std::span<const uint32_
   }
 }
 
+namespace {
+// How round 2 reaches the L2: the portable code, or AVX2 for 16-way sets of 16-bit entries.
+struct L2Portable {
+  template <int kOp, typename T, uint32_t S, bool kLru>
+  [[gnu::always_inline]] static Outcome access(const Cache::OrderedGeometry& g, T* entries, uint64_t line) {
+    return Cache::ordered_access<kOp, T, S, kLru>(g, entries, line);
+  }
+};
+#if defined(__x86_64__) && defined(__GNUC__)
+struct L2Avx2 {
+  template <int kOp, typename T, uint32_t S, bool kLru>
+  [[gnu::target("avx2")]] static Outcome access(const Cache::OrderedGeometry& g, T* entries,
+                                                                    uint64_t line) {
+    static_assert(S == 16 && std::is_same_v<T, uint16_t>);
+    return Cache::ordered_access16x16_avx2<kOp, kLru>(g, entries, line);
+  }
+};
+const bool kCpuHasAvx2 = __builtin_cpu_supports("avx2");
+#else
+const bool kCpuHasAvx2 = false;
+#endif
+}  // namespace
+
+void Hierarchy::use_avx2(bool on) { avx2_ = on && kCpuHasAvx2; }
+
+// The wrappers inline the chunk's code into themselves, the AVX2 one compiled for AVX2.
 template <uint32_t S1, typename T1, uint32_t S2, typename T2, bool kLru>
 size_t Hierarchy::issue_chunk(const Request* rs, const uint32_t* cus, size_t n, IssueResult* out) {
+  return issue_chunk_impl<S1, T1, S2, T2, kLru, L2Portable>(rs, cus, n, out);
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+template <bool kLru>
+[[gnu::target("avx2")]] size_t Hierarchy::issue_chunk_avx2(const Request* rs, const uint32_t* cus, size_t n,
+                                                          IssueResult* out) {
+  return issue_chunk_impl<4, uint32_t, 16, uint16_t, kLru, L2Avx2>(rs, cus, n, out);
+}
+#endif
+
+template <uint32_t S1, typename T1, uint32_t S2, typename T2, bool kLru, typename L2>
+[[gnu::always_inline]] inline size_t Hierarchy::issue_chunk_impl(const Request* rs, const uint32_t* cus, size_t n,
+                                                                 IssueResult* out) {
   // Round 1: the L1 lookups, in order; every request that goes on to the L2 is queued (written
   // always, kept by advancing the count only when it goes on: no branch on the outcome). It stops
   // before a line too wide for the ordered engine; round 2 then completes the requests before it.
@@ -185,12 +235,12 @@ size_t Hierarchy::issue_chunk(const Request* rs, const uint32_t* cus, size_t n, 
     if (l2_curve) feed_l2_mrc(line);
     Outcome o;
     if (r.kind == AccessKind::load) {
-      o = Cache::ordered_access<0, T2, S2, kLru>(g2, l2_entries, line);
+      o = L2::template access<0, T2, S2, kLru>(g2, l2_entries, line);
     } else if (r.kind == AccessKind::store) {
-      o = Cache::ordered_access<1, T2, S2, kLru>(g2, l2_entries, line);
+      o = L2::template access<1, T2, S2, kLru>(g2, l2_entries, line);
       c.l2_store_misses += o.missing;
     } else {
-      o = Cache::ordered_access<2, T2, S2, kLru>(g2, l2_entries, line);
+      o = L2::template access<2, T2, S2, kLru>(g2, l2_entries, line);
     }
     c.l2_misses += o.missing;  // 0 or 1
     written_back += o.written_back_sectors;

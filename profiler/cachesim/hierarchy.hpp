@@ -126,6 +126,11 @@ class Hierarchy {
   // IssueResult.
   void issue(std::span<const Request> rs, std::span<const uint32_t> cus, IssueResult* out);
 
+  // Whether the two-round path may run its L2 accesses with AVX2 for vega56's shape (on by default
+  // where the CPU has AVX2; results are the same, tests run both).
+  void use_avx2(bool on);
+  bool avx2() const { return avx2_; }
+
   // Start of a pass: L1s are invalidated (a barrier between dispatches does that on GPUs); the L2
   // keeps its contents and counters start from zero.
   void begin_pass();
@@ -234,6 +239,12 @@ class Hierarchy {
   // fast_limit_.
   template <uint32_t S1, typename T1, uint32_t S2, typename T2, bool kLru>
   size_t issue_chunk(const Request* rs, const uint32_t* cus, size_t n, IssueResult* out);
+  // The same for vega56's shape (4-way 32-bit L1s, 16-way 16-bit L2) with the L2 in AVX2.
+  template <bool kLru>
+  [[gnu::target("avx2")]] size_t issue_chunk_avx2(const Request* rs, const uint32_t* cus, size_t n, IssueResult* out);
+  // Both, with L2 the way round 2 reaches the L2.
+  template <uint32_t S1, typename T1, uint32_t S2, typename T2, bool kLru, typename L2>
+  size_t issue_chunk_impl(const Request* rs, const uint32_t* cus, size_t n, IssueResult* out);
   // fast_limit_: the lowest ordered_line_limit() of all caches (0 once one has left the ordered
   // engine); and the geometry and entries the two-round path uses.
   void refresh_fast_limit();
@@ -308,6 +319,7 @@ class Hierarchy {
   // Entry widths of the L1s and of the L2 (Cache::Engine ordered16 / ordered32) the path runs with.
   enum class EntryWidths : uint8_t { none, w16_16, w16_32, w32_16, w32_32 };
   EntryWidths entry_widths_ = EntryWidths::none;
+  bool avx2_ = false;
   static constexpr size_t kChunk = 1024;
   std::vector<uint16_t> pending_;
   std::array<BufferStats, 256> buffers_{};  // sectored hierarchies

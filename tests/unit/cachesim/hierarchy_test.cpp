@@ -97,9 +97,14 @@ void expect_level(const LevelStats& a, const LevelStats& b, const char* name) {
 // wide_at: the request with that index gets line wide_line, whose tag needs wider entries or no
 // narrow engine at all (the caches it reaches widen or convert mid-stream, inside a batch when
 // batched).
+// avx2: let the two-round path use its AVX2 L2 code where the CPU has AVX2 (false: portable code).
 void run_random(const CacheConfig& c1, const CacheConfig& c2, uint32_t cus, uint64_t seed, bool batched = false,
-                int wide_at = -1, uint64_t wide_line = (uint64_t(1) << 45) + 3) {
+                int wide_at = -1, uint64_t wide_line = (uint64_t(1) << 45) + 3, bool avx2 = true) {
   Hierarchy h(c1, cus, c2);
+  h.use_avx2(avx2);
+  if (!avx2) {
+    ASSERT_FALSE(h.avx2());
+  }
   RefHierarchy r(c1, cus, c2);
   Cache probe(c1);
   std::mt19937_64 rng(seed);
@@ -168,10 +173,16 @@ TEST(Hierarchy, MatchesReferenceAmdLike) { run_random(cfg(4 << 10, 64, 64, 4), c
 // vega56's shape (4-way L1s, 16-way L2 in 16 channels; the unsectored fast path), and FIFO.
 TEST(Hierarchy, MatchesReferenceVegaShapedAndFifo) {
   run_random(cfg(16 << 10, 64, 64, 4), cfg(4 << 20, 64, 64, 16, 16), 8, 13);
+  run_random(cfg(16 << 10, 64, 64, 4), cfg(4 << 20, 64, 64, 16, 16), 8, 18, true);
+  run_random(cfg(16 << 10, 64, 64, 4), cfg(4 << 20, 64, 64, 16, 16), 8, 19, true, -1, 0, false);
   CacheConfig l1 = cfg(2 << 10, 64, 64, 8), l2 = cfg(64 << 10, 64, 64, 16, 4);
   l1.replacement = l2.replacement = Replacement::fifo;
   run_random(l1, l2, 3, 14);
   run_random(l1, l2, 3, 15, true);
+  CacheConfig vl1 = cfg(16 << 10, 64, 64, 4), vl2 = cfg(4 << 20, 64, 64, 16, 16);
+  vl1.replacement = vl2.replacement = Replacement::fifo;
+  run_random(vl1, vl2, 8, 20, true);                 // FIFO through the AVX2 L2 path where present
+  run_random(vl1, vl2, 8, 21, true, -1, 0, false);   // and through the portable one
 }
 
 // A line too wide for the caches' entries in the middle of the stream: the caches it reaches widen
@@ -192,6 +203,7 @@ TEST(Hierarchy, WideLineMidBatchStaysExact) {
     SCOPED_TRACE(describe(l1) + ", line " + std::to_string(line));
     run_random(l1, l2, 8, seed++, true, 50000, line);
     run_random(l1, l2, 8, seed++, false, 50000, line);
+    run_random(l1, l2, 8, seed++, true, 50000, line, false);  // the portable L2 code
   }
 }
 
@@ -209,6 +221,8 @@ TEST(Hierarchy, MatchesReferenceInEverySetWidthBatched) {
     const CacheConfig l1 = cfg(uint64_t(w[0]) * 64 * 16, 64, 64, w[0]), l2 = cfg(uint64_t(w[1]) * 64 * 64 * 4, 64, 64, w[1], 4);
     run_random(l1, l2, 3, ++seed, false);
     run_random(l1, l2, 3, ++seed, true);
+    // vega56's shape has an AVX2 L2 path too (used where the CPU has AVX2): the portable one as well.
+    if (w[0] == 4 && w[1] == 16) run_random(l1, l2, 3, ++seed, true, -1, 0, false);
   }
   run_random(cfg(8 << 10, 128, 32, 8), cfg(64 << 10, 128, 32, 16, 2), 3, 61, true);
   // Random replacement (seeded per CU, which the reference does not model): batched against one
