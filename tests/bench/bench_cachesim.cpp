@@ -9,7 +9,8 @@
 //   Hierarchy/*      the coalesced request stream of vega56 replayed through 56 L1s + the L2
 //                    (items = requests; lane_accesses = the same work counted in lane accesses),
 //                    one request per call (/0) or in batches of 4096 requests of any CUs (/1), as
-//                    Simulator::run_pass issues them.
+//                    Simulator::run_pass issues them; /2 the same batches with the portable L2 code
+//                    (/1 runs the AVX2 L2 path where the CPU has AVX2).
 //   L1Only/*         the same requests' L1 lookups alone: through the 56 L1s (/0), or all through one
 //                    16 KiB L1 whose whole state stays in the host's L1 cache (/1): what one lookup
 //                    costs without host cache misses.
@@ -96,10 +97,17 @@ const Fixture& fixture() {
 
 constexpr size_t kBatch = 4096;  // Simulator's batch
 
+// Whether a vega56 hierarchy's batched path uses AVX2 here.
+bool h_avx2() {
+  const Preset p = find_preset("vega56");
+  return Hierarchy(p.l1, 1, p.l2).avx2();
+}
+
 void Hierarchy_L1L2(benchmark::State& state) {
   const Fixture& f = fixture();
   for (auto _ : state) {
     Hierarchy h(f.preset.l1, f.preset.compute_units, f.preset.l2);
+    if (state.range(0) == 2) h.use_avx2(false);
     if (state.range(0)) {
       const std::span<const Request> all(f.flat);
       const std::span<const uint32_t> cus(f.flat_cu);
@@ -116,9 +124,11 @@ void Hierarchy_L1L2(benchmark::State& state) {
   // The same work counted in the lane accesses the coalescer turned into these requests.
   state.counters["lane_accesses"] =
       benchmark::Counter(double(f.trace.records[0].size()), benchmark::Counter::kIsIterationInvariantRate);
-  state.SetLabel(state.range(0) ? "batched, as the simulator issues" : "one by one");
+  state.SetLabel(state.range(0) == 0 ? "one by one"
+                 : state.range(0) == 1 ? (h_avx2() ? "batched, as the simulator issues (AVX2 L2)" : "batched, as the simulator issues")
+                                       : "batched, portable L2 code");
 }
-BENCHMARK(Hierarchy_L1L2)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(Hierarchy_L1L2)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
 void Hierarchy_L1L2_withL2Mrc(benchmark::State& state) {
   const Fixture& f = fixture();
