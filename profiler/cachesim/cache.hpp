@@ -154,8 +154,10 @@ class Cache {
   [[gnu::always_inline]] Outcome ordered_access(uint64_t line) {
     uint64_t tag;
     const size_t at = size_t(locate(line, tag)) * kStride;
-    if (engine_ == Engine::ordered16)
-      return ordered_set_access<Op(kOp), uint16_t, kStride>(tag16_.get() + at, uint32_t(tag), kStride - 1, lru_);
+    if constexpr (kStride >= 8) {  // 16-bit entries only serve 8 and 16 ways
+      if (engine_ == Engine::ordered16)
+        return ordered_set_access<Op(kOp), uint16_t, kStride>(tag16_.get() + at, uint32_t(tag), kStride - 1, lru_);
+    }
     return ordered_set_access<Op(kOp), uint32_t, kStride>(tag32_.get() + at, uint32_t(tag), kStride - 1, lru_);
   }
   // The same without a call per request: the geometry of a cache whose sets are indexed by the low
@@ -282,26 +284,23 @@ class Cache {
   [[gnu::always_inline]] static Outcome ordered_set_access(T* e, uint32_t tag, uint32_t last, bool lru) {
     static_assert(!kClean || op == kLoad);
     constexpr bool k16 = sizeof(T) == 2;
+    static_assert(!k16 || kStride >= 8, "16-bit entries serve sets of 8 or 16 ways");
     constexpr uint32_t kShift = kDirtyShift<T>;
 #if defined(__SSE2__)
-    // Vectors of 8 (16-bit) or 4 (32-bit) entries; a 4-entry 16-bit set is half a vector.
-    constexpr uint32_t kPerVec = 16 / sizeof(T);
-    constexpr uint32_t kVec = (kStride + kPerVec - 1) / kPerVec;
-    constexpr bool kHalf = kStride * sizeof(T) == 8;
+    // Vectors of 8 (16-bit) or 4 (32-bit) entries.
+    constexpr uint32_t kVec = kStride * sizeof(T) / 16;
     const __m128i key = k16 ? _mm_set1_epi16(short(tag)) : _mm_set1_epi32(int(tag));
     const __m128i tag_bits = k16 ? _mm_set1_epi16(short(kTagBits<T>)) : _mm_set1_epi32(int(kTagBits<T>));
     __m128i x[kVec], eq[kVec];
     for (uint32_t v = 0; v < kVec; ++v) {
-      x[v] = kHalf ? _mm_loadl_epi64(reinterpret_cast<const __m128i*>(e))
-                   : _mm_load_si128(reinterpret_cast<const __m128i*>(e) + v);
+      x[v] = _mm_load_si128(reinterpret_cast<const __m128i*>(e) + v);
       const __m128i t = kClean ? x[v] : _mm_and_si128(x[v], tag_bits);
       eq[v] = k16 ? _mm_cmpeq_epi16(t, key) : _mm_cmpeq_epi32(t, key);
     }
     // One bit per entry: the comparison masks (all ones or zeros) narrowed by saturating packs.
     uint32_t match;
     if constexpr (k16) {
-      const __m128i bytes = _mm_packs_epi16(eq[0], kVec > 1 ? eq[kVec - 1] : _mm_setzero_si128());
-      match = uint32_t(_mm_movemask_epi8(bytes)) & ((1u << kStride) - 1);  // a half vector's zeros
+      match = uint32_t(_mm_movemask_epi8(_mm_packs_epi16(eq[0], kVec > 1 ? eq[kVec - 1] : _mm_setzero_si128())));
     } else if constexpr (kVec == 1) {
       match = uint32_t(_mm_movemask_ps(_mm_castsi128_ps(eq[0])));
     } else if constexpr (kVec == 2) {
@@ -341,10 +340,7 @@ class Cache {
       x[0] = _mm_insert_epi16(x[0], int(front), 0);
     else
       x[0] = _mm_castps_si128(_mm_move_ss(_mm_castsi128_ps(x[0]), _mm_castsi128_ps(_mm_cvtsi32_si128(int(front)))));
-    if constexpr (kHalf)
-      _mm_storel_epi64(reinterpret_cast<__m128i*>(e), x[0]);
-    else
-      for (uint32_t v = 0; v < kVec; ++v) _mm_store_si128(reinterpret_cast<__m128i*>(e) + v, x[v]);
+    for (uint32_t v = 0; v < kVec; ++v) _mm_store_si128(reinterpret_cast<__m128i*>(e) + v, x[v]);
 #else
     for (uint32_t i = p; i > 0; --i) e[i] = e[i - 1];
     e[0] = T(front);
@@ -380,7 +376,9 @@ class Cache {
     uint64_t tag;
     T* e = entries + size_t(locate(line, tag)) * stride_;
     const uint32_t last = ways_per_set_ - 1;
-    if (stride_ == 4) return ordered_set_access<op, T, 4>(e, uint32_t(tag), last, lru_);
+    if constexpr (sizeof(T) == 4) {  // 16-bit entries only serve 8 and 16 ways
+      if (stride_ == 4) return ordered_set_access<op, T, 4>(e, uint32_t(tag), last, lru_);
+    }
     if (stride_ == 8) return ordered_set_access<op, T, 8>(e, uint32_t(tag), last, lru_);
     return ordered_set_access<op, T, 16>(e, uint32_t(tag), last, lru_);
   }

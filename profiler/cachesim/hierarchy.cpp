@@ -102,16 +102,17 @@ void Hierarchy::issue_batch(std::span<const Request> rs, std::span<const uint32_
     IssueResult* o = out ? out + begin : nullptr;
     // LRU on both levels (the usual case) is a constant of the code; FIFO reads the flag.
     const bool lru = l1_geometry_.lru && l2_geometry_.lru;
+    auto two_rounds = [&]<typename T1, typename T2>() -> size_t {
+      // 16-bit entries only serve sets of 8 or 16 ways (Cache): other pairs never occur.
+      if constexpr ((sizeof(T1) == 4 || S1 >= 8) && (sizeof(T2) == 4 || S2 >= 8))
+        return lru ? issue_chunk<S1, T1, S2, T2, true>(r, c, n, o) : issue_chunk<S1, T1, S2, T2, false>(r, c, n, o);
+      else
+        return 0;
+    };
     size_t done = 0;
     switch (entry_widths_) {
-      case EntryWidths::w16_16:
-        done = lru ? issue_chunk<S1, uint16_t, S2, uint16_t, true>(r, c, n, o)
-                   : issue_chunk<S1, uint16_t, S2, uint16_t, false>(r, c, n, o);
-        break;
-      case EntryWidths::w16_32:
-        done = lru ? issue_chunk<S1, uint16_t, S2, uint32_t, true>(r, c, n, o)
-                   : issue_chunk<S1, uint16_t, S2, uint32_t, false>(r, c, n, o);
-        break;
+      case EntryWidths::w16_16: done = two_rounds.template operator()<uint16_t, uint16_t>(); break;
+      case EntryWidths::w16_32: done = two_rounds.template operator()<uint16_t, uint32_t>(); break;
       case EntryWidths::w32_16:
 #if defined(__x86_64__) && defined(__GNUC__)
         if constexpr (S1 == 4 && S2 == 16) {  // vega56's shape
@@ -121,13 +122,9 @@ void Hierarchy::issue_batch(std::span<const Request> rs, std::span<const uint32_
           }
         }
 #endif
-        done = lru ? issue_chunk<S1, uint32_t, S2, uint16_t, true>(r, c, n, o)
-                   : issue_chunk<S1, uint32_t, S2, uint16_t, false>(r, c, n, o);
+        done = two_rounds.template operator()<uint32_t, uint16_t>();
         break;
-      case EntryWidths::w32_32:
-        done = lru ? issue_chunk<S1, uint32_t, S2, uint32_t, true>(r, c, n, o)
-                   : issue_chunk<S1, uint32_t, S2, uint32_t, false>(r, c, n, o);
-        break;
+      case EntryWidths::w32_32: done = two_rounds.template operator()<uint32_t, uint32_t>(); break;
       case EntryWidths::none: break;
     }
     if (done == n) continue;

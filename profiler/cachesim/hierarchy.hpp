@@ -239,9 +239,11 @@ class Hierarchy {
   // fast_limit_.
   template <uint32_t S1, typename T1, uint32_t S2, typename T2, bool kLru>
   size_t issue_chunk(const Request* rs, const uint32_t* cus, size_t n, IssueResult* out);
+#if defined(__x86_64__) && defined(__GNUC__)
   // The same for vega56's shape (4-way 32-bit L1s, 16-way 16-bit L2) with the L2 in AVX2.
   template <bool kLru>
   [[gnu::target("avx2")]] size_t issue_chunk_avx2(const Request* rs, const uint32_t* cus, size_t n, IssueResult* out);
+#endif
   // Both, with L2 the way round 2 reaches the L2.
   template <uint32_t S1, typename T1, uint32_t S2, typename T2, bool kLru, typename L2>
   size_t issue_chunk_impl(const Request* rs, const uint32_t* cus, size_t n, IssueResult* out);
@@ -310,7 +312,7 @@ class Hierarchy {
   HierarchyStats stats_;
   uint64_t written_back_ = 0;  // unsectored: dirty lines written back by evictions (see stats())
   uint32_t widths_ = 0;        // unsectored: 4 * code(L1 set width) + code(L2 set width), see issue()
-  uint64_t fast_limit_ = 0;    // batches whose lines are all below this take the two-round path
+  uint64_t fast_limit_ = 0;    // the two-round path stops before a line at or above this
   // The two-round path: the caches' ordered geometry and entries (see refresh_fast_limit), and the
   // indices (in their chunk) of the requests that go on to the L2.
   Cache::OrderedGeometry l1_geometry_{}, l2_geometry_{};
