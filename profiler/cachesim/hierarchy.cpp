@@ -150,8 +150,7 @@ struct L2Portable {
 #if defined(__x86_64__) && defined(__GNUC__)
 struct L2Avx2 {
   template <int kOp, typename T, uint32_t S, bool kLru>
-  [[gnu::target("avx2")]] static Outcome access(const Cache::OrderedGeometry& g, T* entries,
-                                                                    uint64_t line) {
+  [[gnu::target("avx2")]] static Outcome access(const Cache::OrderedGeometry& g, T* entries, uint64_t line) {
     static_assert(S == 16 && std::is_same_v<T, uint16_t>);
     return Cache::ordered_access16x16_avx2<kOp, kLru>(g, entries, line);
   }
@@ -183,12 +182,13 @@ template <uint32_t S1, typename T1, uint32_t S2, typename T2, bool kLru, typenam
                                                                  IssueResult* out) {
   // Round 1: the L1 lookups, in order; every request that goes on to the L2 is queued (written
   // always, kept by advancing the count only when it goes on: no branch on the outcome). It stops
-  // before a line too wide for the ordered engine; round 2 then completes the requests before it.
+  // before a line too wide for a cache's current entries; round 2 then completes the requests
+  // before it.
   uint16_t* pending = pending_.data();
   size_t queued = 0;
   const bool l1_curves = !l1_mrc_.empty();
   const Cache::OrderedGeometry g1 = l1_geometry_, g2 = l2_geometry_;
-  T1* const* l1_entries = reinterpret_cast<T1* const*>(l1_entries_.data());
+  void* const* l1_entries = l1_entries_.data();
   T2* const l2_entries = static_cast<T2*>(l2_entries_);
   const uint64_t limit = fast_limit_;
   size_t done = 0;
@@ -203,7 +203,7 @@ template <uint32_t S1, typename T1, uint32_t S2, typename T2, bool kLru, typenam
       ++c.l1_requests;
       if (l1_curves) feed_l1_mrc(cus[i], line);
       // Only loads reach an L1 (stores write through it, atomics bypass it): nothing in it is dirty.
-      to_l2 = Cache::ordered_access<0, T1, S1, kLru, true>(g1, l1_entries[cus[i]], line).missing;
+      to_l2 = Cache::ordered_access<0, T1, S1, kLru, true>(g1, static_cast<T1*>(l1_entries[cus[i]]), line).missing;
       c.l1_misses += to_l2;
       if (out) out[i] = IssueResult{to_l2 != 0, false};
     } else {
