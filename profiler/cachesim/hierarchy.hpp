@@ -213,21 +213,12 @@ class Hierarchy {
         ++stats_.atomics;
     }
     if (l2_mrc_) feed_l2_mrc(line);
-    uint32_t miss;  // 0 or 1
-    if (kind == AccessKind::load) {
-      const Outcome o = access1<S2, 0>(l2_, line);
-      miss = o.missing;
-      written_back_ += o.written_back_sectors;
-    } else if (kind == AccessKind::store) {
-      const Outcome o = access1<S2, 1>(l2_, line);
-      miss = o.missing;
-      written_back_ += o.written_back_sectors;
-      c.l2_store_misses += miss;
-    } else {
-      const Outcome o = access1<S2, 2>(l2_, line);
-      miss = o.missing;
-      written_back_ += o.written_back_sectors;
-    }
+    const Outcome o = kind == AccessKind::load    ? access1<S2, 0>(l2_, line)
+                      : kind == AccessKind::store ? access1<S2, 1>(l2_, line)
+                                                  : access1<S2, 2>(l2_, line);
+    const uint32_t miss = o.missing;  // 0 or 1
+    written_back_ += o.written_back_sectors;
+    if (kind == AccessKind::store) c.l2_store_misses += miss;
     c.l2_misses += miss;
     res.l2_miss = miss;
     return res;
