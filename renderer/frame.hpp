@@ -119,6 +119,8 @@ class Frame {
   /// The BVH and leaf-order geometry (when rays are traced), for CPU reference checks.
   const RtGeometry* rt_geometry() const { return rt_geometry_ ? &*rt_geometry_ : nullptr; }
   const RayTracingPasses* rt_passes() const { return rt_passes_.get(); }
+  /// The uploaded ray-tracing scene (nullptr without ray-traced passes).
+  const RtScene* rt_scene() const { return rt_scene_.get(); }
   uint32_t samples_accumulated() const { return sample_index_; }
   /// The queries of the first frame this Frame rendered (none before any): profilers keep every query out
   /// of it (see profile_frames).

@@ -113,4 +113,17 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   materials_ = upload(ctx, materials, uploaded_bytes_);
 }
 
+vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout, bool soup,
+                                bool object_leaves) {
+  const uint32_t values[2] = {soup ? 1u : 0u, object_leaves ? 1u : 0u};
+  const VkSpecializationMapEntry entries[2] = {{0, 0, 4}, {1, 4, 4}};
+  const VkSpecializationInfo spec{2, entries, sizeof(values), values};
+  return vk::create_compute_pipeline(ctx, spirv, layout, &spec);
+}
+
+vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
+                                const RtScene& scene) {
+  return create_rt_pipeline(ctx, spirv, layout, scene.layout() == GeometryLayout::soup, scene.object_leaves());
+}
+
 }  // namespace hp

@@ -3,7 +3,10 @@
 #pragma once
 
 #include "rt_geometry.hpp"
+#include "vk/pipeline.hpp"
 #include "vk/resources.hpp"
+
+#include <span>
 
 #include <string>
 
@@ -48,5 +51,13 @@ class RtScene {
       slot_material_, materials_;
   vk::BufferView node_texels_;  // after nodes_: destroyed before it
 };
+
+/// A ray-tracing compute pipeline specialized by a geometry layout and a BVH granularity
+/// (shaders/common/rt_bindings.glsl: constant_id 0 = soup layout, 1 = object leaves).
+vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout, bool soup,
+                                bool object_leaves);
+/// ... specialized for `scene`.
+vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
+                                const RtScene& scene);
 
 }  // namespace hp

@@ -79,16 +79,6 @@ namespace {
 
 constexpr VkShaderStageFlags kCS = VK_SHADER_STAGE_COMPUTE_BIT;
 
-// Every ray-tracing pipeline is specialized by the geometry layout and the BVH granularity
-// (shaders/common/rt_bindings.glsl, constant_id 0 and 1).
-vk::Pipeline specialized_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
-                                  uint32_t soup, uint32_t objects) {
-  const uint32_t values[2] = {soup, objects};
-  const VkSpecializationMapEntry entries[2] = {{0, 0, 4}, {1, 4, 4}};
-  const VkSpecializationInfo spec{2, entries, sizeof(values), values};
-  return vk::create_compute_pipeline(ctx, spirv, layout, &spec);
-}
-
 // Halton (2, 3) point i, the shared jitter of frame i: the same sequence the per-thread mode rotates.
 glm::vec2 halton23(uint32_t i) {
   float f = 0.5f, r2 = 0.0f;
@@ -189,18 +179,18 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   soup_ = soup;
   objects_ = objects;
   // Only the pipelines the options ask for are compiled (lavapipe compiles each one with LLVM).
-  if (options.shadows) shadow_pipeline_ = specialized_pipeline(ctx, shadows_comp, ds.pipeline_layout(), soup, objects);
+  if (options.shadows) shadow_pipeline_ = create_rt_pipeline(ctx, shadows_comp, ds.pipeline_layout(), soup, objects);
   if (compact) {
-    compact_pipeline_ = specialized_pipeline(ctx, compact_comp, ds.pipeline_layout(), soup, objects);
-    args_pipeline_ = specialized_pipeline(ctx, compact_args_comp, ds.pipeline_layout(), soup, objects);
-    consume_pipeline_ = specialized_pipeline(ctx, consume_comp, ds.pipeline_layout(), soup, objects);
+    compact_pipeline_ = create_rt_pipeline(ctx, compact_comp, ds.pipeline_layout(), soup, objects);
+    args_pipeline_ = create_rt_pipeline(ctx, compact_args_comp, ds.pipeline_layout(), soup, objects);
+    consume_pipeline_ = create_rt_pipeline(ctx, consume_comp, ds.pipeline_layout(), soup, objects);
     if (options.sort != SortKey::none) sorter_ = std::make_unique<RadixSort>(ctx, uint32_t(cells));
   }
   if (options.reflections && !compact) {
-    reflection_pipeline_ = specialized_pipeline(ctx, reflections_comp, ds.pipeline_layout(), soup, objects);
+    reflection_pipeline_ = create_rt_pipeline(ctx, reflections_comp, ds.pipeline_layout(), soup, objects);
   }
   if (options.reflections) {
-    accumulate_pipeline_ = specialized_pipeline(ctx, accumulate_comp, ds.pipeline_layout(), soup, objects);
+    accumulate_pipeline_ = create_rt_pipeline(ctx, accumulate_comp, ds.pipeline_layout(), soup, objects);
   }
   begin_frame(0);
 }
@@ -248,16 +238,16 @@ glm::uvec2 RayTracingPasses::workgroups(Traced pass, uint32_t rays) const {
 void RayTracingPasses::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer) {
   descriptors_.write_buffer(21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
   if (options_.shadows && !shadow_traced_.handle()) {
-    shadow_traced_ = specialized_pipeline(ctx, shadows_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
+    shadow_traced_ = create_rt_pipeline(ctx, shadows_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
   }
   const bool compact = options_.reflections && options_.reflection_path == ReflectionPath::compact;
   if (options_.reflections && !compact && !reflection_traced_.handle()) {
     reflection_traced_ =
-        specialized_pipeline(ctx, reflections_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
+        create_rt_pipeline(ctx, reflections_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
   }
   if (compact && !compact_traced_.handle()) {
-    compact_traced_ = specialized_pipeline(ctx, compact_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
-    consume_traced_ = specialized_pipeline(ctx, consume_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
+    compact_traced_ = create_rt_pipeline(ctx, compact_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
+    consume_traced_ = create_rt_pipeline(ctx, consume_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
   }
 }
 

@@ -3,6 +3,7 @@
 // buffer and the optional ray dumps.
 #pragma once
 
+#include "bvh/geometry.hpp"
 #include "common/shared_types.h"
 #include "passes/gbuffer.hpp"
 #include "passes/radix_sort.hpp"
@@ -53,6 +54,11 @@ struct RayTracingOptions {
   SortKey sort = SortKey::none;          ///< compact path only
   Writeback writeback = Writeback::index;  ///< compact path only
 };
+
+/// The ray of a dump record (RayTracingOptions::dump_rays): its first two vectors are the bvh::Ray layout.
+inline bvh::Ray dumped_ray(const gpu::RayDump& d) {
+  return {glm::vec3(d.origin_tmin), d.origin_tmin.w, glm::vec3(d.dir_tmax), d.dir_tmax.w};
+}
 
 /// Deterministic work counters of one frame (HP_RT_COUNTERS).
 struct RayCounters {

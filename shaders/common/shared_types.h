@@ -120,6 +120,21 @@ struct RayDump {
 };
 HP_CHECK_SIZE(RayDump, 48);
 
+// The traversal on its own (shaders/trace_rays.comp): a ray in, in the bvh::Ray layout...
+struct BatchRay {
+  vec4 origin_tmin;
+  vec4 dir_tmax;
+};
+HP_CHECK_SIZE(BatchRay, 32);
+
+// ... and its answer: the bvh::Hit fields (scene triangle index or -1, t, u, v as bits; all 0 on a miss)
+// and the ray's work counters (bvh::TraversalStats).
+struct BatchResult {
+  ivec4 hit;    // x = scene triangle index or -1, y/z/w = floatBitsToInt(t / u / v)
+  uvec4 work;   // x = nodes visited, y = triangles tested
+};
+HP_CHECK_SIZE(BatchResult, 32);
+
 // Counter buffer layout (uint pairs, low word then high word, added with carry).
 #define HP_COUNTER_SHADOW_RAYS 0
 #define HP_COUNTER_SHADOW_NODES 2

@@ -11,15 +11,6 @@
 
 namespace hp {
 
-inline bvh::Ray to_ray(const gpu::RayDump& d) {
-  bvh::Ray r;
-  r.origin = glm::vec3(d.origin_tmin);
-  r.tmin = d.origin_tmin.w;
-  r.dir = glm::vec3(d.dir_tmax);
-  r.tmax = d.dir_tmax.w;
-  return r;
-}
-
 struct Agreement {
   size_t rays = 0, equal = 0;
 };
@@ -32,7 +23,7 @@ inline Agreement compare(const Frame& frame, const std::vector<gpu::RayDump>& du
   for (size_t i = 0; i < dump.size(); ++i) {
     if (dump[i].hit.z == 0) continue;  // no ray cast for this pixel
     ++a.rays;
-    const bvh::Ray ray = to_ray(dump[i]);
+    const bvh::Ray ray = dumped_ray(dump[i]);
     const bvh::Hit ref = any_hit ? bvh::intersect_any(g.bvh, g.leaf, ray) : bvh::intersect_closest(g.bvh, g.leaf, ray);
     const int gpu_prim = dump[i].hit.x;
     const bool same = any_hit ? ((gpu_prim >= 0) == ref.hit()) : (gpu_prim == ref.prim);

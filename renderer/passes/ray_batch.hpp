@@ -1,0 +1,49 @@
+// The passes' one traversal (shaders/common/traversal.glsl) on a batch of rays given by the host, without
+// a pass's ray generation or shading (shaders/trace_rays.comp): the GPU half of the traversal's agreement
+// with the C++ reference on arbitrary rays (hard cases included), and the traversal's own speed.
+#pragma once
+
+#include "bvh/traverse.hpp"
+#include "rt_scene.hpp"
+#include "vk/pipeline.hpp"
+#include "vk/timestamps.hpp"
+
+#include <glm/glm.hpp>
+
+#include <span>
+#include <vector>
+
+namespace hp {
+
+class RayBatchTracer {
+ public:
+  /// Uploads `rays` once; throws InputError when they do not fit the device's buffer or dispatch limits.
+  RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span<const bvh::Ray> rays);
+
+  /// Traces every ray (one thread each) and waits. Returns the dispatch's GPU time in nanoseconds from
+  /// timestamp queries, or 0 when the queue has none.
+  uint64_t trace(vk::Context& ctx, bvh::HitMode mode);
+
+  /// The last trace's answers, one per ray: the bvh::Hit (scene triangle index) and the ray's counters.
+  struct Result {
+    bvh::Hit hit;
+    bvh::TraversalStats stats;
+  };
+  std::vector<Result> results(vk::Context& ctx) const;
+
+  size_t size() const { return count_; }
+
+  /// The dispatch for `rays` rays under `limits` (workgroups in x, then y); throws InputError naming the
+  /// limit a batch that size would break (maxStorageBufferRange, maxComputeWorkGroupCount).
+  static glm::uvec2 check_limits(uint64_t rays, const VkPhysicalDeviceLimits& limits);
+
+ private:
+  uint32_t count_ = 0;
+  uint32_t groups_x_ = 0, groups_y_ = 0;
+  vk::Buffer rays_, results_;
+  vk::DescriptorSet descriptors_;
+  vk::Pipeline pipeline_;
+  vk::TimestampQueries timestamps_;
+};
+
+}  // namespace hp

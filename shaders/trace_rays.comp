@@ -1,0 +1,36 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// The passes' one traversal on its own: one thread per ray of a buffer, closest or any hit, no ray
+// generation and no shading. Tests check it against the C++ reference on arbitrary rays (hard cases
+// included); the frame benchmark times it on the rays a pass cast.
+#include "common/traversal.glsl"
+
+layout(local_size_x = 64) in;  // HP_TRAVERSAL_MAX_GROUP: the traversal stack's shared columns
+
+layout(std430, set = 0, binding = 27) readonly buffer BatchRays { BatchRay batch_rays[]; };
+layout(std430, set = 0, binding = 28) writeonly buffer BatchResults { BatchResult batch_results[]; };
+layout(push_constant) uniform BatchParams {
+  uint count;
+  uint any_hit;
+  uint groups_x;  // the dispatch's width in workgroups (it is 2D past the device's per-axis limit)
+} batch;
+
+void main() {
+  uint i = (gl_WorkGroupID.y * batch.groups_x + gl_WorkGroupID.x) * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
+  if (i >= batch.count) return;
+  BatchRay ray = batch_rays[i];
+  BatchResult res;
+  res.hit = ivec4(-1, 0, 0, 0);
+  res.work = uvec4(0u);
+  HpRay r;
+  if (hp_prepare(ray.origin_tmin.xyz, ray.dir_tmax.xyz, ray.origin_tmin.w, ray.dir_tmax.w, r)) {
+    HpStats st;
+    st.nodes = 0u; st.tris = 0u;
+    HpHit h = hp_trace(r, batch.any_hit != 0u, st);
+    if (h.slot >= 0) {
+      res.hit = ivec4(int(slot_scene[uint(h.slot)]), floatBitsToInt(h.t), floatBitsToInt(h.u), floatBitsToInt(h.v));
+    }
+    res.work = uvec4(st.nodes, st.tris, 0u, 0u);
+  }
+  batch_results[i] = res;
+}
