@@ -2,19 +2,28 @@
 // traversal on the very same rays with the same number of threads.
 //
 //   Gpu/<pass>/<scene>: manual time = the pass's GPU timestamp interval; "rays" is a rate (rays/s).
+//   Trace/<pass>/<scene>: the same rays through the passes' traversal alone on the device (trace_rays.comp,
+//                       one thread per ray, no ray generation or shading), timed by GPU timestamps.
 //   Cpu/<pass>/<scene>: the reference traversal casting the rays the GPU cast in that pass (dumped once),
 //                       on T threads, T = LP_NUM_THREADS if set, else the core count (lavapipe's default).
+// Cpu/* also report the work per ray (nodes and triangles tested, from the reference) and a model of SIMD
+// lane use: llvmpipe runs eight horizontally adjacent invocations of an 8x8 workgroup as one 256-bit vector,
+// and a vector takes as many node (triangle) steps as its busiest lane, so sum(steps) / (8 * sum(max steps
+// per vector)) bounds the fraction of lane-steps doing useful work (idle lanes, e.g. background, count as
+// wasted). A model from the reference's counters, not a measurement of the driver.
 // Shadows: one any-hit ray per lit-facing pixel. Reflections: closest-hit rays of reflective pixels,
 // shaded without a shadow ray at the hit (so both sides cast exactly the same rays); every visible pixel
 // reflects (roughness threshold above 1).
 // Run: build/tests/bench/hp_bench_frame [--benchmark_filter=...] ; HP_BENCH_WIDTH/HEIGHT override 1280x720.
 #include "bvh/traverse.hpp"
 #include "frame.hpp"
+#include "passes/ray_batch.hpp"
 #include "scene/load.hpp"
 #include "vk/context.hpp"
 
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -48,7 +57,46 @@ struct Setup {
   Camera camera;
   std::unique_ptr<Frame> frame;
   std::vector<bvh::Ray> rays;  // the rays the GPU cast in this pass (from a dumped frame)
+  double nodes_per_ray = 0, tris_per_ray = 0;
+  double node_lane_use = 0, tri_lane_use = 0;  // the SIMD lane-use model above
+  std::unique_ptr<RayBatchTracer> batch;        // the rays uploaded for Trace/*, on first use
 };
+
+// The work per ray and the lane-use model, from the dumped cells (row-major, width a multiple of 8 lanes
+// or a ragged last vector) and the reference traversal's counters.
+void measure_work(Setup& s, const std::vector<gpu::RayDump>& dump, uint32_t width, Pass pass) {
+  const RtGeometry& g = *s.frame->rt_geometry();
+  uint64_t rays = 0, nodes = 0, tris = 0, max_nodes = 0, max_tris = 0;
+  const size_t lanes = 8;  // llvmpipe's default 256-bit vectors of 32-bit lanes
+  for (size_t row = 0; row * width < dump.size(); ++row) {
+    for (size_t x0 = 0; x0 < width; x0 += lanes) {
+      uint64_t vn = 0, vt = 0;
+      for (size_t x = x0; x < std::min<size_t>(x0 + lanes, width); ++x) {
+        const auto& d = dump[row * width + x];
+        if (d.hit.z == 0) continue;
+        const bvh::Ray r = dumped_ray(d);
+        bvh::TraversalStats st;
+        if (pass == Pass::shadows) {
+          bvh::intersect_any(g.bvh, g.leaf, r, &st);
+        } else {
+          bvh::intersect_closest(g.bvh, g.leaf, r, &st);
+        }
+        ++rays;
+        nodes += st.nodes_visited;
+        tris += st.triangles_tested;
+        vn = std::max(vn, st.nodes_visited);
+        vt = std::max(vt, st.triangles_tested);
+      }
+      max_nodes += vn;
+      max_tris += vt;
+    }
+  }
+  if (rays == 0) return;
+  s.nodes_per_ray = double(nodes) / double(rays);
+  s.tris_per_ray = double(tris) / double(rays);
+  s.node_lane_use = max_nodes ? double(nodes) / double(lanes * max_nodes) : 0.0;
+  s.tri_lane_use = max_tris ? double(tris) / double(lanes * max_tris) : 0.0;
+}
 
 FrameSettings settings_for(Pass pass, bool dump) {
   FrameSettings s;
@@ -86,8 +134,10 @@ Setup& setup(const std::string& spec, Pass pass) {
                                             : dumper.rt_passes()->read_reflection_dump(context());
     for (const auto& d : dump) {
       if (d.hit.z == 0) continue;
-      s.rays.push_back({glm::vec3(d.origin_tmin), d.origin_tmin.w, glm::vec3(d.dir_tmax), d.dir_tmax.w});
+      s.rays.push_back(dumped_ray(d));
     }
+    // The dump is per cell of the pass's grid: the full frame (reflections at scale 1 here).
+    measure_work(s, dump, fs.width, pass);
   }
   return *slot;
 }
@@ -106,6 +156,16 @@ void gpu_pass(benchmark::State& state, const std::string& spec, Pass pass) {
   state.SetLabel(context().info().name);
 }
 
+void trace_pass(benchmark::State& state, const std::string& spec, Pass pass) {
+  Setup& s = setup(spec, pass);
+  if (!s.batch) s.batch = std::make_unique<RayBatchTracer>(context(), *s.frame->rt_scene(), s.rays);
+  const auto mode = pass == Pass::shadows ? bvh::HitMode::any : bvh::HitMode::closest;
+  for (int i = 0; i < 2; ++i) s.batch->trace(context(), mode);  // warm-up, as for the passes
+  for (auto _ : state) state.SetIterationTime(double(s.batch->trace(context(), mode)) * 1e-9);
+  state.counters["rays"] = benchmark::Counter(double(s.rays.size()), benchmark::Counter::kIsIterationInvariantRate);
+  state.SetLabel(context().info().name);
+}
+
 void cpu_pass(benchmark::State& state, const std::string& spec, Pass pass) {
   Setup& s = setup(spec, pass);
   const RtGeometry& g = *s.frame->rt_geometry();
@@ -117,6 +177,10 @@ void cpu_pass(benchmark::State& state, const std::string& spec, Pass pass) {
   }
   state.counters["rays"] = benchmark::Counter(double(s.rays.size()), benchmark::Counter::kIsIterationInvariantRate);
   state.counters["threads"] = threads;
+  state.counters["nodes_per_ray"] = s.nodes_per_ray;
+  state.counters["tris_per_ray"] = s.tris_per_ray;
+  state.counters["node_lane_use"] = s.node_lane_use;
+  state.counters["tri_lane_use"] = s.tri_lane_use;
 }
 
 std::vector<std::string> scenes() {
@@ -139,6 +203,10 @@ const bool registered = [] {
     for (Pass pass : {Pass::shadows, Pass::reflections}) {
       const std::string p = pass == Pass::shadows ? "shadows" : "reflections";
       benchmark::RegisterBenchmark(("Gpu/" + p + "/" + short_name(spec)).c_str(), gpu_pass, spec, pass)
+          ->UseManualTime()
+          ->Unit(benchmark::kMillisecond)
+          ->Iterations(6);
+      benchmark::RegisterBenchmark(("Trace/" + p + "/" + short_name(spec)).c_str(), trace_pass, spec, pass)
           ->UseManualTime()
           ->Unit(benchmark::kMillisecond)
           ->Iterations(6);
