@@ -1,16 +1,22 @@
 // `hybridprof bvh`: builds the BVH of a scene and reports its shape and quality; optionally exports the
 // scene's triangles and casts rays from a file with the reference traversal, for cross-checking against
-// another ray tracer (formats in renderer/bvh/ray_io.hpp).
+// another ray tracer (formats in renderer/bvh/ray_io.hpp); with --gpu, casts them on the Vulkan device too,
+// through the passes' own traversal, times that and checks every ray against the reference.
 //   hybridprof bvh --scene S [--buckets N | --full-sweep] [--largest-axis-only] [--granularity triangle|object]
-//                  [--leaf-size K] [--threads T] [--export-triangles FILE] [--rays FILE --hits FILE [--any-hit]]
+//                  [--leaf-size K] [--threads T] [--export-triangles FILE] [--rays FILE --hits FILE [--any-hit]
+//                  [--gpu [--geometry indexed|soup] [--device D] [--validate]]]
 #include "apps/commands.hpp"
 #include "bvh/bvh.hpp"
 #include "bvh/ray_io.hpp"
 #include "bvh/traverse.hpp"
 #include "error.hpp"
+#include "passes/ray_batch.hpp"
+#include "rt_geometry.hpp"
+#include "rt_scene.hpp"
 #include "scene/load.hpp"
 #include "scene/scene.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <map>
@@ -32,6 +38,10 @@ struct BvhArgs {
   std::string rays;
   std::string hits;
   bool any_hit = false;
+  bool gpu = false;
+  std::string geometry = "indexed";
+  std::string device;
+  bool validate = false;
 };
 
 double ms_since(std::chrono::steady_clock::time_point start) {
@@ -112,6 +122,42 @@ void run_bvh(const BvhArgs& a) {
               cast_ms, cast_ms > 0 ? static_cast<double>(rays.size()) / cast_ms / 1e3 : 0.0,
               static_cast<double>(ts.nodes_visited) / n, static_cast<double>(ts.triangles_tested) / n);
   std::printf("hits written to %s\n", a.hits.c_str());
+  if (!a.gpu) return;
+
+  // The same rays through the passes' traversal on the device (shaders/trace_rays.comp): one untimed cast
+  // (pipeline compilation, caches), then three timed by GPU timestamps.
+  vk::Context ctx({a.device, a.validate, true});
+  RtGeometry g;
+  g.world = world;
+  g.triangles = tris;
+  g.bvh = tree;
+  g.leaf = lt;
+  const RtScene rts(ctx, scene, g, parse_geometry_layout(a.geometry), false);
+  RayBatchTracer tracer(ctx, rts, rays);
+  const bvh::HitMode mode = a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest;
+  tracer.trace(ctx, mode);
+  std::vector<double> ms;
+  for (int i = 0; i < 3; ++i) ms.push_back(double(tracer.trace(ctx, mode)) * 1e-6);
+  const BatchCheck check = check_against_reference(tree, lt, rays, mode, tracer.results(ctx));
+  std::sort(ms.begin(), ms.end());
+  if (ms[1] > 0.0) {
+    std::printf("gpu: %s, %s layout: %.2f ms median of 3 (%.2f-%.2f) by timestamps, %.2f M rays/s\n",
+                ctx.info().name.c_str(), a.geometry.c_str(), ms[1], ms[0], ms[2], double(rays.size()) / ms[1] / 1e3);
+  } else {
+    std::printf("gpu: %s, %s layout: no timestamps on this queue, not timed\n", ctx.info().name.c_str(),
+                a.geometry.c_str());
+  }
+  for (const std::string& d : check.first_differences) std::printf("  differs: %s\n", d.c_str());
+  std::printf("gpu vs reference: %zu of %zu rays equal (hit, t, u, v bit for bit; nodes and triangles per ray)\n",
+              check.rays - check.differ, check.rays);
+  if (check.differ > 0) {
+    throw std::runtime_error("bvh --gpu: " + std::to_string(check.differ) + " of " + std::to_string(check.rays) +
+                             " rays differ from the reference traversal");
+  }
+  if (ctx.validation_enabled() && ctx.validation_message_count() > 0) {
+    throw std::runtime_error("bvh --gpu: " + std::to_string(ctx.validation_message_count()) +
+                             " validation message(s); last: " + ctx.last_validation_message());
+  }
 }
 
 }  // namespace
@@ -146,6 +192,18 @@ void add_bvh_command(CLI::App& app) {
   rays->needs(hits);
   hits->needs(rays);
   cmd->add_flag("--any-hit", args->any_hit, "occlusion query: any hit in [tmin, tmax], not the closest")->needs(rays);
+  auto* gpu = cmd->add_flag("--gpu", args->gpu,
+                            "also cast the rays on the Vulkan device through the passes' traversal, time it and check "
+                            "every ray against the reference (exit 1 if one differs)")
+                  ->needs(rays);
+  cmd->add_option("--geometry", args->geometry, "GPU geometry layout: indexed (EBO) or soup")
+      ->check(CLI::IsMember({"indexed", "soup"}))
+      ->capture_default_str()
+      ->needs(gpu);
+  cmd->add_option("--device", args->device, "Vulkan device: index or name substring (default: discrete GPU, else lavapipe)")
+      ->needs(gpu);
+  cmd->add_flag("--validate", args->validate, "enable the Khronos validation layer; any message fails the run")
+      ->needs(gpu);
   cmd->callback([args] { run_bvh(*args); });
 }
 

@@ -11,6 +11,7 @@
 #include <glm/glm.hpp>
 
 #include <span>
+#include <string>
 #include <vector>
 
 namespace hp {
@@ -45,5 +46,15 @@ class RayBatchTracer {
   vk::Pipeline pipeline_;
   vk::TimestampQueries timestamps_;
 };
+
+/// Every ray's GPU answer against the reference traversal's (the same mode): equal means the same hit
+/// (scene triangle, t, u, v bit for bit) and the same work (nodes visited, triangles tested).
+struct BatchCheck {
+  size_t rays = 0, hits = 0, differ = 0;
+  std::vector<std::string> first_differences;  ///< one line per differing ray, the first `keep` of them
+};
+BatchCheck check_against_reference(const bvh::Bvh& bvh, const bvh::LeafOrderTriangles& tris,
+                                   std::span<const bvh::Ray> rays, bvh::HitMode mode,
+                                   std::span<const RayBatchTracer::Result> gpu, size_t keep = 10);
 
 }  // namespace hp

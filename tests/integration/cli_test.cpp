@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <sys/wait.h>
 
@@ -106,6 +107,45 @@ TEST(Cli, CachesimExportsOneComputeUnitOrNamesTheLimitAndWritesNothing) {
   EXPECT_GT(lines, 0u);
   EXPECT_FALSE(fs::exists(din.string() + ".tmp"));
   fs::remove_all(d);
+}
+
+// bvh --gpu: the rays of a file through the passes' traversal on the device, checked ray by ray against the
+// reference (random rays, axis-aligned ones with signed zeros, a NaN direction).
+TEST(Cli, BvhGpuCastsTheRaysAndAgreesWithTheReference) {
+  if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
+  const fs::path dir = temp_dir();
+  const fs::path rays = dir / "rays.bin";
+  {
+    std::ofstream f(rays, std::ios::binary);
+    uint32_t state = 7;
+    auto next = [&state] {
+      state = state * 1664525u + 1013904223u;
+      return float(state >> 8) / float(1u << 24);
+    };
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (int i = 0; i < 1000; ++i) {
+      float r[8] = {next() * 2 - 1, next() * 2 - 1, next() * 2 - 1, 0.0f,
+                    next() - 0.5f, next() - 0.5f, next() - 0.5f, 1e30f};
+      if (i % 10 == 1) r[4] = r[5] = 0.0f;           // along z
+      if (i % 10 == 2) r[4] = -0.0f, r[6] = 0.0f;    // along y, signed zeros
+      if (i == 3) r[5] = nan;                        // never hits
+      f.write(reinterpret_cast<const char*>(r), sizeof(r));
+    }
+  }
+  for (const char* extra : {"--validate", "--any-hit --geometry soup", "--granularity object"}) {
+    const CmdResult r = run("bvh --scene builtin:cornell --rays " + rays.string() + " --hits " +
+                            (dir / "hits.bin").string() + " --gpu " + extra);
+    EXPECT_EQ(r.code, 0) << extra << "\n" << r.output;
+    EXPECT_NE(r.output.find("gpu vs reference: 1000 of 1000 rays equal"), std::string::npos) << extra << "\n" << r.output;
+    EXPECT_NE(r.output.find("by timestamps"), std::string::npos) << extra << "\n" << r.output;
+  }
+  fs::remove_all(dir);
+}
+
+TEST(Cli, BvhGpuOptionsNeedGpu) {
+  const CmdResult r = run("bvh --scene builtin:cornell --geometry soup");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--gpu"), std::string::npos) << r.output;
 }
 
 TEST(Cli, CpuReferenceNeedsNoDevice) {

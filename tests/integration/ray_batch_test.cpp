@@ -13,7 +13,6 @@
 #include "rt_scene.hpp"
 #include "scene/load.hpp"
 
-#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -97,43 +96,15 @@ std::vector<bvh::Ray> test_rays(const RtGeometry& g, size_t random_count) {
   return rays;
 }
 
-struct Tally {
-  size_t rays = 0, hits = 0, differ = 0;
-};
-
-Tally compare_batch(vk::Context& ctx, const RtGeometry& g, const RtScene& rts, const std::vector<bvh::Ray>& rays,
-                    bvh::HitMode mode, const char* what) {
+BatchCheck compare_batch(vk::Context& ctx, const RtGeometry& g, const RtScene& rts, const std::vector<bvh::Ray>& rays,
+                         bvh::HitMode mode, const std::string& what) {
   RayBatchTracer tracer(ctx, rts, rays);
   EXPECT_EQ(tracer.size(), rays.size());
   tracer.trace(ctx, mode);
-  const auto gpu = tracer.results(ctx);
-  Tally t;
-  int printed = 0;
-  for (size_t i = 0; i < rays.size(); ++i) {
-    bvh::TraversalStats st;
-    const bvh::Hit ref = mode == bvh::HitMode::any ? bvh::intersect_any(g.bvh, g.leaf, rays[i], &st)
-                                                   : bvh::intersect_closest(g.bvh, g.leaf, rays[i], &st);
-    const RayBatchTracer::Result& r = gpu[i];
-    const bool same = r.hit.prim == ref.prim && std::bit_cast<uint32_t>(r.hit.t) == std::bit_cast<uint32_t>(ref.t) &&
-                      std::bit_cast<uint32_t>(r.hit.u) == std::bit_cast<uint32_t>(ref.u) &&
-                      std::bit_cast<uint32_t>(r.hit.v) == std::bit_cast<uint32_t>(ref.v) &&
-                      r.stats.nodes_visited == st.nodes_visited && r.stats.triangles_tested == st.triangles_tested;
-    ++t.rays;
-    t.hits += ref.hit() ? 1 : 0;
-    if (!same) {
-      ++t.differ;
-      if (printed++ < 10) {
-        const bvh::Ray& y = rays[i];
-        std::printf("  %s differs at #%zu: o=(%.9g, %.9g, %.9g) d=(%.9g, %.9g, %.9g) [%.9g, %.9g]: gpu prim %d t %.9g "
-                    "nodes %llu tris %llu, cpu prim %d t %.9g nodes %llu tris %llu\n",
-                    what, i, y.origin.x, y.origin.y, y.origin.z, y.dir.x, y.dir.y, y.dir.z, y.tmin, y.tmax, r.hit.prim,
-                    r.hit.t, (unsigned long long)r.stats.nodes_visited, (unsigned long long)r.stats.triangles_tested,
-                    ref.prim, ref.t, (unsigned long long)st.nodes_visited, (unsigned long long)st.triangles_tested);
-      }
-    }
-  }
-  std::printf("%s: %zu rays (%zu hit), %zu differ\n", what, t.rays, t.hits, t.differ);
-  return t;
+  const BatchCheck c = check_against_reference(g.bvh, g.leaf, rays, mode, tracer.results(ctx));
+  for (const std::string& d : c.first_differences) std::printf("  %s: %s\n", what.c_str(), d.c_str());
+  std::printf("%s: %zu rays (%zu hit), %zu differ\n", what.c_str(), c.rays, c.hits, c.differ);
+  return c;
 }
 
 void check_scene(const std::string& spec, GeometryLayout layout, bvh::Granularity granularity, size_t random_rays) {
@@ -148,7 +119,7 @@ void check_scene(const std::string& spec, GeometryLayout layout, bvh::Granularit
                            (granularity == bvh::Granularity::object ? " object BVH" : " triangle BVH");
   for (bvh::HitMode mode : {bvh::HitMode::closest, bvh::HitMode::any}) {
     const std::string what = name + (mode == bvh::HitMode::any ? ", any hit" : ", closest hit");
-    const Tally t = compare_batch(*ctx, g, rts, rays, mode, what.c_str());
+    const BatchCheck t = compare_batch(*ctx, g, rts, rays, mode, what);
     EXPECT_EQ(t.differ, 0u) << what;
     EXPECT_GT(t.hits, rays.size() / 10) << what << ": too few hits to prove anything";
   }
