@@ -3,6 +3,8 @@
 #include "common/shared_types.h"
 #include "error.hpp"
 
+#include <algorithm>
+
 
 namespace hp {
 
@@ -21,15 +23,20 @@ constexpr VkBufferUsageFlags kStorage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
 vk::Buffer dummy(vk::Context& ctx) { return vk::Buffer(ctx, 4, kStorage, false); }
 
 template <typename T>
-vk::Buffer upload(vk::Context& ctx, const std::vector<T>& v, uint64_t& total) {
-  if (v.empty()) return dummy(ctx);
+vk::Buffer upload(vk::Context& ctx, const std::vector<T>& v, uint64_t& total,
+                  VkBufferUsageFlags extra_usage = 0) {
+  // A dummy seen as texels holds one 12-byte texel (a view's range must be whole texels).
+  if (v.empty()) return vk::Buffer(ctx, extra_usage ? 12 : 4, kStorage | extra_usage, false);
   total += v.size() * sizeof(T);
-  return vk::upload_vector(ctx, v, kStorage);
+  return vk::upload_vector(ctx, v, kStorage | extra_usage);
 }
+
+constexpr VkFormat kTriple = VK_FORMAT_R32G32B32_UINT;  // a vertex, or a triangle's three indices
 
 }  // namespace
 
-RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, GeometryLayout layout, bool shading)
+RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, GeometryLayout layout, bool shading,
+                 bool allow_geometry_texels)
     : layout_(layout), object_leaves_(g.bvh.granularity == bvh::Granularity::object) {
   const auto& leaf = g.leaf;
   const size_t slots = leaf.triangles.size();
@@ -94,9 +101,30 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   check_range("vertex", positions.size() * 4);
   check_range("index", indices.size() * 4);
   check_range("triangle soup", soup.size() * 4);
-  positions_ = upload(ctx, positions, uploaded_bytes_);
-  indices_ = upload(ctx, indices, uploaded_bytes_);
-  soup_ = upload(ctx, soup, uploaded_bytes_);
+  // The geometry as R32G32B32_UINT texels: a triangle's fetch is one texel per vertex (and one for its
+  // indices) instead of llvmpipe's loops over the lanes for storage loads (README, "Speed of the GPU
+  // passes"). UINT keeps the float bits exactly. The storage path stays for devices without the format.
+  VkFormatProperties triple{};
+  vkGetPhysicalDeviceFormatProperties(ctx.physical_device(), kTriple, &triple);
+  const uint64_t most_texels = std::max({positions.size(), indices.size(), soup.size()}) / 3;
+  geometry_texels_ = allow_geometry_texels &&
+                     (triple.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT) != 0 &&
+                     most_texels <= max_texels;
+  const VkBufferUsageFlags texel_usage = geometry_texels_ ? VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT : 0;
+  positions_ = upload(ctx, positions, uploaded_bytes_, texel_usage);
+  indices_ = upload(ctx, indices, uploaded_bytes_, texel_usage);
+  soup_ = upload(ctx, soup, uploaded_bytes_, texel_usage);
+  if (geometry_texels_) {
+    position_texels_ = vk::BufferView(ctx, positions_, kTriple);
+    index_texels_ = vk::BufferView(ctx, indices_, kTriple);
+    soup_texels_ = vk::BufferView(ctx, soup_, kTriple);
+  } else {
+    // Bindings 29-31 still need valid views: any small texel buffer does (the shaders never read it).
+    texel_dummy_ = vk::Buffer(ctx, 12, VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);
+    position_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
+    index_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
+    soup_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
+  }
   normals_ = upload(ctx, normals, uploaded_bytes_);
   soup_normals_ = upload(ctx, soup_normals, uploaded_bytes_);
 
@@ -113,17 +141,13 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   materials_ = upload(ctx, materials, uploaded_bytes_);
 }
 
-vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout, bool soup,
-                                bool object_leaves) {
-  const uint32_t values[2] = {soup ? 1u : 0u, object_leaves ? 1u : 0u};
-  const VkSpecializationMapEntry entries[2] = {{0, 0, 4}, {1, 4, 4}};
-  const VkSpecializationInfo spec{2, entries, sizeof(values), values};
-  return vk::create_compute_pipeline(ctx, spirv, layout, &spec);
-}
-
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
                                 const RtScene& scene) {
-  return create_rt_pipeline(ctx, spirv, layout, scene.layout() == GeometryLayout::soup, scene.object_leaves());
+  const uint32_t values[3] = {scene.layout() == GeometryLayout::soup ? 1u : 0u, scene.object_leaves() ? 1u : 0u,
+                              scene.geometry_texels() ? 1u : 0u};
+  const VkSpecializationMapEntry entries[3] = {{0, 0, 4}, {1, 4, 4}, {2, 8, 4}};
+  const VkSpecializationInfo spec{3, entries, sizeof(values), values};
+  return vk::create_compute_pipeline(ctx, spirv, layout, &spec);
 }
 
 }  // namespace hp

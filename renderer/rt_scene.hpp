@@ -22,10 +22,20 @@ const char* to_string(GeometryLayout g);
 class RtScene {
  public:
   /// `shading`: also upload normals, per-slot material ids and materials (reflections shade their hits).
-  RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& geometry, GeometryLayout layout, bool shading);
+  /// `allow_geometry_texels`: false forces the storage loads (to compare the two paths).
+  RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& geometry, GeometryLayout layout, bool shading,
+          bool allow_geometry_texels = true);
 
   GeometryLayout layout() const { return layout_; }
   bool object_leaves() const { return object_leaves_; }
+  /// The traversal fetches the geometry through texel views (positions(), indices(), soup() seen as
+  /// R32G32B32_UINT, a vertex or a triangle's three indices per texel: bindings 29-31) rather than storage
+  /// loads. Off where the device cannot read that format as a uniform texel buffer, a buffer exceeds
+  /// maxTexelBufferElements, or the constructor was asked not to.
+  bool geometry_texels() const { return geometry_texels_; }
+  VkBufferView position_texels() const { return position_texels_.handle(); }
+  VkBufferView index_texels() const { return index_texels_.handle(); }
+  VkBufferView soup_texels() const { return soup_texels_.handle(); }
   /// Every binding of shaders/common/rt_bindings.glsl 2..11; a buffer the configuration does not read is
   /// a 4-byte dummy.
   const vk::Buffer& nodes() const { return nodes_; }
@@ -48,15 +58,14 @@ class RtScene {
   bool object_leaves_;
   uint64_t uploaded_bytes_ = 0;
   vk::Buffer nodes_, positions_, indices_, soup_, object_first_, slot_scene_, normals_, soup_normals_,
-      slot_material_, materials_;
-  vk::BufferView node_texels_;  // after nodes_: destroyed before it
+      slot_material_, materials_, texel_dummy_;
+  bool geometry_texels_ = false;
+  vk::BufferView node_texels_;  // after the buffers: destroyed before them
+  vk::BufferView position_texels_, index_texels_, soup_texels_;
 };
 
-/// A ray-tracing compute pipeline specialized by a geometry layout and a BVH granularity
-/// (shaders/common/rt_bindings.glsl: constant_id 0 = soup layout, 1 = object leaves).
-vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout, bool soup,
-                                bool object_leaves);
-/// ... specialized for `scene`.
+/// A ray-tracing compute pipeline specialized for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =
+/// soup layout, 1 = object leaves, 2 = geometry fetched as texels).
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
                                 const RtScene& scene);
 

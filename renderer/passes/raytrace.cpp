@@ -93,7 +93,11 @@ glm::vec2 halton23(uint32_t i) {
 RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const GBuffer& gbuffer,
                                    const vk::Buffer& frame_uniforms, VkSampler sampler,
                                    const RayTracingOptions& options, const Aabb& scene_bounds)
-    : options_(options), width_(gbuffer.depth.width()), height_(gbuffer.depth.height()), bounds_(scene_bounds) {
+    : options_(options),
+      width_(gbuffer.depth.width()),
+      height_(gbuffer.depth.height()),
+      bounds_(scene_bounds),
+      scene_(scene) {
   if (options.reflection_divisor != 1 && options.reflection_divisor != 2 && options.reflection_divisor != 4) {
     throw InputError("--reflection-scale: must be 1, 0.5 or 0.25");
   }
@@ -127,6 +131,9 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   b.push_back({21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // trace records (instrumented variants)
   for (uint32_t i = 22; i <= 25; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // compaction
   b.push_back({26, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // BVH nodes as texels
+  for (uint32_t i = 29; i <= 31; ++i) {
+    b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // geometry as texels
+  }
   descriptors_ = vk::DescriptorSet(ctx, b, 0, 0);
   auto& ds = descriptors_;
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
@@ -134,6 +141,9 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   ds.write_buffer(1, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, params_.handle());
   ds.write_buffer(2, SB, scene.nodes().handle());
   ds.write_texel_buffer(26, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.node_texels());
+  ds.write_texel_buffer(29, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.position_texels());
+  ds.write_texel_buffer(30, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.index_texels());
+  ds.write_texel_buffer(31, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.soup_texels());
   ds.write_buffer(3, SB, scene.positions().handle());
   ds.write_buffer(4, SB, scene.indices().handle());
   ds.write_buffer(5, SB, scene.soup().handle());
@@ -174,23 +184,19 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   ds.write_buffer(24, SB, sort_values_.handle());
   ds.write_buffer(25, SB, ray_count_.handle());
 
-  const uint32_t soup = scene.layout() == GeometryLayout::soup ? 1u : 0u;
-  const uint32_t objects = scene.object_leaves() ? 1u : 0u;
-  soup_ = soup;
-  objects_ = objects;
   // Only the pipelines the options ask for are compiled (lavapipe compiles each one with LLVM).
-  if (options.shadows) shadow_pipeline_ = create_rt_pipeline(ctx, shadows_comp, ds.pipeline_layout(), soup, objects);
+  if (options.shadows) shadow_pipeline_ = create_rt_pipeline(ctx, shadows_comp, ds.pipeline_layout(), scene);
   if (compact) {
-    compact_pipeline_ = create_rt_pipeline(ctx, compact_comp, ds.pipeline_layout(), soup, objects);
-    args_pipeline_ = create_rt_pipeline(ctx, compact_args_comp, ds.pipeline_layout(), soup, objects);
-    consume_pipeline_ = create_rt_pipeline(ctx, consume_comp, ds.pipeline_layout(), soup, objects);
+    compact_pipeline_ = create_rt_pipeline(ctx, compact_comp, ds.pipeline_layout(), scene);
+    args_pipeline_ = create_rt_pipeline(ctx, compact_args_comp, ds.pipeline_layout(), scene);
+    consume_pipeline_ = create_rt_pipeline(ctx, consume_comp, ds.pipeline_layout(), scene);
     if (options.sort != SortKey::none) sorter_ = std::make_unique<RadixSort>(ctx, uint32_t(cells));
   }
   if (options.reflections && !compact) {
-    reflection_pipeline_ = create_rt_pipeline(ctx, reflections_comp, ds.pipeline_layout(), soup, objects);
+    reflection_pipeline_ = create_rt_pipeline(ctx, reflections_comp, ds.pipeline_layout(), scene);
   }
   if (options.reflections) {
-    accumulate_pipeline_ = create_rt_pipeline(ctx, accumulate_comp, ds.pipeline_layout(), soup, objects);
+    accumulate_pipeline_ = create_rt_pipeline(ctx, accumulate_comp, ds.pipeline_layout(), scene);
   }
   begin_frame(0);
 }
@@ -238,16 +244,16 @@ glm::uvec2 RayTracingPasses::workgroups(Traced pass, uint32_t rays) const {
 void RayTracingPasses::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer) {
   descriptors_.write_buffer(21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
   if (options_.shadows && !shadow_traced_.handle()) {
-    shadow_traced_ = create_rt_pipeline(ctx, shadows_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
+    shadow_traced_ = create_rt_pipeline(ctx, shadows_traced_comp, descriptors_.pipeline_layout(), scene_);
   }
   const bool compact = options_.reflections && options_.reflection_path == ReflectionPath::compact;
   if (options_.reflections && !compact && !reflection_traced_.handle()) {
     reflection_traced_ =
-        create_rt_pipeline(ctx, reflections_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
+        create_rt_pipeline(ctx, reflections_traced_comp, descriptors_.pipeline_layout(), scene_);
   }
   if (compact && !compact_traced_.handle()) {
-    compact_traced_ = create_rt_pipeline(ctx, compact_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
-    consume_traced_ = create_rt_pipeline(ctx, consume_traced_comp, descriptors_.pipeline_layout(), soup_, objects_);
+    compact_traced_ = create_rt_pipeline(ctx, compact_traced_comp, descriptors_.pipeline_layout(), scene_);
+    consume_traced_ = create_rt_pipeline(ctx, consume_traced_comp, descriptors_.pipeline_layout(), scene_);
   }
 }
 

@@ -139,7 +139,7 @@ class RayTracingPasses {
   std::unique_ptr<RadixSort> sorter_;
   Aabb bounds_;
   vk::Buffer dummy_trace_;
-  uint32_t soup_ = 0, objects_ = 0;
+  const RtScene& scene_;  // owned by the Frame, which destroys these passes first
   gpu::RayParams params_cache_{};
   bool images_initialised_ = false;
 };

@@ -22,9 +22,8 @@ vec3 hit_normal(uint slot, float u, float v) {
     n1 = vec3(soup_normals[b + 3u], soup_normals[b + 4u], soup_normals[b + 5u]);
     n2 = vec3(soup_normals[b + 6u], soup_normals[b + 7u], soup_normals[b + 8u]);
   } else {
-    uint i0 = indices[slot * 3u + 0u] * 3u;
-    uint i1 = indices[slot * 3u + 1u] * 3u;
-    uint i2 = indices[slot * 3u + 2u] * 3u;
+    uvec3 iv = hp_slot_indices(slot) * 3u;  // as the traversal reads them (a texel where it can)
+    uint i0 = iv.x, i1 = iv.y, i2 = iv.z;
     HP_REC_LOAD(HP_TBUF_INDICES, slot * 12u, 12u);
     HP_REC_LOAD(HP_TBUF_NORMALS, i0 * 4u, 12u);  // i0 is already a float index (vertex * 3)
     HP_REC_LOAD(HP_TBUF_NORMALS, i1 * 4u, 12u);

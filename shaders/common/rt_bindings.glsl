@@ -12,6 +12,8 @@
 layout(constant_id = 0) const uint HP_GEOMETRY_SOUP = 0;
 // BVH granularity: 0 = triangle leaves, 1 = object leaves (a leaf's objects are tested triangle by triangle).
 layout(constant_id = 1) const uint HP_OBJECT_LEAVES = 0;
+// Geometry fetches: 1 = through the texel views below (RtScene::geometry_texels), 0 = storage loads.
+layout(constant_id = 2) const uint HP_GEOMETRY_TEXELS = 0;
 
 layout(set = 0, binding = 0) uniform FrameBlock { FrameUniforms frame; };
 layout(set = 0, binding = 1) uniform RayBlock { RayParams rt; };

@@ -18,7 +18,13 @@
 // glTF scenes within noise (README). The same for the geometry's unaligned triples gained 0-6%: not worth
 // padding the buffers.
 layout(set = 0, binding = 26) uniform usamplerBuffer node_texels;
-// The geometry (bindings 3, 4, 5) seen as 64-bit words: a 32-bit triple at index b is one 64-bit word and
+// The geometry buffers (bindings 3, 4, 5) seen as R32G32B32_UINT texels (bindings 29, 30, 31): a vertex, or a
+// slot's three indices, per texel; read where HP_GEOMETRY_TEXELS is set. A texel fetch is one branch-free
+// gather on lavapipe where each storage load below is a loop over the lanes.
+layout(set = 0, binding = 29) uniform usamplerBuffer position_texels;
+layout(set = 0, binding = 30) uniform usamplerBuffer index_texels;
+layout(set = 0, binding = 31) uniform usamplerBuffer soup_texels;
+// Otherwise the geometry (bindings 3, 4, 5) seen as 64-bit words: a 32-bit triple at index b is one 64-bit word and
 // one 32-bit load (which one depends on the parity of b), nine floats are four words and one float; a word
 // is never read past the triple, so it never straddles the end of a buffer. Only bits move
 // (unpackDouble2x32): no arithmetic is done on these doubles.
@@ -93,7 +99,18 @@ uvec3 hp_triple(uvec2 w, uint single, bool odd) {
   return odd ? uvec3(single, w) : uvec3(w, single);
 }
 
+// A slot's three vertex indices (indexed layout).
+uvec3 hp_slot_indices(uint slot) {
+  if (HP_GEOMETRY_TEXELS != 0u) return texelFetch(index_texels, int(slot)).xyz;
+  uint b = slot * 3u;
+  bool odd = (b & 1u) != 0u;
+  uvec2 w = unpackDouble2x32(index_words[(b + 1u) >> 1u]);
+  uint single = indices[odd ? b : b + 2u];
+  return hp_triple(w, single, odd);
+}
+
 vec3 hp_position(uint i) {
+  if (HP_GEOMETRY_TEXELS != 0u) return uintBitsToFloat(texelFetch(position_texels, int(i)).xyz);
   uint b = i * 3u;
   bool odd = (b & 1u) != 0u;
   uvec2 w = unpackDouble2x32(position_words[(b + 1u) >> 1u]);
@@ -108,6 +125,12 @@ void hp_fetch_triangle(uint slot, out vec3 p0, out vec3 p1, out vec3 p2) {
     HP_REC_LOAD(HP_TBUF_SOUP, slot * 36u, 12u);
     HP_REC_LOAD(HP_TBUF_SOUP, slot * 36u + 12u, 12u);
     HP_REC_LOAD(HP_TBUF_SOUP, slot * 36u + 24u, 12u);
+    if (HP_GEOMETRY_TEXELS != 0u) {
+      p0 = uintBitsToFloat(texelFetch(soup_texels, int(slot * 3u)).xyz);
+      p1 = uintBitsToFloat(texelFetch(soup_texels, int(slot * 3u + 1u)).xyz);
+      p2 = uintBitsToFloat(texelFetch(soup_texels, int(slot * 3u + 2u)).xyz);
+      return;
+    }
     uint b = slot * 9u;
     bool odd = (b & 1u) != 0u;
     uint wb = (b + 1u) >> 1u;
@@ -121,11 +144,7 @@ void hp_fetch_triangle(uint slot, out vec3 p0, out vec3 p1, out vec3 p2) {
     p1 = uintBitsToFloat(odd ? uvec3(w1, w2.x) : uvec3(w1.y, w2));
     p2 = uintBitsToFloat(odd ? uvec3(w2.y, w3) : uvec3(w3, single));
   } else {
-    uint b = slot * 3u;
-    bool odd = (b & 1u) != 0u;
-    uvec2 w = unpackDouble2x32(index_words[(b + 1u) >> 1u]);
-    uint single = indices[odd ? b : b + 2u];
-    uvec3 i = hp_triple(w, single, odd);
+    uvec3 i = hp_slot_indices(slot);
     HP_REC_LOAD(HP_TBUF_INDICES, slot * 12u, 12u);
     HP_REC_LOAD(HP_TBUF_POSITIONS, i.x * 12u, 12u);
     HP_REC_LOAD(HP_TBUF_POSITIONS, i.y * 12u, 12u);

@@ -108,7 +108,9 @@ TEST(Profile, HostTimingFallbackTimesEachPassInOrder) {
     for (size_t k = 0; k < order.size(); ++k) {
       EXPECT_EQ(f.passes[k].pass, order[k]);
       EXPECT_GT(f.passes[k].end_ns, f.passes[k].begin_ns) << order[k];
-      if (k > 0) EXPECT_LE(f.passes[k - 1].end_ns, f.passes[k].begin_ns) << order[k];
+      if (k > 0) {
+        EXPECT_LE(f.passes[k - 1].end_ns, f.passes[k].begin_ns) << order[k];
+      }
     }
     EXPECT_LE(f.passes.back().end_ns, f.cpu_wall_ns) << "passes lie inside the frame's own wall time";
     EXPECT_GT(f.counters.get("shadows", counter::rays_cast), 0u);

@@ -107,16 +107,23 @@ BatchCheck compare_batch(vk::Context& ctx, const RtGeometry& g, const RtScene& r
   return c;
 }
 
-void check_scene(const std::string& spec, GeometryLayout layout, bvh::Granularity granularity, size_t random_rays) {
+// `texels`: let the scene fetch its geometry as texels where the device can (the default), or force the
+// storage loads.
+void check_scene(const std::string& spec, GeometryLayout layout, bvh::Granularity granularity, size_t random_rays,
+                 bool texels = true) {
   HP_REQUIRE_VULKAN(ctx);
   const Scene scene = load_scene(spec);
   bvh::BuildOptions opts;
   opts.granularity = granularity;
   const RtGeometry g = build_rt_geometry(scene, opts);
-  const RtScene rts(*ctx, scene, g, layout, false);
+  const RtScene rts(*ctx, scene, g, layout, false, texels);
+  if (!texels) {
+    EXPECT_FALSE(rts.geometry_texels());
+  }
   const auto rays = test_rays(g, random_rays);
   const std::string name = spec + " " + to_string(layout) +
-                           (granularity == bvh::Granularity::object ? " object BVH" : " triangle BVH");
+                           (granularity == bvh::Granularity::object ? " object BVH" : " triangle BVH") +
+                           (rts.geometry_texels() ? ", geometry as texels" : ", geometry by storage loads");
   for (bvh::HitMode mode : {bvh::HitMode::closest, bvh::HitMode::any}) {
     const std::string what = name + (mode == bvh::HitMode::any ? ", any hit" : ", closest hit");
     const BatchCheck t = compare_batch(*ctx, g, rts, rays, mode, what);
@@ -131,6 +138,11 @@ TEST(RayBatch, PicaIndexedEqualsTheReferenceBitForBit) {
 
 TEST(RayBatch, PicaSoupEqualsTheReferenceBitForBit) {
   check_scene("builtin:pica", GeometryLayout::soup, bvh::Granularity::triangle, 20000);
+}
+
+TEST(RayBatch, TheStorageLoadPathEqualsTheReferenceToo) {
+  check_scene("builtin:pica", GeometryLayout::indexed, bvh::Granularity::triangle, 5000, false);
+  check_scene("builtin:pica", GeometryLayout::soup, bvh::Granularity::triangle, 5000, false);
 }
 
 TEST(RayBatch, CornellObjectBvhEqualsTheReferenceBitForBit) {
@@ -170,7 +182,9 @@ TEST(RayBatch, TheTimestampsBracketTheDispatch) {
               host_ns * 1e-6);
   EXPECT_GT(gpu_ns, 0u);
   EXPECT_LE(double(gpu_ns), host_ns);
-  if (ctx->info().type == "cpu") EXPECT_GE(double(gpu_ns), 0.5 * host_ns);
+  if (ctx->info().type == "cpu") {
+    EXPECT_GE(double(gpu_ns), 0.5 * host_ns);
+  }
 }
 
 TEST(RayBatch, AnEmptyBatchTracesNothing) {
