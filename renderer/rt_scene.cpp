@@ -60,7 +60,6 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   nodes_ = vk::upload_vector(ctx, g.bvh.nodes, kStorage | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT);
   node_texels_ = vk::BufferView(ctx, nodes_, VK_FORMAT_R32G32B32A32_UINT);
   object_first_ = object_leaves_ ? upload(ctx, leaf.object_first, uploaded_bytes_) : dummy(ctx);
-  slot_scene_ = upload(ctx, leaf.scene_index, uploaded_bytes_);
 
   std::vector<float> positions, soup, normals, soup_normals;
   std::vector<uint32_t> indices;
@@ -106,7 +105,9 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   // passes"). UINT keeps the float bits exactly. The storage path stays for devices without the format.
   VkFormatProperties triple{};
   vkGetPhysicalDeviceFormatProperties(ctx.physical_device(), kTriple, &triple);
-  const uint64_t most_texels = std::max({positions.size(), indices.size(), soup.size()}) / 3;
+  // Every buffer seen as texels stays within maxTexelBufferElements (R32_UINT: the slot map is 1 per slot).
+  const uint64_t most_texels = std::max({positions.size() / 3, indices.size() / 3, soup.size() / 3,
+                                         normals.size() / 3, soup_normals.size() / 3, uint64_t(slots)});
   geometry_texels_ = allow_geometry_texels &&
                      (triple.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT) != 0 &&
                      most_texels <= max_texels;
@@ -114,19 +115,26 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   positions_ = upload(ctx, positions, uploaded_bytes_, texel_usage);
   indices_ = upload(ctx, indices, uploaded_bytes_, texel_usage);
   soup_ = upload(ctx, soup, uploaded_bytes_, texel_usage);
+  normals_ = upload(ctx, normals, uploaded_bytes_, texel_usage);
+  soup_normals_ = upload(ctx, soup_normals, uploaded_bytes_, texel_usage);
+  slot_scene_ = upload(ctx, leaf.scene_index, uploaded_bytes_, texel_usage);
   if (geometry_texels_) {
     position_texels_ = vk::BufferView(ctx, positions_, kTriple);
     index_texels_ = vk::BufferView(ctx, indices_, kTriple);
     soup_texels_ = vk::BufferView(ctx, soup_, kTriple);
+    normal_texels_ = vk::BufferView(ctx, normals_, kTriple);
+    soup_normal_texels_ = vk::BufferView(ctx, soup_normals_, kTriple);
+    slot_scene_texels_ = vk::BufferView(ctx, slot_scene_, VK_FORMAT_R32_UINT);
   } else {
-    // Bindings 29-31 still need valid views: any small texel buffer does (the shaders never read it).
+    // Bindings 29-34 still need valid views: any small texel buffer does (the shaders never read it).
     texel_dummy_ = vk::Buffer(ctx, 12, VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);
     position_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
     index_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
     soup_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
+    normal_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
+    soup_normal_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
+    slot_scene_texels_ = vk::BufferView(ctx, texel_dummy_, VK_FORMAT_R32_UINT);
   }
-  normals_ = upload(ctx, normals, uploaded_bytes_);
-  soup_normals_ = upload(ctx, soup_normals, uploaded_bytes_);
 
   std::vector<uint32_t> slot_material;
   std::vector<gpu::GpuMaterial> materials;

@@ -36,6 +36,11 @@ class RtScene {
   VkBufferView position_texels() const { return position_texels_.handle(); }
   VkBufferView index_texels() const { return index_texels_.handle(); }
   VkBufferView soup_texels() const { return soup_texels_.handle(); }
+  /// With geometry_texels(): the shading normals the same way (bindings 32, 33) and the slot -> scene
+  /// triangle map as R32_UINT (binding 34, the closest hit's tie-break).
+  VkBufferView normal_texels() const { return normal_texels_.handle(); }
+  VkBufferView soup_normal_texels() const { return soup_normal_texels_.handle(); }
+  VkBufferView slot_scene_texels() const { return slot_scene_texels_.handle(); }
   /// Every binding of shaders/common/rt_bindings.glsl 2..11; a buffer the configuration does not read is
   /// a 4-byte dummy.
   const vk::Buffer& nodes() const { return nodes_; }
@@ -61,7 +66,8 @@ class RtScene {
       slot_material_, materials_, texel_dummy_;
   bool geometry_texels_ = false;
   vk::BufferView node_texels_;  // after the buffers: destroyed before them
-  vk::BufferView position_texels_, index_texels_, soup_texels_;
+  vk::BufferView position_texels_, index_texels_, soup_texels_, normal_texels_, soup_normal_texels_,
+      slot_scene_texels_;
 };
 
 /// A ray-tracing compute pipeline specialized for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =

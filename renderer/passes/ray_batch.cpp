@@ -64,7 +64,7 @@ RayBatchTracer::RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   std::vector<VkDescriptorSetLayoutBinding> b;
   for (uint32_t i = 3; i <= 7; ++i) b.push_back({i, SB, 1, kCS, nullptr});
-  for (uint32_t i : {26u, 29u, 30u, 31u}) b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});
+  for (uint32_t i : {26u, 29u, 30u, 31u, 34u}) b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});
   b.push_back({27, SB, 1, kCS, nullptr});
   b.push_back({28, SB, 1, kCS, nullptr});
   descriptors_ = vk::DescriptorSet(ctx, b, sizeof(BatchParams), kCS);
@@ -78,6 +78,7 @@ RayBatchTracer::RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span
   ds.write_texel_buffer(29, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.position_texels());
   ds.write_texel_buffer(30, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.index_texels());
   ds.write_texel_buffer(31, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.soup_texels());
+  ds.write_texel_buffer(34, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.slot_scene_texels());
   ds.write_buffer(27, SB, rays_.handle());
   ds.write_buffer(28, SB, results_.handle());
   pipeline_ = create_rt_pipeline(ctx, trace_rays_comp, ds.pipeline_layout(), scene);

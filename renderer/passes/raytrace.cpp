@@ -131,7 +131,7 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   b.push_back({21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // trace records (instrumented variants)
   for (uint32_t i = 22; i <= 25; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // compaction
   b.push_back({26, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // BVH nodes as texels
-  for (uint32_t i = 29; i <= 31; ++i) {
+  for (uint32_t i = 29; i <= 34; ++i) {
     b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // geometry as texels
   }
   descriptors_ = vk::DescriptorSet(ctx, b, 0, 0);
@@ -144,6 +144,9 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   ds.write_texel_buffer(29, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.position_texels());
   ds.write_texel_buffer(30, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.index_texels());
   ds.write_texel_buffer(31, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.soup_texels());
+  ds.write_texel_buffer(32, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.normal_texels());
+  ds.write_texel_buffer(33, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.soup_normal_texels());
+  ds.write_texel_buffer(34, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.slot_scene_texels());
   ds.write_buffer(3, SB, scene.positions().handle());
   ds.write_buffer(4, SB, scene.indices().handle());
   ds.write_buffer(5, SB, scene.soup().handle());

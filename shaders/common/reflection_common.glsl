@@ -11,6 +11,10 @@
 
 const float HP_FLT_MAX = 3.402823466e+38;
 
+// The shading normals seen as R32G32B32_UINT texels (RtScene::geometry_texels), like the positions.
+layout(set = 0, binding = 32) uniform usamplerBuffer normal_texels;
+layout(set = 0, binding = 33) uniform usamplerBuffer soup_normal_texels;
+
 vec3 hit_normal(uint slot, float u, float v) {
   vec3 n0, n1, n2;
   if (HP_GEOMETRY_SOUP != 0u) {
@@ -18,19 +22,31 @@ vec3 hit_normal(uint slot, float u, float v) {
     HP_REC_LOAD(HP_TBUF_SOUP_NORMALS, slot * 36u + 12u, 12u);
     HP_REC_LOAD(HP_TBUF_SOUP_NORMALS, slot * 36u + 24u, 12u);
     uint b = slot * 9u;
-    n0 = vec3(soup_normals[b + 0u], soup_normals[b + 1u], soup_normals[b + 2u]);
-    n1 = vec3(soup_normals[b + 3u], soup_normals[b + 4u], soup_normals[b + 5u]);
-    n2 = vec3(soup_normals[b + 6u], soup_normals[b + 7u], soup_normals[b + 8u]);
+    if (HP_GEOMETRY_TEXELS != 0u) {
+      n0 = uintBitsToFloat(texelFetch(soup_normal_texels, int(slot * 3u)).xyz);
+      n1 = uintBitsToFloat(texelFetch(soup_normal_texels, int(slot * 3u + 1u)).xyz);
+      n2 = uintBitsToFloat(texelFetch(soup_normal_texels, int(slot * 3u + 2u)).xyz);
+    } else {
+      n0 = vec3(soup_normals[b + 0u], soup_normals[b + 1u], soup_normals[b + 2u]);
+      n1 = vec3(soup_normals[b + 3u], soup_normals[b + 4u], soup_normals[b + 5u]);
+      n2 = vec3(soup_normals[b + 6u], soup_normals[b + 7u], soup_normals[b + 8u]);
+    }
   } else {
-    uvec3 iv = hp_slot_indices(slot) * 3u;  // as the traversal reads them (a texel where it can)
-    uint i0 = iv.x, i1 = iv.y, i2 = iv.z;
+    uvec3 vi = hp_slot_indices(slot);  // as the traversal reads them (a texel where it can)
+    uint i0 = vi.x * 3u, i1 = vi.y * 3u, i2 = vi.z * 3u;
     HP_REC_LOAD(HP_TBUF_INDICES, slot * 12u, 12u);
     HP_REC_LOAD(HP_TBUF_NORMALS, i0 * 4u, 12u);  // i0 is already a float index (vertex * 3)
     HP_REC_LOAD(HP_TBUF_NORMALS, i1 * 4u, 12u);
     HP_REC_LOAD(HP_TBUF_NORMALS, i2 * 4u, 12u);
-    n0 = vec3(normals[i0], normals[i0 + 1u], normals[i0 + 2u]);
-    n1 = vec3(normals[i1], normals[i1 + 1u], normals[i1 + 2u]);
-    n2 = vec3(normals[i2], normals[i2 + 1u], normals[i2 + 2u]);
+    if (HP_GEOMETRY_TEXELS != 0u) {
+      n0 = uintBitsToFloat(texelFetch(normal_texels, int(vi.x)).xyz);
+      n1 = uintBitsToFloat(texelFetch(normal_texels, int(vi.y)).xyz);
+      n2 = uintBitsToFloat(texelFetch(normal_texels, int(vi.z)).xyz);
+    } else {
+      n0 = vec3(normals[i0], normals[i0 + 1u], normals[i0 + 2u]);
+      n1 = vec3(normals[i1], normals[i1 + 1u], normals[i1 + 2u]);
+      n2 = vec3(normals[i2], normals[i2 + 1u], normals[i2 + 2u]);
+    }
   }
   vec3 n = (1.0 - u - v) * n0 + u * n1 + v * n2;
   float len2 = dot(n, n);

@@ -24,6 +24,7 @@ layout(set = 0, binding = 26) uniform usamplerBuffer node_texels;
 layout(set = 0, binding = 29) uniform usamplerBuffer position_texels;
 layout(set = 0, binding = 30) uniform usamplerBuffer index_texels;
 layout(set = 0, binding = 31) uniform usamplerBuffer soup_texels;
+layout(set = 0, binding = 34) uniform usamplerBuffer slot_scene_texels;  // R32_UINT: slot -> scene triangle
 // Otherwise the geometry (bindings 3, 4, 5) seen as 64-bit words: a 32-bit triple at index b is one 64-bit word and
 // one 32-bit load (which one depends on the parity of b), nine floats are four words and one float; a word
 // is never read past the triple, so it never straddles the end of a buffer. Only bits move
@@ -97,6 +98,12 @@ bool hp_slab(HpRay r, vec3 bmin, vec3 bmax, float t_hi) {
 
 uvec3 hp_triple(uvec2 w, uint single, bool odd) {
   return odd ? uvec3(single, w) : uvec3(w, single);
+}
+
+// The scene triangle of a leaf-order slot (binding 7, or its texel view).
+uint hp_slot_scene(uint slot) {
+  if (HP_GEOMETRY_TEXELS != 0u) return texelFetch(slot_scene_texels, int(slot)).x;
+  return slot_scene[slot];
 }
 
 // A slot's three vertex indices (indexed layout).
@@ -291,7 +298,7 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
       if (!better && t == best_t) {
         HP_REC_LOAD(HP_TBUF_SLOT_SCENE, k * 4u, 4u);
         if (best.slot >= 0) HP_REC_LOAD(HP_TBUF_SLOT_SCENE, uint(best.slot) * 4u, 4u);
-        better = best.slot < 0 || slot_scene[k] < slot_scene[uint(best.slot)];
+        better = best.slot < 0 || hp_slot_scene(k) < hp_slot_scene(uint(best.slot));
       }
       if (better) {
         best_t = t;
