@@ -42,7 +42,7 @@ class RtScene {
   VkBufferView soup_normal_texels() const { return soup_normal_texels_.handle(); }
   VkBufferView slot_scene_texels() const { return slot_scene_texels_.handle(); }
   /// Every binding of shaders/common/rt_bindings.glsl 2..11; a buffer the configuration does not read is
-  /// a 4-byte dummy.
+  /// a small dummy (4 bytes, 12 where it is also seen as texels).
   const vk::Buffer& nodes() const { return nodes_; }
   /// The node buffer as RGBA32UI texels, two per node (binding 26: the traversal's fetches).
   VkBufferView node_texels() const { return node_texels_.handle(); }

@@ -1,5 +1,5 @@
 // The descriptor set every ray-tracing pass uses (one layout, bound once per frame). Buffers a pass does
-// not need in a configuration are bound to a 4-byte dummy and never read: the specialization constants
+// not need in a configuration are bound to a small dummy and never read: the specialization constants
 // below remove the code that would read them.
 #ifndef HP_RT_BINDINGS_GLSL
 #define HP_RT_BINDINGS_GLSL
