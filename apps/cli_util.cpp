@@ -71,6 +71,14 @@ void ViewOptions::apply_light(Scene& scene) const {
   scene.light.direction = glm::normalize(d);
 }
 
+std::pair<CLI::Option*, CLI::Option*> add_device_options(CLI::App* cmd, std::string& device, bool& validate) {
+  CLI::Option* d = cmd->add_option("--device", device,
+                                   "Vulkan device: index or name substring (default: discrete GPU, else lavapipe)");
+  CLI::Option* v =
+      cmd->add_flag("--validate", validate, "enable the Khronos validation layer; any message fails the run");
+  return {d, v};
+}
+
 void FrameOptions::add_to(CLI::App* cmd) {
   cmd->add_option("--scene", scene, "builtin:pica|cornell|sphere-1m|terrain-1m, or a .gltf/.glb path")
       ->capture_default_str();
@@ -102,8 +110,7 @@ void FrameOptions::add_to(CLI::App* cmd) {
   cmd->add_option("--sort", sort, "compact path: sort key none, octant, direction or origin")->capture_default_str();
   cmd->add_option("--writeback", writeback, "compact path: index (exact) or reproject (the study's)")
       ->capture_default_str();
-  cmd->add_option("--device", device, "Vulkan device: index or name substring (default: discrete GPU, else lavapipe)");
-  cmd->add_flag("--validate", validate, "enable the Khronos validation layer; any message fails the run");
+  add_device_options(cmd, device, validate);
   cmd->add_flag("--host-timing", host_timing,
                 "time each pass on the host (one submission per pass, labelled cpu-wall), as on a queue "
                 "without timestamps");

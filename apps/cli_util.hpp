@@ -9,6 +9,7 @@
 #include <fstream>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace hp::cli {
@@ -26,6 +27,10 @@ struct ViewOptions {
   /// Applies the light override to the scene.
   void apply_light(Scene& scene) const;
 };
+
+/// The Vulkan device choice: `--device` (index or name substring) and `--validate` (the Khronos layer, any
+/// message fails the run). Returns the two options, for `needs` constraints.
+std::pair<CLI::Option*, CLI::Option*> add_device_options(CLI::App* cmd, std::string& device, bool& validate);
 
 /// The options that describe a frame (scene, resolution, passes and their modes, BVH build, device), shared by
 /// `render` and `trace`.

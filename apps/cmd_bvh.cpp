@@ -5,6 +5,7 @@
 //   hybridprof bvh --scene S [--buckets N | --full-sweep] [--largest-axis-only] [--granularity triangle|object]
 //                  [--leaf-size K] [--threads T] [--export-triangles FILE] [--rays FILE --hits FILE [--any-hit]
 //                  [--gpu [--geometry indexed|soup] [--device D] [--validate]]]
+#include "apps/cli_util.hpp"
 #include "apps/commands.hpp"
 #include "bvh/bvh.hpp"
 #include "bvh/ray_io.hpp"
@@ -200,10 +201,9 @@ void add_bvh_command(CLI::App& app) {
       ->check(CLI::IsMember({"indexed", "soup"}))
       ->capture_default_str()
       ->needs(gpu);
-  cmd->add_option("--device", args->device, "Vulkan device: index or name substring (default: discrete GPU, else lavapipe)")
-      ->needs(gpu);
-  cmd->add_flag("--validate", args->validate, "enable the Khronos validation layer; any message fails the run")
-      ->needs(gpu);
+  const auto [device, validate] = add_device_options(cmd, args->device, args->validate);
+  device->needs(gpu);
+  validate->needs(gpu);
   cmd->callback([args] { run_bvh(*args); });
 }
 

@@ -64,7 +64,9 @@ RayBatchTracer::RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   std::vector<VkDescriptorSetLayoutBinding> b;
   for (uint32_t i = 3; i <= 7; ++i) b.push_back({i, SB, 1, kCS, nullptr});
-  for (uint32_t i : {26u, 29u, 30u, 31u, 34u}) b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});
+  for (uint32_t i : {26u, 29u, 30u, 31u, 34u}) {
+    b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});
+  }
   b.push_back({27, SB, 1, kCS, nullptr});
   b.push_back({28, SB, 1, kCS, nullptr});
   descriptors_ = vk::DescriptorSet(ctx, b, sizeof(BatchParams), kCS);
@@ -152,8 +154,9 @@ BatchCheck check_against_reference(const bvh::Bvh& bvh, const bvh::LeafOrderTria
       const bvh::Ray& r = rays[i];
       char line[512];
       std::snprintf(line, sizeof(line),
-                    "ray %zu: o=(%.9g, %.9g, %.9g) d=(%.9g, %.9g, %.9g) [%.9g, %.9g]: gpu prim %d t %.9g u %.9g v %.9g, "
-                    "%llu nodes, %llu triangles; reference prim %d t %.9g u %.9g v %.9g, %llu nodes, %llu triangles",
+                    "ray %zu: o=(%.9g, %.9g, %.9g) d=(%.9g, %.9g, %.9g) [%.9g, %.9g]: "
+                    "gpu prim %d t %.9g u %.9g v %.9g, %llu nodes, %llu triangles; "
+                    "reference prim %d t %.9g u %.9g v %.9g, %llu nodes, %llu triangles",
                     i, r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax, g.hit.prim,
                     g.hit.t, g.hit.u, g.hit.v, (unsigned long long)g.stats.nodes_visited,
                     (unsigned long long)g.stats.triangles_tested, ref.prim, ref.t, ref.u, ref.v,

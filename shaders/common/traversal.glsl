@@ -15,19 +15,18 @@
 // a storage-buffer load at a per-invocation address into a loop over the SIMD lanes (mask test, bounds
 // check, scalar load), and a texel fetch into a branch-free gather. Measured against four 64-bit storage
 // loads on pica 1280x720: shadows 1.3-1.6x, reflections 1.2-1.4x faster, the same rays and hits; the other
-// glTF scenes within noise (README). The same for the geometry's unaligned triples gained 0-6%: not worth
-// padding the buffers.
+// glTF scenes within noise (README).
 layout(set = 0, binding = 26) uniform usamplerBuffer node_texels;
-// The geometry buffers (bindings 3, 4, 5) seen as R32G32B32_UINT texels (bindings 29, 30, 31): a vertex, or a
-// slot's three indices, per texel; read where HP_GEOMETRY_TEXELS is set. A texel fetch is one branch-free
-// gather on lavapipe where each storage load below is a loop over the lanes.
+// The geometry buffers (bindings 3, 4, 5) seen as R32G32B32_UINT texels (bindings 29, 30, 31): a vertex, or
+// a slot's three indices, per texel; read where HP_GEOMETRY_TEXELS is set (2-8% faster passes on lavapipe,
+// README). 12-byte texels need no padding, and UINT moves the float bits unchanged.
 layout(set = 0, binding = 29) uniform usamplerBuffer position_texels;
 layout(set = 0, binding = 30) uniform usamplerBuffer index_texels;
 layout(set = 0, binding = 31) uniform usamplerBuffer soup_texels;
 layout(set = 0, binding = 34) uniform usamplerBuffer slot_scene_texels;  // R32_UINT: slot -> scene triangle
-// Otherwise the geometry (bindings 3, 4, 5) seen as 64-bit words: a 32-bit triple at index b is one 64-bit word and
-// one 32-bit load (which one depends on the parity of b), nine floats are four words and one float; a word
-// is never read past the triple, so it never straddles the end of a buffer. Only bits move
+// Otherwise the geometry (bindings 3, 4, 5) seen as 64-bit words: a 32-bit triple at index b is one 64-bit
+// word and one 32-bit load (which one depends on the parity of b), nine floats are four words and one
+// float; a word is never read past the triple, so it never straddles the end of a buffer. Only bits move
 // (unpackDouble2x32): no arithmetic is done on these doubles.
 layout(std430, set = 0, binding = 3) readonly buffer PositionWords { double position_words[]; };
 layout(std430, set = 0, binding = 4) readonly buffer IndexWords { double index_words[]; };
