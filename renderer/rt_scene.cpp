@@ -118,23 +118,17 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   normals_ = upload(ctx, normals, uploaded_bytes_, texel_usage);
   soup_normals_ = upload(ctx, soup_normals, uploaded_bytes_, texel_usage);
   slot_scene_ = upload(ctx, leaf.scene_index, uploaded_bytes_, texel_usage);
-  if (geometry_texels_) {
-    position_texels_ = vk::BufferView(ctx, positions_, kTriple);
-    index_texels_ = vk::BufferView(ctx, indices_, kTriple);
-    soup_texels_ = vk::BufferView(ctx, soup_, kTriple);
-    normal_texels_ = vk::BufferView(ctx, normals_, kTriple);
-    soup_normal_texels_ = vk::BufferView(ctx, soup_normals_, kTriple);
-    slot_scene_texels_ = vk::BufferView(ctx, slot_scene_, VK_FORMAT_R32_UINT);
-  } else {
-    // Bindings 29-34 still need valid views: any small texel buffer does (the shaders never read it).
-    texel_dummy_ = vk::Buffer(ctx, 12, VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);
-    position_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
-    index_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
-    soup_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
-    normal_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
-    soup_normal_texels_ = vk::BufferView(ctx, texel_dummy_, kTriple);
-    slot_scene_texels_ = vk::BufferView(ctx, texel_dummy_, VK_FORMAT_R32_UINT);
-  }
+  // Without texels, bindings 29-34 still need valid views: any small texel buffer does (never read).
+  if (!geometry_texels_) texel_dummy_ = vk::Buffer(ctx, 12, VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);
+  const auto view = [&](const vk::Buffer& b, VkFormat f) {
+    return vk::BufferView(ctx, geometry_texels_ ? b : texel_dummy_, f);
+  };
+  position_texels_ = view(positions_, kTriple);
+  index_texels_ = view(indices_, kTriple);
+  soup_texels_ = view(soup_, kTriple);
+  normal_texels_ = view(normals_, kTriple);
+  soup_normal_texels_ = view(soup_normals_, kTriple);
+  slot_scene_texels_ = view(slot_scene_, VK_FORMAT_R32_UINT);
 
   std::vector<uint32_t> slot_material;
   std::vector<gpu::GpuMaterial> materials;
@@ -147,6 +141,29 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   }
   slot_material_ = upload(ctx, slot_material, uploaded_bytes_);
   materials_ = upload(ctx, materials, uploaded_bytes_);
+}
+
+void RtScene::add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& b) {
+  const VkShaderStageFlags cs = VK_SHADER_STAGE_COMPUTE_BIT;
+  for (uint32_t i = 3; i <= 7; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, cs, nullptr});
+  for (uint32_t i : {26u, 29u, 30u, 31u, 34u}) {
+    b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, cs, nullptr});
+  }
+}
+
+void RtScene::write_traversal_bindings(vk::DescriptorSet& ds) const {
+  const VkDescriptorType sb = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  const VkDescriptorType tb = VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+  ds.write_buffer(3, sb, positions_.handle());
+  ds.write_buffer(4, sb, indices_.handle());
+  ds.write_buffer(5, sb, soup_.handle());
+  ds.write_buffer(6, sb, object_first_.handle());
+  ds.write_buffer(7, sb, slot_scene_.handle());
+  ds.write_texel_buffer(26, tb, node_texels());
+  ds.write_texel_buffer(29, tb, position_texels());
+  ds.write_texel_buffer(30, tb, index_texels());
+  ds.write_texel_buffer(31, tb, soup_texels());
+  ds.write_texel_buffer(34, tb, slot_scene_texels());
 }
 
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,

@@ -7,6 +7,7 @@
 #include "vk/resources.hpp"
 
 #include <span>
+#include <vector>
 
 #include <string>
 
@@ -55,6 +56,10 @@ class RtScene {
   const vk::Buffer& soup_normals() const { return soup_normals_; }
   const vk::Buffer& slot_material() const { return slot_material_; }
   const vk::Buffer& materials() const { return materials_; }
+  /// The bindings the traversal reads (shaders/common/traversal.glsl: storage buffers 3-7, texel views 26,
+  /// 29-31 and 34): their layout entries (compute stage), and writing this scene's buffers into them.
+  static void add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& bindings);
+  void write_traversal_bindings(vk::DescriptorSet& ds) const;
   /// Bytes uploaded for the traversal and shading (dummies excluded).
   uint64_t uploaded_bytes() const { return uploaded_bytes_; }
 

@@ -60,27 +60,15 @@ RayBatchTracer::RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span
   results_ = vk::Buffer(ctx, std::max<uint64_t>(count_, 1) * sizeof(gpu::BatchResult),
                         VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
 
-  // The bindings the traversal reads (shaders/common/rt_bindings.glsl), then the batch's own.
+  // The bindings the traversal reads, then the batch's own.
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   std::vector<VkDescriptorSetLayoutBinding> b;
-  for (uint32_t i = 3; i <= 7; ++i) b.push_back({i, SB, 1, kCS, nullptr});
-  for (uint32_t i : {26u, 29u, 30u, 31u, 34u}) {
-    b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});
-  }
+  RtScene::add_traversal_bindings(b);
   b.push_back({27, SB, 1, kCS, nullptr});
   b.push_back({28, SB, 1, kCS, nullptr});
   descriptors_ = vk::DescriptorSet(ctx, b, sizeof(BatchParams), kCS);
   auto& ds = descriptors_;
-  ds.write_buffer(3, SB, scene.positions().handle());
-  ds.write_buffer(4, SB, scene.indices().handle());
-  ds.write_buffer(5, SB, scene.soup().handle());
-  ds.write_buffer(6, SB, scene.object_first().handle());
-  ds.write_buffer(7, SB, scene.slot_scene().handle());
-  ds.write_texel_buffer(26, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.node_texels());
-  ds.write_texel_buffer(29, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.position_texels());
-  ds.write_texel_buffer(30, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.index_texels());
-  ds.write_texel_buffer(31, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.soup_texels());
-  ds.write_texel_buffer(34, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.slot_scene_texels());
+  scene.write_traversal_bindings(ds);
   ds.write_buffer(27, SB, rays_.handle());
   ds.write_buffer(28, SB, results_.handle());
   pipeline_ = create_rt_pipeline(ctx, trace_rays_comp, ds.pipeline_layout(), scene);

@@ -125,14 +125,15 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   std::vector<VkDescriptorSetLayoutBinding> b;
   b.push_back({0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kCS, nullptr});
   b.push_back({1, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kCS, nullptr});
-  for (uint32_t i = 2; i <= 14; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
+  RtScene::add_traversal_bindings(b);  // 3-7, 26, 29-31, 34
+  b.push_back({2, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
+  for (uint32_t i = 8; i <= 14; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
   for (uint32_t i = 15; i <= 17; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCS, nullptr});
   for (uint32_t i = 18; i <= 20; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCS, nullptr});
   b.push_back({21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // trace records (instrumented variants)
   for (uint32_t i = 22; i <= 25; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // compaction
-  b.push_back({26, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // BVH nodes as texels
-  for (uint32_t i = 29; i <= 34; ++i) {
-    b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // geometry as texels
+  for (uint32_t i = 32; i <= 33; ++i) {
+    b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // shading normals as texels
   }
   descriptors_ = vk::DescriptorSet(ctx, b, 0, 0);
   auto& ds = descriptors_;
@@ -140,18 +141,9 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   ds.write_buffer(0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
   ds.write_buffer(1, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, params_.handle());
   ds.write_buffer(2, SB, scene.nodes().handle());
-  ds.write_texel_buffer(26, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.node_texels());
-  ds.write_texel_buffer(29, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.position_texels());
-  ds.write_texel_buffer(30, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.index_texels());
-  ds.write_texel_buffer(31, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.soup_texels());
+  scene.write_traversal_bindings(ds);
   ds.write_texel_buffer(32, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.normal_texels());
   ds.write_texel_buffer(33, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.soup_normal_texels());
-  ds.write_texel_buffer(34, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.slot_scene_texels());
-  ds.write_buffer(3, SB, scene.positions().handle());
-  ds.write_buffer(4, SB, scene.indices().handle());
-  ds.write_buffer(5, SB, scene.soup().handle());
-  ds.write_buffer(6, SB, scene.object_first().handle());
-  ds.write_buffer(7, SB, scene.slot_scene().handle());
   ds.write_buffer(8, SB, scene.normals().handle());
   ds.write_buffer(9, SB, scene.soup_normals().handle());
   ds.write_buffer(10, SB, scene.slot_material().handle());
