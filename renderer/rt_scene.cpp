@@ -167,11 +167,11 @@ void RtScene::write_traversal_bindings(vk::DescriptorSet& ds) const {
 }
 
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
-                                const RtScene& scene) {
-  const uint32_t values[3] = {scene.layout() == GeometryLayout::soup ? 1u : 0u, scene.object_leaves() ? 1u : 0u,
-                              scene.geometry_texels() ? 1u : 0u};
-  const VkSpecializationMapEntry entries[3] = {{0, 0, 4}, {1, 4, 4}, {2, 8, 4}};
-  const VkSpecializationInfo spec{3, entries, sizeof(values), values};
+                                const RtScene& scene, uint32_t rt_flags) {
+  const uint32_t values[4] = {scene.layout() == GeometryLayout::soup ? 1u : 0u, scene.object_leaves() ? 1u : 0u,
+                              scene.geometry_texels() ? 1u : 0u, rt_flags};
+  const VkSpecializationMapEntry entries[4] = {{0, 0, 4}, {1, 4, 4}, {2, 8, 4}, {3, 12, 4}};
+  const VkSpecializationInfo spec{4, entries, sizeof(values), values};
   return vk::create_compute_pipeline(ctx, spirv, layout, &spec);
 }
 

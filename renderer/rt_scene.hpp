@@ -76,8 +76,9 @@ class RtScene {
 };
 
 /// A ray-tracing compute pipeline specialized for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =
-/// soup layout, 1 = object leaves, 2 = geometry fetched as texels).
+/// soup layout, 1 = object leaves, 2 = geometry fetched as texels) and for what a frame records
+/// (constant_id 3 = `rt_flags`, HP_RT_COUNTERS | HP_RT_DUMP_RAYS | HP_RT_REFLECTION_SHADOWS).
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
-                                const RtScene& scene);
+                                const RtScene& scene, uint32_t rt_flags = 0);
 
 }  // namespace hp

@@ -36,7 +36,7 @@ void main() {
     vec2 px = (c.xy / c.w * 0.5 + 0.5) * vec2(frame.extent.xy);
     ivec2 g = clamp(ivec2(floor(px)) / int(rt.grid.z), ivec2(0), ivec2(rt.grid.xy) - 1);
     target = uint(g.y) * rt.grid.x + uint(g.x);
-    if (target != cell && (rt.grid.w & HP_RT_COUNTERS) != 0u) hp_counter_add(HP_COUNTER_REPROJECT_MISPLACED, 1u);
+    if (target != cell && (HP_RT_FLAGS & HP_RT_COUNTERS) != 0u) hp_counter_add(HP_COUNTER_REPROJECT_MISPLACED, 1u);
   }
   HP_REC_STORE(HP_TBUF_REFLECTION, target * 16u, 16u);
   imageStore(reflection_image, ivec2(target % rt.grid.x, target / rt.grid.x), vec4(color, 1.0));

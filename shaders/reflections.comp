@@ -31,7 +31,7 @@ void main() {
   }
   HP_REC_STORE(HP_TBUF_REFLECTION, cell * 16u, 16u);
   imageStore(reflection_image, q, result);
-  if ((rt.grid.w & HP_RT_DUMP_RAYS) != 0u) {
+  if ((HP_RT_FLAGS & HP_RT_DUMP_RAYS) != 0u) {
     // Debug output only: the slot -> scene lookup is not part of the pass's real work (nor traced).
     if (dump.hit.x >= 0) dump.hit.x = int(slot_scene[uint(dump.hit.x)]);
     reflection_dump[cell] = dump;

@@ -44,12 +44,12 @@ void main() {
   }
   HP_REC_STORE(HP_TBUF_SHADOW_MASK, pix * 4u, 4u);
   imageStore(shadow_mask, p, vec4(lit));
-  if ((rt.grid.w & HP_RT_DUMP_RAYS) != 0u) {
+  if ((HP_RT_FLAGS & HP_RT_DUMP_RAYS) != 0u) {
     // Debug output only: the slot -> scene lookup is not part of the pass's real work (nor traced).
     if (dump.hit.x >= 0) dump.hit.x = int(slot_scene[uint(dump.hit.x)]);
     shadow_dump[pix] = dump;
   }
-  if ((rt.grid.w & HP_RT_COUNTERS) != 0u) {
+  if ((HP_RT_FLAGS & HP_RT_COUNTERS) != 0u) {
     hp_counter_add(HP_COUNTER_SHADOW_RAYS, uint(dump.hit.z));
     hp_counter_add(HP_COUNTER_SHADOW_NODES, st.nodes);
     hp_counter_add(HP_COUNTER_SHADOW_TRIS, st.tris);

@@ -97,7 +97,9 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
       width_(gbuffer.depth.width()),
       height_(gbuffer.depth.height()),
       bounds_(scene_bounds),
-      scene_(scene) {
+      scene_(scene),
+      flags_((options.counters ? HP_RT_COUNTERS : 0u) | (options.dump_rays ? HP_RT_DUMP_RAYS : 0u) |
+             (options.reflection_shadows ? HP_RT_REFLECTION_SHADOWS : 0u)) {
   if (options.reflection_divisor != 1 && options.reflection_divisor != 2 && options.reflection_divisor != 4) {
     throw InputError("--reflection-scale: must be 1, 0.5 or 0.25");
   }
@@ -180,29 +182,25 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   ds.write_buffer(25, SB, ray_count_.handle());
 
   // Only the pipelines the options ask for are compiled (lavapipe compiles each one with LLVM).
-  if (options.shadows) shadow_pipeline_ = create_rt_pipeline(ctx, shadows_comp, ds.pipeline_layout(), scene);
+  if (options.shadows) shadow_pipeline_ = create_rt_pipeline(ctx, shadows_comp, ds.pipeline_layout(), scene, flags_);
   if (compact) {
-    compact_pipeline_ = create_rt_pipeline(ctx, compact_comp, ds.pipeline_layout(), scene);
-    args_pipeline_ = create_rt_pipeline(ctx, compact_args_comp, ds.pipeline_layout(), scene);
-    consume_pipeline_ = create_rt_pipeline(ctx, consume_comp, ds.pipeline_layout(), scene);
+    compact_pipeline_ = create_rt_pipeline(ctx, compact_comp, ds.pipeline_layout(), scene, flags_);
+    args_pipeline_ = create_rt_pipeline(ctx, compact_args_comp, ds.pipeline_layout(), scene, flags_);
+    consume_pipeline_ = create_rt_pipeline(ctx, consume_comp, ds.pipeline_layout(), scene, flags_);
     if (options.sort != SortKey::none) sorter_ = std::make_unique<RadixSort>(ctx, uint32_t(cells));
   }
   if (options.reflections && !compact) {
-    reflection_pipeline_ = create_rt_pipeline(ctx, reflections_comp, ds.pipeline_layout(), scene);
+    reflection_pipeline_ = create_rt_pipeline(ctx, reflections_comp, ds.pipeline_layout(), scene, flags_);
   }
   if (options.reflections) {
-    accumulate_pipeline_ = create_rt_pipeline(ctx, accumulate_comp, ds.pipeline_layout(), scene);
+    accumulate_pipeline_ = create_rt_pipeline(ctx, accumulate_comp, ds.pipeline_layout(), scene, flags_);
   }
   begin_frame(0);
 }
 
 void RayTracingPasses::begin_frame(uint32_t sample_index) {
   gpu::RayParams p{};
-  uint32_t flags = 0;
-  if (options_.counters) flags |= HP_RT_COUNTERS;
-  if (options_.dump_rays) flags |= HP_RT_DUMP_RAYS;
-  if (options_.reflection_shadows) flags |= HP_RT_REFLECTION_SHADOWS;
-  p.grid = glm::uvec4(grid_w_, grid_h_, options_.reflection_divisor, flags);
+  p.grid = glm::uvec4(grid_w_, grid_h_, options_.reflection_divisor, flags_);
   p.shadow = glm::vec4(options_.bias, options_.offset == ShadowOffset::robust ? HP_OFFSET_ROBUST : HP_OFFSET_NORMAL_BIAS,
                        0.0f, 0.0f);
   p.reflection = glm::vec4(options_.roughness_threshold,
@@ -239,16 +237,16 @@ glm::uvec2 RayTracingPasses::workgroups(Traced pass, uint32_t rays) const {
 void RayTracingPasses::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer) {
   descriptors_.write_buffer(21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
   if (options_.shadows && !shadow_traced_.handle()) {
-    shadow_traced_ = create_rt_pipeline(ctx, shadows_traced_comp, descriptors_.pipeline_layout(), scene_);
+    shadow_traced_ = create_rt_pipeline(ctx, shadows_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
   }
   const bool compact = options_.reflections && options_.reflection_path == ReflectionPath::compact;
   if (options_.reflections && !compact && !reflection_traced_.handle()) {
     reflection_traced_ =
-        create_rt_pipeline(ctx, reflections_traced_comp, descriptors_.pipeline_layout(), scene_);
+        create_rt_pipeline(ctx, reflections_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
   }
   if (compact && !compact_traced_.handle()) {
-    compact_traced_ = create_rt_pipeline(ctx, compact_traced_comp, descriptors_.pipeline_layout(), scene_);
-    consume_traced_ = create_rt_pipeline(ctx, consume_traced_comp, descriptors_.pipeline_layout(), scene_);
+    compact_traced_ = create_rt_pipeline(ctx, compact_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
+    consume_traced_ = create_rt_pipeline(ctx, consume_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
   }
 }
 

@@ -113,7 +113,7 @@ vec3 hp_shade_reflection(vec3 o, vec3 d, inout HpStats st, inout uint shadow_ray
   precise vec3 hp = o + h.t * d;  // the shadow ray's origin: identical in every path (no FMA)
   vec3 l = frame.light_dir.xyz;
   float vis = 1.0;
-  if ((rt.grid.w & HP_RT_REFLECTION_SHADOWS) != 0u && dot(hn, l) > 0.0) {
+  if ((HP_RT_FLAGS & HP_RT_REFLECTION_SHADOWS) != 0u && dot(hn, l) > 0.0) {
     vec3 so = int(rt.shadow.y) == HP_OFFSET_ROBUST ? hp_offset_robust(hp, hn) : hp_offset_bias(hp, hn, rt.shadow.x);
     HpRay sr;
     if (hp_prepare(so, l, 0.0, HP_FLT_MAX, sr)) {
@@ -133,7 +133,7 @@ vec3 hp_shade_reflection(vec3 o, vec3 d, inout HpStats st, inout uint shadow_ray
 
 // Adds one reflection ray's work to the counters (HP_RT_COUNTERS).
 void hp_count_reflection(bool was_cast, HpStats st, uint shadow_rays) {
-  if ((rt.grid.w & HP_RT_COUNTERS) == 0u) return;
+  if ((HP_RT_FLAGS & HP_RT_COUNTERS) == 0u) return;
   hp_counter_add(HP_COUNTER_REFL_RAYS, was_cast ? 1u : 0u);
   hp_counter_add(HP_COUNTER_REFL_NODES, st.nodes);
   hp_counter_add(HP_COUNTER_REFL_TRIS, st.tris);
