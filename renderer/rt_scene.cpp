@@ -25,8 +25,8 @@ vk::Buffer dummy(vk::Context& ctx) { return vk::Buffer(ctx, 4, kStorage, false);
 template <typename T>
 vk::Buffer upload(vk::Context& ctx, const std::vector<T>& v, uint64_t& total,
                   VkBufferUsageFlags extra_usage = 0) {
-  // A dummy seen as texels holds one 12-byte texel (a view's range must be whole texels).
-  if (v.empty()) return vk::Buffer(ctx, extra_usage ? 12 : 4, kStorage | extra_usage, false);
+  // A dummy seen as texels holds whole texels of every format used here (12 and 16 bytes: 48 bytes).
+  if (v.empty()) return vk::Buffer(ctx, extra_usage ? 48 : 4, kStorage | extra_usage, false);
   total += v.size() * sizeof(T);
   return vk::upload_vector(ctx, v, kStorage | extra_usage);
 }
@@ -107,7 +107,8 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   vkGetPhysicalDeviceFormatProperties(ctx.physical_device(), kTriple, &triple);
   // Every buffer seen as texels stays within maxTexelBufferElements (R32_UINT: the slot map is 1 per slot).
   const uint64_t most_texels = std::max({positions.size() / 3, indices.size() / 3, soup.size() / 3,
-                                         normals.size() / 3, soup_normals.size() / 3, uint64_t(slots)});
+                                         normals.size() / 3, soup_normals.size() / 3, uint64_t(slots),
+                                         uint64_t(scene.materials.size()) * 2});
   geometry_texels_ = allow_geometry_texels &&
                      (triple.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT) != 0 &&
                      most_texels <= max_texels;
@@ -118,8 +119,8 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   normals_ = upload(ctx, normals, uploaded_bytes_, texel_usage);
   soup_normals_ = upload(ctx, soup_normals, uploaded_bytes_, texel_usage);
   slot_scene_ = upload(ctx, leaf.scene_index, uploaded_bytes_, texel_usage);
-  // Without texels, bindings 29-34 still need valid views: any small texel buffer does (never read).
-  if (!geometry_texels_) texel_dummy_ = vk::Buffer(ctx, 12, VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);
+  // Without texels, bindings 29-36 still need valid views: any small texel buffer does (never read).
+  if (!geometry_texels_) texel_dummy_ = vk::Buffer(ctx, 48, VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);
   const auto view = [&](const vk::Buffer& b, VkFormat f) {
     return vk::BufferView(ctx, geometry_texels_ ? b : texel_dummy_, f);
   };
@@ -139,8 +140,10 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
       materials.push_back({glm::vec4(m.base_color, m.metallic), glm::vec4(m.roughness, 0.0f, 0.0f, 0.0f)});
     }
   }
-  slot_material_ = upload(ctx, slot_material, uploaded_bytes_);
-  materials_ = upload(ctx, materials, uploaded_bytes_);
+  slot_material_ = upload(ctx, slot_material, uploaded_bytes_, texel_usage);
+  materials_ = upload(ctx, materials, uploaded_bytes_, texel_usage);
+  slot_material_texels_ = view(slot_material_, VK_FORMAT_R32_UINT);
+  material_texels_ = view(materials_, VK_FORMAT_R32G32B32A32_UINT);  // two texels per material
 }
 
 void RtScene::add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& b) {

@@ -42,8 +42,12 @@ class RtScene {
   VkBufferView normal_texels() const { return normal_texels_.handle(); }
   VkBufferView soup_normal_texels() const { return soup_normal_texels_.handle(); }
   VkBufferView slot_scene_texels() const { return slot_scene_texels_.handle(); }
+  /// With geometry_texels(): the per-slot material ids as R32_UINT (binding 35) and the materials as
+  /// RGBA32_UINT, two texels each (binding 36), for the reflection hits' shading.
+  VkBufferView slot_material_texels() const { return slot_material_texels_.handle(); }
+  VkBufferView material_texels() const { return material_texels_.handle(); }
   /// Every binding of shaders/common/rt_bindings.glsl 2..11; a buffer the configuration does not read is
-  /// a small dummy (4 bytes, 12 where it is also seen as texels).
+  /// a small dummy (4 bytes, 48 where it is also seen as texels).
   const vk::Buffer& nodes() const { return nodes_; }
   /// The node buffer as RGBA32UI texels, two per node (binding 26: the traversal's fetches).
   VkBufferView node_texels() const { return node_texels_.handle(); }
@@ -72,7 +76,7 @@ class RtScene {
   bool geometry_texels_ = false;
   vk::BufferView node_texels_;  // after the buffers: destroyed before them
   vk::BufferView position_texels_, index_texels_, soup_texels_, normal_texels_, soup_normal_texels_,
-      slot_scene_texels_;
+      slot_scene_texels_, slot_material_texels_, material_texels_;
 };
 
 /// A ray-tracing compute pipeline specialized for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =

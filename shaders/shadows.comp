@@ -31,7 +31,7 @@ void main() {
     if (dot(n, l) <= 0.0) {
       lit = 0.0;  // the surface faces away from the light: in its own shadow, no ray needed
     } else {
-      vec3 o = int(rt.shadow.y) == HP_OFFSET_ROBUST ? hp_offset_gbuffer(p, depth, pos, n) : hp_offset_bias(pos, n, rt.shadow.x);
+      vec3 o = (HP_RT_FLAGS & HP_RT_ROBUST_OFFSET) != 0u ? hp_offset_gbuffer(p, depth, pos, n) : hp_offset_bias(pos, n, rt.shadow.x);
       HpRay r;
       if (hp_prepare(o, l, 0.0, HP_FLT_MAX, r)) {
         HpHit h = hp_trace(r, true, st);

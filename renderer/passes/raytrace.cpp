@@ -99,7 +99,9 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
       bounds_(scene_bounds),
       scene_(scene),
       flags_((options.counters ? HP_RT_COUNTERS : 0u) | (options.dump_rays ? HP_RT_DUMP_RAYS : 0u) |
-             (options.reflection_shadows ? HP_RT_REFLECTION_SHADOWS : 0u)) {
+             (options.reflection_shadows ? HP_RT_REFLECTION_SHADOWS : 0u) |
+             (options.offset == ShadowOffset::robust ? HP_RT_ROBUST_OFFSET : 0u) |
+             (options.jitter == JitterMode::shared ? HP_RT_SHARED_JITTER : 0u)) {
   if (options.reflection_divisor != 1 && options.reflection_divisor != 2 && options.reflection_divisor != 4) {
     throw InputError("--reflection-scale: must be 1, 0.5 or 0.25");
   }
@@ -134,8 +136,8 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   for (uint32_t i = 18; i <= 20; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCS, nullptr});
   b.push_back({21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // trace records (instrumented variants)
   for (uint32_t i = 22; i <= 25; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // compaction
-  for (uint32_t i = 32; i <= 33; ++i) {
-    b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // shading normals as texels
+  for (uint32_t i : {32u, 33u, 35u, 36u}) {
+    b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // shading data as texels
   }
   descriptors_ = vk::DescriptorSet(ctx, b, 0, 0);
   auto& ds = descriptors_;
@@ -146,6 +148,8 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   scene.write_traversal_bindings(ds);
   ds.write_texel_buffer(32, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.normal_texels());
   ds.write_texel_buffer(33, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.soup_normal_texels());
+  ds.write_texel_buffer(35, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.slot_material_texels());
+  ds.write_texel_buffer(36, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.material_texels());
   ds.write_buffer(8, SB, scene.normals().handle());
   ds.write_buffer(9, SB, scene.soup_normals().handle());
   ds.write_buffer(10, SB, scene.slot_material().handle());

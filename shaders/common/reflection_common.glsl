@@ -11,9 +11,12 @@
 
 const float HP_FLT_MAX = 3.402823466e+38;
 
-// The shading normals seen as R32G32B32_UINT texels (RtScene::geometry_texels), like the positions.
+// The shading data seen as texels (RtScene::geometry_texels), like the positions: normals as R32G32B32_UINT,
+// material ids and materials.
 layout(set = 0, binding = 32) uniform usamplerBuffer normal_texels;
 layout(set = 0, binding = 33) uniform usamplerBuffer soup_normal_texels;
+layout(set = 0, binding = 35) uniform usamplerBuffer slot_material_texels;  // R32_UINT
+layout(set = 0, binding = 36) uniform usamplerBuffer material_texels;       // RGBA32_UINT, two per material
 
 vec3 hit_normal(uint slot, float u, float v) {
   vec3 n0, n1, n2;
@@ -71,7 +74,7 @@ bool hp_reflection_ray(ivec2 q, uint cell, out vec3 o, out vec3 d) {
   vec3 pos = hp_world_position(p, depth);
   precise vec3 v = normalize(frame.camera_pos.xyz - pos);
   vec2 xi;
-  if (int(rt.reflection.y) == HP_JITTER_SHARED) {
+  if ((HP_RT_FLAGS & HP_RT_SHARED_JITTER) != 0u) {
     xi = rt.jitter.xy;  // one offset for every thread this frame (the study's scenario 1)
   } else {
     // Per thread: the Halton point of this frame, rotated per pixel (Cranley-Patterson) so that
@@ -87,7 +90,7 @@ bool hp_reflection_ray(ivec2 q, uint cell, out vec3 o, out vec3 d) {
     precise vec3 dj = reflect(-v, hv);
     if (dot(dj, n) > 0.0) d = dj;  // a sample below the surface falls back to the mirror direction
   }
-  o = int(rt.shadow.y) == HP_OFFSET_ROBUST ? hp_offset_gbuffer(p, depth, pos, n) : hp_offset_bias(pos, n, rt.shadow.x);
+  o = (HP_RT_FLAGS & HP_RT_ROBUST_OFFSET) != 0u ? hp_offset_gbuffer(p, depth, pos, n) : hp_offset_bias(pos, n, rt.shadow.x);
   return true;
 }
 
@@ -104,17 +107,25 @@ vec3 hp_shade_reflection(vec3 o, vec3 d, inout HpStats st, inout uint shadow_ray
   if (h.slot < 0) return color;
   uint slot = uint(h.slot);
   HP_REC_LOAD(HP_TBUF_SLOT_MATERIAL, slot * 4u, 4u);
-  uint mi = slot_material[slot];
+  uint mi;
+  GpuMaterial m;
+  if (HP_GEOMETRY_TEXELS != 0u) {
+    mi = texelFetch(slot_material_texels, int(slot)).x;
+    m.base_color_metallic = uintBitsToFloat(texelFetch(material_texels, int(mi * 2u)));
+    m.roughness = uintBitsToFloat(texelFetch(material_texels, int(mi * 2u + 1u)));
+  } else {
+    mi = slot_material[slot];
+    m = materials[mi];
+  }
   HP_REC_LOAD(HP_TBUF_MATERIALS, mi * 32u, 16u);
   HP_REC_LOAD(HP_TBUF_MATERIALS, mi * 32u + 16u, 16u);
-  GpuMaterial m = materials[mi];
   vec3 hn = hit_normal(slot, h.u, h.v);
   if (dot(hn, d) > 0.0) hn = -hn;
   precise vec3 hp = o + h.t * d;  // the shadow ray's origin: identical in every path (no FMA)
   vec3 l = frame.light_dir.xyz;
   float vis = 1.0;
   if ((HP_RT_FLAGS & HP_RT_REFLECTION_SHADOWS) != 0u && dot(hn, l) > 0.0) {
-    vec3 so = int(rt.shadow.y) == HP_OFFSET_ROBUST ? hp_offset_robust(hp, hn) : hp_offset_bias(hp, hn, rt.shadow.x);
+    vec3 so = (HP_RT_FLAGS & HP_RT_ROBUST_OFFSET) != 0u ? hp_offset_robust(hp, hn) : hp_offset_bias(hp, hn, rt.shadow.x);
     HpRay sr;
     if (hp_prepare(so, l, 0.0, HP_FLT_MAX, sr)) {
       HpHit sh = hp_trace(sr, true, st);

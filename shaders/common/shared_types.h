@@ -107,6 +107,8 @@ HP_CHECK_SIZE(CompactRay, 32);
 #define HP_RT_COUNTERS 1u        // shaders add rays, nodes visited and triangles tested to the counter buffer
 #define HP_RT_DUMP_RAYS 2u       // shaders write every ray they cast and its result (tests, cross-checks)
 #define HP_RT_REFLECTION_SHADOWS 4u  // reflection hits are shaded with a shadow ray
+#define HP_RT_ROBUST_OFFSET 8u   // ray origins offset robustly (RayParams.shadow.y = HP_OFFSET_ROBUST)
+#define HP_RT_SHARED_JITTER 16u  // one reflection jitter offset per frame (RayParams.reflection.y = HP_JITTER_SHARED)
 #define HP_OFFSET_NORMAL_BIAS 0
 #define HP_OFFSET_ROBUST 1
 #define HP_JITTER_SHARED 0
