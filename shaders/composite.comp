@@ -24,15 +24,8 @@ vec3 relative_position(ivec2 p, float depth) {
   return h.xyz / h.w;
 }
 
-void main() {
-  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
-  if (p.x >= int(frame.extent.x) || p.y >= int(frame.extent.y)) return;
-  float depth = texelFetch(g_depth, p, 0).r;
-  float background = frame.params.x > 0.5 ? 0.0 : 1.0;
-  if (depth == background) {
-    imageStore(out_color, p, vec4(frame.sky_color.rgb, 1.0));
-    return;
-  }
+// The lit colour of a surface pixel.
+vec3 shade(ivec2 p, float depth) {
   vec4 nr = texelFetch(g_normal_roughness, p, 0);
   vec4 am = texelFetch(g_albedo_metal, p, 0);
   vec3 n = normalize(nr.xyz);
@@ -55,5 +48,17 @@ void main() {
   } else {
     c += shade_ambient(n, v, am.rgb, am.a, frame.sky_color.rgb);
   }
+  return c;
+}
+
+void main() {
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  if (p.x >= int(frame.extent.x) || p.y >= int(frame.extent.y)) return;
+  float depth = texelFetch(g_depth, p, 0).r;
+  float background = frame.params.x > 0.5 ? 0.0 : 1.0;
+  // One store for sky and surface alike: on lavapipe every imageStore in the code is a loop over the lanes
+  // that runs for every 8 pixels, needed or not.
+  vec3 c = frame.sky_color.rgb;
+  if (depth != background) c = shade(p, depth);
   imageStore(out_color, p, vec4(c, 1.0));
 }
