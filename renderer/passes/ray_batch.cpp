@@ -110,10 +110,7 @@ std::vector<RayBatchTracer::Result> RayBatchTracer::results(vk::Context& ctx) co
     gpu::BatchResult r;
     std::memcpy(&r, bytes.data() + size_t(i) * sizeof(r), sizeof(r));
     Result& o = out[i];
-    o.hit.prim = r.hit.x;
-    std::memcpy(&o.hit.t, &r.hit.y, 4);
-    std::memcpy(&o.hit.u, &r.hit.z, 4);
-    std::memcpy(&o.hit.v, &r.hit.w, 4);
+    o.hit = {r.hit.x, std::bit_cast<float>(r.hit.y), std::bit_cast<float>(r.hit.z), std::bit_cast<float>(r.hit.w)};
     o.stats.nodes_visited = r.work.x;
     o.stats.triangles_tested = r.work.y;
   }

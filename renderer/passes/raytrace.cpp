@@ -204,11 +204,10 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
 
 void RayTracingPasses::begin_frame(uint32_t sample_index) {
   gpu::RayParams p{};
-  p.grid = glm::uvec4(grid_w_, grid_h_, options_.reflection_divisor, flags_);
-  p.shadow = glm::vec4(options_.bias, options_.offset == ShadowOffset::robust ? HP_OFFSET_ROBUST : HP_OFFSET_NORMAL_BIAS,
-                       0.0f, 0.0f);
-  p.reflection = glm::vec4(options_.roughness_threshold,
-                           options_.jitter == JitterMode::shared ? HP_JITTER_SHARED : HP_JITTER_PER_THREAD, 0.0f, 0.0f);
+  // The modes and what the frame records are the pipelines' specialization constant (flags_), not here.
+  p.grid = glm::uvec4(grid_w_, grid_h_, options_.reflection_divisor, 0u);
+  p.shadow = glm::vec4(options_.bias, 0.0f, 0.0f, 0.0f);
+  p.reflection = glm::vec4(options_.roughness_threshold, 0.0f, 0.0f, 0.0f);
   p.frame = glm::uvec4(sample_index, options_.seed, 0u, 0u);
   p.bounds_min = glm::vec4(bounds_.empty() ? glm::vec3(0.0f) : bounds_.min, float(int(options_.sort)));
   p.bounds_max = glm::vec4(bounds_.empty() ? glm::vec3(1.0f) : bounds_.max,

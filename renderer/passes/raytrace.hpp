@@ -140,7 +140,7 @@ class RayTracingPasses {
   Aabb bounds_;
   vk::Buffer dummy_trace_;
   const RtScene& scene_;  // owned by the Frame, which destroys these passes first
-  // What the frame records (HP_RT_*): a specialization constant of every pipeline, and RayParams.grid.w.
+  // What the frame records and its ray modes (HP_RT_*): a specialization constant of every pipeline.
   uint32_t flags_;
   gpu::RayParams params_cache_{};
   bool images_initialised_ = false;

@@ -14,9 +14,9 @@ layout(constant_id = 0) const uint HP_GEOMETRY_SOUP = 0;
 layout(constant_id = 1) const uint HP_OBJECT_LEAVES = 0;
 // Geometry fetches: 1 = through the texel views below (RtScene::geometry_texels), 0 = storage loads.
 layout(constant_id = 2) const uint HP_GEOMETRY_TEXELS = 0;
-// What the frame records and how it makes its rays (HP_RT_*, as RayParams.grid.w: counters, dumps, the
-// reflection hits' shadow rays, the offset and jitter modes): a constant, so that a configuration runs none
-// of the code it does not ask for. On lavapipe a test of a uniform would still run it, masked, for every 8
+// What the frame records and how it makes its rays (HP_RT_*: counters, dumps, the reflection hits' shadow
+// rays, the offset and jitter modes): a constant, so that a configuration runs none of the code it does not
+// ask for. On lavapipe a test of a uniform would still run it, masked, for every 8
 // invocations: the dump stores and counter atomics are loops over the lanes, the reflection hits' shadow ray
 // a second traversal, and both offset (or jitter) modes would be computed.
 layout(constant_id = 3) const uint HP_RT_FLAGS = 0;

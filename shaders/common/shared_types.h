@@ -78,12 +78,12 @@ HP_CHECK_SIZE(GBufferPush, 128);
 // ---------------------------------------------------------------------------------------------------------
 // Parameters of the ray-tracing passes (uniform buffer, std140-compatible: only 16-byte members).
 struct RayParams {
-  uvec4 grid;        // x, y = reflection grid size; z = reflection scale divisor (1, 2, 4); w = flags (HP_RT_*)
-  vec4 shadow;       // x = normal bias (world units), y = offset mode (HP_OFFSET_*)
-  vec4 reflection;   // x = roughness threshold (reflective when roughness < x), y = jitter mode (HP_JITTER_*)
+  uvec4 grid;        // x, y = reflection grid size; z = reflection scale divisor (1, 2, 4); w unused
+  vec4 shadow;       // x = normal bias (world units); yzw unused
+  vec4 reflection;   // x = roughness threshold (reflective when roughness < x); yzw unused
   uvec4 frame;       // x = sample index (frames since the last reset), y = seed, z = first workgroup row of a
                      // traced slice, w = trace sampling (k | log2(burst) << 20, trace_capture.glsl)
-  vec4 jitter;       // xy = this frame's shared offset in [0, 1)^2 (HP_JITTER_SHARED)
+  vec4 jitter;       // xy = this frame's shared offset in [0, 1)^2 (HP_RT_SHARED_JITTER)
   vec4 bounds_min;   // xyz: scene bounds (origin sort keys); w = sort key mode (HP_SORT_*)
   vec4 bounds_max;   // xyz: scene bounds; w = write-back mode (HP_WRITEBACK_*)
 };
@@ -107,12 +107,8 @@ HP_CHECK_SIZE(CompactRay, 32);
 #define HP_RT_COUNTERS 1u        // shaders add rays, nodes visited and triangles tested to the counter buffer
 #define HP_RT_DUMP_RAYS 2u       // shaders write every ray they cast and its result (tests, cross-checks)
 #define HP_RT_REFLECTION_SHADOWS 4u  // reflection hits are shaded with a shadow ray
-#define HP_RT_ROBUST_OFFSET 8u   // ray origins offset robustly (RayParams.shadow.y = HP_OFFSET_ROBUST)
-#define HP_RT_SHARED_JITTER 16u  // one reflection jitter offset per frame (RayParams.reflection.y = HP_JITTER_SHARED)
-#define HP_OFFSET_NORMAL_BIAS 0
-#define HP_OFFSET_ROBUST 1
-#define HP_JITTER_SHARED 0
-#define HP_JITTER_PER_THREAD 1
+#define HP_RT_ROBUST_OFFSET 8u   // ray origins offset robustly (else by the normal bias, RayParams.shadow.x)
+#define HP_RT_SHARED_JITTER 16u  // one reflection jitter offset per frame (else one per thread)
 
 // A ray as the shaders dump it (HP_RT_DUMP_RAYS): the bvh::Ray layout, then the result.
 struct RayDump {
