@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <exception>
+#include <string>
 
 int main(int argc, char** argv) {
   CLI::App app{"hybridprof: where the time and the memory traffic of a hybrid (raster + ray-traced) frame go"};
@@ -26,9 +27,15 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    // --help and --version are "errors" with exit code 0; bad options are input errors (exit 2).
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
+    // --help and --version are "errors" with exit code 0 (CLI11 prints them); bad options are input errors:
+    // one line, exit 2.
+    if (e.get_exit_code() == 0) return app.exit(e);
+    std::string message = e.what();
+    for (char& c : message) {
+      if (c == '\n') c = ' ';
+    }
+    std::fprintf(stderr, "hybridprof: error: %s (--help lists the options)\n", message.c_str());
+    return 2;
   } catch (const hp::InputError& e) {
     std::fprintf(stderr, "hybridprof: error: %s\n", e.what());
     return 2;

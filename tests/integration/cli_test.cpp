@@ -46,6 +46,15 @@ size_t line_count(const std::string& s) {
 
 bool have_vulkan() { return run("devices").code == 0; }
 
+// Skips a test without a Vulkan device, or fails it where HP_TESTS_REQUIRE_VULKAN=1 (scripts/test under CI).
+#define HP_CLI_REQUIRE_VULKAN()                                                                    \
+  do {                                                                                             \
+    if (have_vulkan()) break;                                                                      \
+    const char* hp_req_ = std::getenv("HP_TESTS_REQUIRE_VULKAN");                                  \
+    if (hp_req_ && std::string(hp_req_) == "1") GTEST_FAIL() << "no Vulkan device: `devices` failed"; \
+    GTEST_SKIP() << "no Vulkan device";                                                            \
+  } while (0)
+
 TEST(Cli, HelpListsSubcommands) {
   CmdResult r = run("--help");
   EXPECT_EQ(r.code, 0);
@@ -54,7 +63,7 @@ TEST(Cli, HelpListsSubcommands) {
 }
 
 TEST(Cli, RenderWritesPngAndAov) {
-  if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
+  HP_CLI_REQUIRE_VULKAN();
   const fs::path d = temp_dir();
   CmdResult r = run("render --scene builtin:cornell --width 96 --height 64 --out " + (d / "c.png").string());
   ASSERT_EQ(r.code, 0) << r.output;
@@ -69,7 +78,7 @@ TEST(Cli, RenderWritesPngAndAov) {
 }
 
 TEST(Cli, HostTimingSaysSoAndLabelsTheTimes) {
-  if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
+  HP_CLI_REQUIRE_VULKAN();
   const fs::path d = temp_dir();
   CmdResult r = run("render --scene builtin:cornell --width 32 --height 24 --frames 2 --host-timing --out " +
                     (d / "c.png").string());
@@ -83,7 +92,7 @@ TEST(Cli, HostTimingSaysSoAndLabelsTheTimes) {
 }
 
 TEST(Cli, CachesimExportsOneComputeUnitOrNamesTheLimitAndWritesNothing) {
-  if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
+  HP_CLI_REQUIRE_VULKAN();
   const fs::path d = temp_dir();
   const fs::path trace = d / "t.hptrace", din = d / "cu.din";
   CmdResult r = run("trace --scene builtin:cornell --width 64 --height 48 --out " + trace.string());
@@ -112,7 +121,7 @@ TEST(Cli, CachesimExportsOneComputeUnitOrNamesTheLimitAndWritesNothing) {
 // bvh --gpu: the rays of a file through the passes' traversal on the device, checked ray by ray against the
 // reference (random rays, axis-aligned ones with signed zeros, a NaN direction).
 TEST(Cli, BvhGpuCastsTheRaysAndAgreesWithTheReference) {
-  if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
+  HP_CLI_REQUIRE_VULKAN();
   const fs::path dir = temp_dir();
   const fs::path rays = dir / "rays.bin";
   {
@@ -177,6 +186,8 @@ TEST(Cli, UnknownBuiltinIsOneLineExit2) {
   CmdResult r = run("render --scene builtin:nope --out /tmp/never.png");
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_EQ(line_count(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("builtin:nope"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("builtin:pica"), std::string::npos) << "the known ones are listed: " << r.output;
 }
 
 TEST(Cli, AbsurdResolutionNamesTheLimitAndWritesNothing) {
@@ -189,6 +200,8 @@ TEST(Cli, AbsurdResolutionNamesTheLimitAndWritesNothing) {
   EXPECT_FALSE(fs::exists(out));
   r = run("render --scene builtin:cornell --width 0 --height 10 --out " + out.string());
   EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("0x10"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(out));
   fs::remove_all(d);
 }
@@ -202,6 +215,15 @@ TEST(Cli, UnknownAovAndBadVectorAreExit2) {
   EXPECT_NE(r.output.find("--light-dir"), std::string::npos) << r.output;
   r = run("render --bogus-option");
   EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("--bogus-option"), std::string::npos) << r.output;
+  r = run("render --width");  // an option without its value
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("--width"), std::string::npos) << r.output;
+  r = run("");  // no subcommand
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
 }
 
 TEST(Cli, NoVulkanDeviceIsExit3WithHowToInstall) {
@@ -214,7 +236,7 @@ TEST(Cli, NoVulkanDeviceIsExit3WithHowToInstall) {
 }
 
 TEST(Cli, UnknownDeviceIsExit3) {
-  if (!have_vulkan()) GTEST_SKIP() << "no Vulkan device";
+  HP_CLI_REQUIRE_VULKAN();
   CmdResult r = run("render --scene builtin:cornell --device no-such-gpu-xyz --out /tmp/never.png");
   EXPECT_EQ(r.code, 3) << r.output;
   EXPECT_NE(r.output.find("no-such-gpu-xyz"), std::string::npos) << r.output;

@@ -116,11 +116,19 @@ TEST(Reference, PassesFollowTheSettings) {
   ReferenceSettings s = small(48, 36, 2);
   s.shadows = false;
   const ReferenceImage r = render_reference(scene, scene.camera, s);
+  s.shadows = true;
+  const ReferenceImage shadowed = render_reference(scene, scene.camera, s);
+  uint32_t covered = 0, dark = 0;
   for (uint32_t i = 0; i < 48 * 36; ++i) {
     if (r.position.rgba[4 * i + 3] > 0.5f) {
-      EXPECT_EQ(r.shading.rgba[4 * i], 1.0f);
+      ++covered;
+      EXPECT_EQ(r.shading.rgba[4 * i], 1.0f) << "no shadow rays: every surface lit";
+      if (shadowed.shading.rgba[4 * i] == 0.0f) ++dark;
     }
   }
+  EXPECT_GT(covered, 48u * 36u / 2u) << "the box fills most of the frame";
+  EXPECT_GT(dark, 20u) << "with shadow rays the boxes cast shadows";
+  EXPECT_LT(dark, covered);
 }
 
 TEST(Reference, BadSizesAreInputErrors) {

@@ -280,16 +280,28 @@ TEST(SvgChart, LongLegendsWrapAndTheChartGrows) {
   }
   const std::string b = render(many);
   EXPECT_EQ(b.find("height=\"400.00\""), std::string::npos) << "a legend of several rows makes the chart taller";
-  // Every legend label stays inside the chart's width: its x plus an estimate of its length.
+  // Every legend label stays inside the chart's width: its x plus its length at the legend's estimate of
+  // 7 px a character.
+  const std::string width_key = "<svg xmlns=\"http://www.w3.org/2000/svg\" version=\"1.1\" width=\"";
+  ASSERT_NE(b.find(width_key), std::string::npos);
+  const double width = std::stod(b.substr(b.find(width_key) + width_key.size()));
+  EXPECT_GT(width, 100.0);
+  const std::string key = "class=\"legend-label\" x=\"";
   std::set<std::string> rows;
+  size_t labels = 0;
   size_t at = 0;
-  while ((at = b.find("class=\"legend-label\" x=\"", at)) != std::string::npos) {
-    at += 25;
+  while ((at = b.find(key, at)) != std::string::npos) {
+    at += key.size();
     const double x = std::stod(b.substr(at));
     const size_t ypos = b.find("y=\"", at) + 3;
     rows.insert(b.substr(ypos, b.find('"', ypos) - ypos));
-    EXPECT_LT(x, 640.0);
+    const size_t text = b.find('>', at) + 1;
+    const std::string label = b.substr(text, b.find('<', text) - text);
+    EXPECT_GT(x, 0.0) << label;
+    EXPECT_LE(x + 7.0 * double(label.size()), width) << label;
+    ++labels;
   }
+  EXPECT_EQ(labels, many.lines.size());
   EXPECT_GE(rows.size(), 2u);
 }
 
