@@ -3,6 +3,8 @@
 #include <cstdio>
 
 #include "error.hpp"
+#include "input_file.hpp"
+#include "json_depth.hpp"
 
 #include <algorithm>
 #include <filesystem>
@@ -71,12 +73,11 @@ CellResult parse_cell(const json& line, const std::string& where) {
 std::vector<CellResult> load_cells(const std::string& out_dir) {
   const fs::path file = fs::path(out_dir) / "results.jsonl";
   if (!fs::exists(file)) throw InputError(file.string() + ": no such file (run `hybridprof run` first)");
-  std::ifstream in(file, std::ios::binary);
   std::vector<CellResult> cells;
   std::string line;
   size_t line_no = 0;
   // Read line by line rather than through read_results so each cell can name its own line.
-  std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string content = read_input_file(file, "results file");
   size_t start = 0;
   while (start < content.size()) {
     const size_t end = content.find('\n', start);
@@ -86,10 +87,11 @@ std::vector<CellResult> load_cells(const std::string& out_dir) {
     start = end + 1;
     if (line.empty()) continue;
     const std::string where = file.string() + ":" + std::to_string(line_no);
+    check_json_depth(line, where);
     json j;
     try {
       j = json::parse(line);
-    } catch (const json::parse_error&) {
+    } catch (const json::exception&) {
       throw InputError(where + ": corrupt result line (not JSON)");
     }
     cells.push_back(parse_cell(j, where));
@@ -177,7 +179,10 @@ std::string axis_value_text(const json& v) {
   if (v.is_string()) return v.get<std::string>();
   if (v.is_array() && !v.empty() && std::all_of(v.begin(), v.end(), [](const json& e) { return e.is_number(); })) {
     std::string s;
-    for (const json& e : v) s += (s.empty() ? "" : "x") + e.dump();
+    for (const json& e : v) {
+      if (!s.empty()) s += 'x';
+      s += e.dump();
+    }
     return s;
   }
   return v.dump();

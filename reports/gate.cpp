@@ -1,6 +1,9 @@
 #include "gate.hpp"
 
 #include "error.hpp"
+#include "input_file.hpp"
+#include "json_depth.hpp"
+#include "scenario.hpp"
 #include "timing/stats.hpp"
 
 #include <algorithm>
@@ -58,12 +61,12 @@ double median_of(std::vector<double> v) { return quantile(v, 0.5); }
 }  // namespace
 
 GatePolicy load_policy(const std::string& path, GatePolicy p) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot read the policy file");
+  const std::string text = read_input_file(path, "gate policy file");
+  check_json_depth(text, path);
   json j;
   try {
-    j = json::parse(in);
-  } catch (const json::parse_error& e) {
+    j = json::parse(text);
+  } catch (const json::exception& e) {
     throw InputError(path + ": not JSON (" + std::string(e.what()).substr(0, 100) + ")");
   }
   if (!j.is_object()) throw InputError(path + ": the policy must be a JSON object");
@@ -318,14 +321,16 @@ std::pair<GateSide, GateSide> run_ab(const AbOptions& o) {
   if (o.trials < 1) throw InputError("--trials: must be at least 1");
   if (o.baseline_cmd.empty() || o.candidate_cmd.empty()) throw InputError("--ab needs --baseline-cmd and --candidate-cmd");
   if (o.scenario.empty()) throw InputError("--ab needs --scenario FILE");
-  if (!fs::exists(o.scenario)) throw InputError(o.scenario + ": no such scenario file");
+  (void)load_matrix(o.scenario);  // a broken scenario fails here, once, not in every trial's log
   std::string work = o.work_dir;
   if (work.empty()) {
     std::string tmpl = (fs::temp_directory_path() / "hybridprof-gate-XXXXXX").string();
     if (!::mkdtemp(tmpl.data())) throw InputError("cannot create a work folder under " + fs::temp_directory_path().string());
     work = tmpl;
   }
-  fs::create_directories(work);
+  std::error_code ec;
+  fs::create_directories(work, ec);
+  if (ec) throw InputError(work + ": cannot create the work folder: " + ec.message());
   std::vector<std::string> dirs[2];
   const std::string* cmds[2] = {&o.baseline_cmd, &o.candidate_cmd};
   const char* names[2] = {"baseline", "candidate"};

@@ -2,6 +2,8 @@
 
 #include "cache_analysis.hpp"
 #include "error.hpp"
+#include "input_file.hpp"
+#include "json_depth.hpp"
 #include "frame_profiler.hpp"
 #include "reference/compare.hpp"
 #include "scene/load.hpp"
@@ -162,9 +164,9 @@ std::vector<std::string> unmet_expectations(const json& line, const json& expect
 std::vector<json> read_results(const std::string& out_dir) {
   std::vector<json> out;
   const fs::path path = fs::path(out_dir) / kResults;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return out;
-  std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return out;
+  const std::string content = read_input_file(path, "results file");
   size_t start = 0, line_no = 0;
   while (start < content.size()) {
     const size_t end = content.find('\n', start);
@@ -173,12 +175,20 @@ std::vector<json> read_results(const std::string& out_dir) {
     const std::string line = content.substr(start, end - start);
     start = end + 1;
     if (line.empty()) continue;
+    const std::string where = path.string() + ":" + std::to_string(line_no);
+    check_json_depth(line, where);
     try {
       out.push_back(json::parse(line));
-    } catch (const json::parse_error& e) {
-      throw InputError(path.string() + ":" + std::to_string(line_no) + ": corrupt result line (" +
-                       std::string(e.what()).substr(0, 120) + ")");
+    } catch (const json::exception& e) {
+      throw InputError(where + ": corrupt result line (" + std::string(e.what()).substr(0, 120) + ")");
     }
+    // What resuming and merging rely on; `report` and `gate` check the rest of the line (parse_cell).
+    const json& r = out.back();
+    if (!r.is_object() || r.value("schema", json()) != "hybridprof.cell")
+      throw InputError(where + ": not a hybridprof cell (field 'schema' is not \"hybridprof.cell\")");
+    if (!r.contains("id") || !r["id"].is_string()) throw InputError(where + ": field 'id' missing or not a string");
+    if (!r.contains("result") || !r["result"].is_object())
+      throw InputError(where + ": field 'result' missing or not an object");
   }
   return out;
 }
@@ -187,14 +197,11 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   RunSummary sum;
   sum.cells = m.cells.size();
   const fs::path out(o.out_dir);
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  if (ec) throw InputError(o.out_dir + ": cannot create the output folder: " + ec.message());
   const fs::path results = out / kResults;
 
   // Resume: cells already in the file are done. A partial last line is cut off so appends stay aligned.
   std::set<std::string> done;
-  for (const json& r : read_results(o.out_dir)) done.insert(r.value("id", ""));
+  for (const json& r : read_results(o.out_dir)) done.insert(r["id"].get<std::string>());
   if (fs::exists(results)) {
     std::ifstream in(results, std::ios::binary);
     std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -217,6 +224,10 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
 
   vk::Context ctx({o.device, o.validate, true});
   if (ctx.info().timestamp_valid_bits == 0) std::fprintf(stderr, "hybridprof run: %s\n", host_timing_note(false).c_str());
+  // Created once there is work and a device for it: a failed start leaves no empty folder behind.
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec) throw InputError(o.out_dir + ": cannot create the output folder: " + ec.message());
   const Environment env = capture_environment(describe_device(ctx));
   std::map<std::string, Scene> scenes;
   const bool tty = o.progress && ::isatty(::fileno(stderr));
@@ -232,6 +243,15 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
                    left.c_str());
       std::fflush(stderr);
     }
+    // A cell that fails takes its half-written folder with it: only cells with a results line keep files.
+    struct CellDirGuard {
+      fs::path dir;
+      bool keep = false;
+      ~CellDirGuard() {
+        std::error_code e;
+        if (!keep) fs::remove_all(dir, e);
+      }
+    } cell_guard{out / "cells" / id};
     const auto t_cell = std::chrono::steady_clock::now();
     auto it = scenes.find(s.scene);
     if (it == scenes.end()) it = scenes.emplace(s.scene, load_scene(s.scene)).first;
@@ -324,6 +344,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     line["images"] = images;
     line["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cell).count();
     append_line(results, line.dump());
+    cell_guard.keep = true;
     ++sum.ran;
   }
   if (tty) std::fprintf(stderr, "\n");
@@ -332,15 +353,21 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
 
 size_t merge_results(const std::string& out_dir, const std::vector<std::string>& shard_dirs) {
   const fs::path out(out_dir);
-  fs::create_directories(out);
-  std::set<std::string> seen;
-  for (const json& r : read_results(out_dir)) seen.insert(r.value("id", ""));
-  size_t added = 0;
+  // Every shard is read and checked before anything is written: a bad shard leaves the output as it was.
+  std::vector<std::pair<std::string, std::vector<json>>> shards;
   for (const std::string& d : shard_dirs) {
     if (!fs::exists(fs::path(d) / kResults)) throw InputError(d + ": no " + std::string(kResults) + " to merge");
-    for (const json& r : read_results(d)) {
-      const std::string id = r.value("id", "");
-      if (id.empty()) throw InputError(d + "/" + kResults + ": a line without an id");
+    shards.emplace_back(d, read_results(d));
+  }
+  std::set<std::string> seen;
+  for (const json& r : read_results(out_dir)) seen.insert(r["id"].get<std::string>());
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec) throw InputError(out_dir + ": cannot create the output folder: " + ec.message());
+  size_t added = 0;
+  for (const auto& [d, lines] : shards) {
+    for (const json& r : lines) {
+      const std::string id = r["id"].get<std::string>();
       if (!seen.insert(id).second) continue;
       const fs::path cell = fs::path(d) / "cells" / id;
       if (fs::exists(cell)) {

@@ -1,6 +1,9 @@
 #include "scenario.hpp"
 
 #include "error.hpp"
+#include "cachesim/preset.hpp"
+#include "input_file.hpp"
+#include "json_depth.hpp"
 #include "stable_id.hpp"
 
 #include <algorithm>
@@ -201,6 +204,13 @@ Scenario parse_scenario(const json& j, const std::string& file, const std::strin
   f.rt.counters = r.boolean("counters", true);
   f.rt.seed = uint32_t(r.integer("seed", 1, 0, 0xFFFFFFFFll));
   s.cache_preset = r.string("cache_preset", s.cache_preset);
+  if (r.get("cache_preset")) {
+    try {
+      (void)cachesim::find_preset(s.cache_preset);  // an unknown name or a broken preset file fails here, not mid-run
+    } catch (const InputError& e) {
+      fail(file, r.where("cache_preset"), e.what());
+    }
+  }
   if (const json* t = r.object("trace", {"passes", "sample_every", "sample_block", "scale_model", "keep", "image_layout"})) {
     Reader tr{*t, file, r.where("trace")};
     if (const json* ps = tr.get("passes")) {
@@ -209,6 +219,8 @@ Scenario parse_scenario(const json& j, const std::string& file, const std::strin
         const json& v = (*ps)[i];
         const std::string where = tr.where("passes") + "[" + std::to_string(i) + "]";
         if (!v.is_string() || (v != "shadows" && v != "reflections")) fail(file, where, "expected \"shadows\" or \"reflections\"");
+        if (std::find(s.trace_passes.begin(), s.trace_passes.end(), v.get<std::string>()) != s.trace_passes.end())
+          fail(file, where, "\"" + v.get<std::string>() + "\" is listed twice");
         s.trace_passes.push_back(v.get<std::string>());
       }
     }
@@ -451,12 +463,11 @@ Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<
 }
 
 Matrix load_matrix(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open scenario file");
+  const std::string text = read_input_file(path, "scenario file");
+  check_json_depth(text, path);
   json doc;
   std::vector<std::string> axis_order;
   try {
-    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     // Parsed once more with insertion order kept, only to learn the order of the axes.
     const nlohmann::ordered_json ordered = nlohmann::ordered_json::parse(text);
     if (ordered.is_object() && ordered.contains("axes") && ordered["axes"].is_object()) {

@@ -27,6 +27,12 @@ std::string check_config(const CacheConfig& c) {
   if (c.ways == 0) return "ways: must be at least 1";
   if (c.channels == 0) return "channels: must be at least 1";
   if (c.size_bytes == 0) return "size_bytes: must be positive";
+  // Bounds of the simulator, not of hardware (the largest GPU caches are a few hundred MiB): the tags of a
+  // 1 GiB cache of 64-byte lines take ~256 MiB of host memory.
+  if (c.size_bytes > kMaxCacheBytes) return "size_bytes: " + n(c.size_bytes) + " exceeds the limit of 1 GiB";
+  if (c.line_bytes > 4096) return "line_bytes: " + n(c.line_bytes) + " exceeds the limit of 4096";
+  if (c.ways > 4096) return "ways: " + n(c.ways) + " exceeds the limit of 4096";
+  if (c.channels > 1024) return "channels: " + n(c.channels) + " exceeds the limit of 1024";
   const uint64_t per_channel_way = uint64_t(c.line_bytes) * c.ways * c.channels;
   if (c.size_bytes % per_channel_way != 0)
     return "size_bytes: " + n(c.size_bytes) + " is not divisible by line_bytes * ways * channels = " +

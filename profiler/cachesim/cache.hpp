@@ -64,6 +64,9 @@ struct CacheConfig {
   uint64_t lines() const { return size_bytes / line_bytes; }
 };
 
+// The largest cache the simulator accepts (size_bytes), with at most 4096-byte lines, 4096 ways, 1024 channels.
+inline constexpr uint64_t kMaxCacheBytes = uint64_t(1) << 30;
+
 // Empty when the configuration is possible, else "key: reason" naming the offending field.
 std::string check_config(const CacheConfig& c);
 // "16 KiB, 64 B lines, 4-way, LRU" style one-line description.

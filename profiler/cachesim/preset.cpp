@@ -9,6 +9,8 @@
 #include <sstream>
 
 #include "error.hpp"
+#include "input_file.hpp"
+#include "json_depth.hpp"
 
 namespace hp::cachesim {
 
@@ -100,10 +102,11 @@ std::filesystem::path exe_dir() {
 }  // namespace
 
 Preset parse_preset(std::string_view text, const std::string& origin) {
+  check_json_depth(text, origin);
   json j;
   try {
     j = json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number like 1e400
     throw InputError(origin + ": invalid JSON: " + e.what());
   }
   if (!j.is_object()) throw InputError(origin + ": expected a JSON object");
@@ -118,9 +121,11 @@ Preset parse_preset(std::string_view text, const std::string& origin) {
     p.sources.push_back(src[i].get<std::string>());
   }
   p.compute_units = f.u32("compute_units");
+  if (p.compute_units > 4096) f.fail("compute_units", "at most 4096");
   p.wave_width = f.u32("wave_width");
   if (p.wave_width > 1024) f.fail("wave_width", "at most 1024");
   p.max_waves_per_cu = f.u32("max_waves_per_cu");
+  if (p.max_waves_per_cu > 1024) f.fail("max_waves_per_cu", "at most 1024");
   const std::string co = f.string("coalescing");
   if (co == "line")
     p.coalescing = Coalescing::line;
@@ -130,6 +135,9 @@ Preset parse_preset(std::string_view text, const std::string& origin) {
     f.fail("coalescing", "'" + co + "' is not line or sector");
   p.l1 = parse_cache(f.need("l1"), origin, "l1");
   p.l2 = parse_cache(f.need("l2"), origin, "l2");
+  if (p.l1.size_bytes * p.compute_units > kMaxCacheBytes)
+    f.fail("l1", "size_bytes x compute_units = " + std::to_string(p.l1.size_bytes * p.compute_units) +
+                     " bytes of L1 in all exceeds the limit of 1 GiB");
   f.no_unknown_keys();
   if (p.l1.line_bytes != p.l2.line_bytes)
     throw InputError(origin + ": l2.line_bytes: must equal l1.line_bytes (the L1 forwards whole lines)");
@@ -139,11 +147,7 @@ Preset parse_preset(std::string_view text, const std::string& origin) {
 }
 
 Preset load_preset_file(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path.string() + ": cannot open preset");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  Preset p = parse_preset(ss.str(), path.string());
+  Preset p = parse_preset(read_input_file(path, "cache preset"), path.string());
   p.file = path;
   return p;
 }

@@ -8,6 +8,8 @@
 #include <system_error>
 
 #include "error.hpp"
+#include "input_file.hpp"
+#include "json_depth.hpp"
 
 namespace hp {
 
@@ -343,12 +345,12 @@ void write_timing_result(const std::filesystem::path& path, const Environment& e
 }
 
 TimingResult read_timing_result(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError("cannot read timing result '" + path.string() + "'");
+  const std::string text = read_input_file(path, "timing result");
+  check_json_depth(text, path.string());
   json doc;
   try {
-    doc = json::parse(in);
-  } catch (const json::parse_error& e) {
+    doc = json::parse(text);
+  } catch (const json::exception& e) {
     throw InputError("'" + path.string() + "' is not valid JSON: " + e.what());
   }
   // Appended, not "'" + string + "'": GCC 12 warns falsely (-Wrestrict, PR 105651) on that form.

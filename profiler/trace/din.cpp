@@ -66,6 +66,8 @@ std::vector<DinAccess> parse_din(std::istream& in, const std::string& name) {
 }
 
 std::vector<DinAccess> read_din(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw InputError(path.string() + ": is a directory, not a Dinero trace");
   std::ifstream in(path);
   if (!in) throw InputError(path.string() + ": cannot open Dinero trace");
   return parse_din(in, path.string());

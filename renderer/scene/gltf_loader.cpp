@@ -1,6 +1,7 @@
 #include "scene/gltf_loader.hpp"
 
 #include "error.hpp"
+#include "json_depth.hpp"
 
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
@@ -608,6 +609,7 @@ Scene load_gltf(const std::string& path) {
   std::string_view text = binary ? glb_json_chunk(path, bytes)
                                  : std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size());
 
+  check_json_depth(text, path);
   json root;
   try {
     root = json::parse(text);

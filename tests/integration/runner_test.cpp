@@ -2,6 +2,7 @@
 // line included), shards that partition the matrix, and merge.
 #include "vulkan_env.hpp"
 
+#include "error.hpp"
 #include "runner.hpp"
 
 #include <filesystem>
@@ -59,6 +60,22 @@ TEST(Runner, ResumesShardsAndMerges) {
   EXPECT_EQ(resumed.ran, 2u);
   EXPECT_EQ(read_results(o.out_dir).size(), 4u);
   EXPECT_EQ(run_matrix(m, o).ran, 0u) << "a finished matrix runs nothing again";
+
+  // A shard whose results are not cells: the merge names the line and writes nothing (audit find: the good
+  // shard's lines and images used to be merged before the bad one failed).
+  fs::create_directories(root / "bad");
+  std::ofstream(root / "bad" / "results.jsonl") << "[1, 2]\n";
+  ASSERT_FALSE(fs::exists(root / "merged_new"));
+  try {
+    merge_results((root / "merged_new").string(), {(root / "s2").string(), (root / "bad").string()});
+    ADD_FAILURE() << "a results line that is not a cell was merged";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad/results.jsonl:1: not a hybridprof cell"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(root / "merged_new")) << "a failed merge left output behind";
+  // Resuming into a folder whose results file is not cells is an input error too, not a library exception.
+  o.out_dir = (root / "bad").string();
+  EXPECT_THROW(run_matrix(m, o), InputError);
   fs::remove_all(root);
 }
 

@@ -85,6 +85,22 @@ TEST(Preset, ErrorsNameFileAndKeyPath) {
             "custom.json: sources[0]: expected a string");
 }
 
+// Audit find (2026-11-30): a 2^44-byte L2 overflowed the set arithmetic and corrupted the heap; a billion
+// compute units was a bad_alloc. The simulator's bounds are named instead.
+TEST(Preset, SizesBeyondTheSimulatorsLimitsAreNamed) {
+  EXPECT_EQ(error_of(replace(kValid, "\"size_bytes\": 65536", "\"size_bytes\": 17592186044416")),
+            "custom.json: l2.size_bytes: 17592186044416 exceeds the limit of 1 GiB");
+  EXPECT_EQ(error_of(replace(kValid, "\"ways\": 16", "\"ways\": 8192")), "custom.json: l2.ways: 8192 exceeds the limit of 4096");
+  EXPECT_EQ(error_of(replace(kValid, "\"compute_units\": 2", "\"compute_units\": 1000000000")),
+            "custom.json: compute_units: at most 4096");
+  // Each CU has its own L1: 4096 CUs of 512 KiB are 2 GiB of L1 in all.
+  std::string big = replace(kValid, "\"compute_units\": 2", "\"compute_units\": 4096");
+  big = replace(big, "\"size_bytes\": 16384", "\"size_bytes\": 524288");
+  EXPECT_NE(error_of(big).find("custom.json: l1: size_bytes x compute_units"), std::string::npos) << error_of(big);
+  // At the limits themselves: accepted.
+  EXPECT_NO_THROW(parse_preset(replace(kValid, "\"size_bytes\": 65536", "\"size_bytes\": 1073741824"), "custom.json"));
+}
+
 TEST(Preset, FileErrorsNameThePath) {
   const auto dir = std::filesystem::temp_directory_path() / "hp_preset_test";
   std::filesystem::create_directories(dir);
@@ -97,6 +113,12 @@ TEST(Preset, FileErrorsNameThePath) {
     EXPECT_EQ(std::string(e.what()), f.string() + ": l2.channels: expected a positive integer, got 0");
   }
   EXPECT_THROW(find_preset((dir / "missing.json").string()), InputError);
+  try {
+    find_preset(dir.string() + "/");  // a folder given as the preset
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("is a directory, not a cache preset"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Preset, ScaledForSamplingKeepsPerCuResourcesAndShrinksTheShared) {

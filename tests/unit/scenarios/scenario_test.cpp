@@ -4,6 +4,7 @@
 #include "scenario.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -223,6 +224,38 @@ TEST(Matrix, CellsAreNamedCasesMergedOntoTheBase) {
             std::string::npos);
   EXPECT_NE(error_of(json::parse(R"({"base": {}, "cells": [], "axes": {}})")).find("cells"), std::string::npos);
   EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": 3})")).find("report"), std::string::npos);
+}
+
+// Audit finds (2026-11-30): a 300 KB file of nested '[' overflowed the stack while the matrix was copied; a
+// folder given as the scenario escaped as "basic_filebuf::underflow" (an internal error); an unknown cache
+// preset was only noticed in the middle of a run.
+TEST(Matrix, DeepNestingFoldersUnknownPresetsAndRepeatedPassesAreNamed) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("hp_matrix_bad_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  auto error = [&](const std::string& text) {
+    const auto p = dir / "m.json";
+    std::ofstream(p) << text;
+    try {
+      load_matrix(p.string());
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string deep = std::string(300000, '[') + std::string(300000, ']');
+  EXPECT_EQ(error("{\"base\": {\"x\": " + deep + "}}"), (dir / "m.json").string() + ": JSON nested deeper than 256 levels");
+  EXPECT_EQ(error(R"({"base": {"scene": "builtin:cornell", "cache_preset": "vega99"}, "axes": {"seed": [1]}})"),
+            (dir / "m.json").string() + ": base.cache_preset: unknown preset 'vega99' (known: ga102, h100, vega56)");
+  EXPECT_NE(error(R"({"base": {"trace": {"passes": ["shadows", "shadows"]}}, "axes": {"seed": [1]}})")
+                .find("base.trace.passes[1]: \"shadows\" is listed twice"),
+            std::string::npos);
+  try {
+    load_matrix(dir.string());
+    FAIL() << "a folder was read as a scenario";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), dir.string() + ": is a directory, not a scenario file");
+  }
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Matrix, MissingFileAndBrokenJson) {

@@ -237,6 +237,22 @@ TEST(GltfErrors, NumberTooLargeForADouble) {
   expect_input_error(path, "JSON", "number overflow");
 }
 
+// Audit find (2026-11-30): 20,000 levels of '[' in `extras` (40 KB) overflowed the stack in tinygltf.
+TEST(GltfErrors, DeeplyNestedJsonIsNamedNotACrash) {
+  TempDir dir;
+  QuadGltf q;
+  const std::string path = q.write(dir);
+  std::string text = q.doc.dump(1);
+  text.insert(text.find('{') + 1, "\"extras\": " + std::string(20000, '[') + std::string(20000, ']') + ",");
+  test::write_text(path, text);
+  expect_input_error(path, "", "JSON nested deeper than 256 levels");
+  // Brackets inside strings do not count, and a legitimately nested `extras` loads.
+  text = q.doc.dump(1);
+  text.insert(text.find('{') + 1, "\"extras\": {\"s\": \"" + std::string(1000, '[') + "\\\"\", \"a\": [[[[1]]]]},");
+  test::write_text(path, text);
+  EXPECT_NO_THROW((void)load_scene(path));
+}
+
 TEST(GltfErrors, OutOfRangeAccessorIndex) {
   TempDir dir;
   QuadGltf q;
