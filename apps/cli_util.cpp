@@ -1,14 +1,18 @@
 #include "apps/cli_util.hpp"
 
 #include "error.hpp"
+#include "output_path.hpp"
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <sstream>
 
 namespace hp::cli {
 
-AtomicOutput::AtomicOutput(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp"), out_(tmp_) {
+AtomicOutput::AtomicOutput(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp") {
+  check_output_path(path_, "");
+  out_.open(tmp_);
   if (!out_) throw InputError(path_ + ": cannot write");
 }
 
@@ -26,6 +30,19 @@ void AtomicOutput::commit() {
   std::filesystem::rename(tmp_, path_, ec);
   if (ec) throw InputError(path_ + ": cannot rename into place: " + ec.message());
   committed_ = true;
+}
+
+CLI::Validator finite_range(double lo, double hi) {
+  CLI::Validator finite(
+      [](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (end == text.c_str() || *end != '\0') return "not a number: " + text;
+        if (!std::isfinite(v)) return "not a finite number: " + text;
+        return {};
+      },
+      "", "finite");
+  return finite & CLI::Range(lo, hi);
 }
 
 glm::vec3 parse_vec3(const std::string& option, const std::string& text) {
@@ -49,7 +66,7 @@ glm::vec3 parse_vec3(const std::string& option, const std::string& text) {
 void ViewOptions::add_to(CLI::App* cmd) {
   cmd->add_option("--camera-pos", camera_pos, "camera position x,y,z (default: the scene's, or auto-framed)");
   cmd->add_option("--camera-target", camera_target, "point the camera looks at, x,y,z");
-  cmd->add_option("--fov", fov_deg, "vertical field of view in degrees")->check(CLI::Range(1.0f, 179.0f));
+  cmd->add_option("--fov", fov_deg, "vertical field of view in degrees")->check(finite_range(1.0, 179.0));
   cmd->add_option("--light-dir", light_dir, "direction toward the directional light, x,y,z");
 }
 
@@ -94,7 +111,7 @@ void FrameOptions::add_to(CLI::App* cmd) {
   cmd->add_option("--reflection-scale", reflection_scale, "reflection resolution per axis: 1, 0.5 or 0.25")
       ->capture_default_str();
   cmd->add_option("--roughness-threshold", roughness_threshold, "pixels with roughness below it reflect")
-      ->check(CLI::Range(0.0f, 1.01f))
+      ->check(finite_range(0.0, 1.01))
       ->capture_default_str();
   cmd->add_flag("--no-shadows", no_shadows, "skip the shadow pass");
   cmd->add_flag("--no-reflections", no_reflections, "skip the reflection and accumulation passes");

@@ -14,6 +14,10 @@
 
 namespace hp::cli {
 
+/// A closed range for a floating-point option that also rejects NaN (which CLI::Range lets through: every
+/// comparison with NaN is false).
+CLI::Validator finite_range(double lo, double hi);
+
 /// Parses "x,y,z" into a vector; throws hp::InputError naming the option.
 glm::vec3 parse_vec3(const std::string& option, const std::string& text);
 

@@ -11,6 +11,7 @@
 #include "bvh/ray_io.hpp"
 #include "bvh/traverse.hpp"
 #include "error.hpp"
+#include "output_path.hpp"
 #include "passes/ray_batch.hpp"
 #include "rt_geometry.hpp"
 #include "rt_scene.hpp"
@@ -18,6 +19,7 @@
 #include "scene/scene.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <chrono>
 #include <cstdio>
 #include <map>
@@ -51,6 +53,11 @@ double ms_since(std::chrono::steady_clock::time_point start) {
 
 void run_bvh(const BvhArgs& a) {
   if (a.rays.empty() != a.hits.empty()) throw InputError("bvh: --rays and --hits go together");
+  // Outputs and the device are checked before any work: a failure leaves no file of this run behind.
+  if (!a.export_triangles.empty()) check_output_path(a.export_triangles, "--export-triangles");
+  if (!a.hits.empty()) check_output_path(a.hits, "--hits");
+  std::optional<vk::Context> ctx;
+  if (a.gpu) ctx.emplace(vk::ContextOptions{a.device, a.validate, true});
 
   const auto load_start = std::chrono::steady_clock::now();
   const Scene scene = load_scene(a.scene);
@@ -127,25 +134,24 @@ void run_bvh(const BvhArgs& a) {
 
   // The same rays through the passes' traversal on the device (shaders/trace_rays.comp): one untimed cast
   // (pipeline compilation, caches), then three timed by GPU timestamps.
-  vk::Context ctx({a.device, a.validate, true});
   RtGeometry g;
   g.world = world;
   g.triangles = tris;
   g.bvh = tree;
   g.leaf = lt;
-  const RtScene rts(ctx, scene, g, parse_geometry_layout(a.geometry), false);
-  RayBatchTracer tracer(ctx, rts, rays);
+  const RtScene rts(*ctx, scene, g, parse_geometry_layout(a.geometry), false);
+  RayBatchTracer tracer(*ctx, rts, rays);
   const bvh::HitMode mode = a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest;
-  tracer.trace(ctx, mode);
+  tracer.trace(*ctx, mode);
   std::vector<double> ms;
-  for (int i = 0; i < 3; ++i) ms.push_back(double(tracer.trace(ctx, mode)) * 1e-6);
-  const BatchCheck check = check_against_reference(tree, lt, rays, mode, tracer.results(ctx));
+  for (int i = 0; i < 3; ++i) ms.push_back(double(tracer.trace(*ctx, mode)) * 1e-6);
+  const BatchCheck check = check_against_reference(tree, lt, rays, mode, tracer.results(*ctx));
   std::sort(ms.begin(), ms.end());
   if (ms[1] > 0.0) {
     std::printf("gpu: %s, %s layout: %.2f ms median of 3 (%.2f-%.2f) by timestamps, %.2f M rays/s\n",
-                ctx.info().name.c_str(), a.geometry.c_str(), ms[1], ms[0], ms[2], double(rays.size()) / ms[1] / 1e3);
+                ctx->info().name.c_str(), a.geometry.c_str(), ms[1], ms[0], ms[2], double(rays.size()) / ms[1] / 1e3);
   } else {
-    std::printf("gpu: %s, %s layout: no timestamps on this queue, not timed\n", ctx.info().name.c_str(),
+    std::printf("gpu: %s, %s layout: no timestamps on this queue, not timed\n", ctx->info().name.c_str(),
                 a.geometry.c_str());
   }
   for (const std::string& d : check.first_differences) std::printf("  differs: %s\n", d.c_str());
@@ -155,9 +161,9 @@ void run_bvh(const BvhArgs& a) {
     throw std::runtime_error("bvh --gpu: " + std::to_string(check.differ) + " of " + std::to_string(check.rays) +
                              " rays differ from the reference traversal");
   }
-  if (ctx.validation_enabled() && ctx.validation_message_count() > 0) {
-    throw std::runtime_error("bvh --gpu: " + std::to_string(ctx.validation_message_count()) +
-                             " validation message(s); last: " + ctx.last_validation_message());
+  if (ctx->validation_enabled() && ctx->validation_message_count() > 0) {
+    throw std::runtime_error("bvh --gpu: " + std::to_string(ctx->validation_message_count()) +
+                             " validation message(s); last: " + ctx->last_validation_message());
   }
 }
 

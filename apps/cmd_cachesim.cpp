@@ -4,6 +4,7 @@
 //     per-pass and per-buffer L1/L2 tables of a trace file written by `hybridprof trace`.
 //   hybridprof cachesim --din FILE --l1 16k:64:4 --l2 4m:64:16 [--mrc curves.csv]
 //     a Dinero IV text trace through one L1 and an L2 (LRU, write-allocate) with Dinero's counting.
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -21,6 +22,7 @@
 #include "commands.hpp"
 #include "report.hpp"
 #include "error.hpp"
+#include "output_path.hpp"
 #include "trace/din.hpp"
 #include "trace/trace_file.hpp"
 
@@ -66,10 +68,26 @@ nlohmann::json curve_json(const MissRatioCurve& c) {
   return {{"sampling_rate", c.sampling_rate}, {"accesses", c.accesses}, {"cold", c.cold}, {"points", pts}};
 }
 
+// The outputs are checked before the replay: a bad --mrc path fails at once, not after --out was written.
+void check_outputs(const CachesimArgs& a) {
+  if (!a.out_path.empty()) check_output_path(a.out_path, "--out");
+  if (!a.mrc_path.empty()) check_output_path(a.mrc_path, "--mrc");
+  if (!a.export_din_path.empty()) check_output_path(a.export_din_path, "--export-din");
+}
+
 void run_trace(const CachesimArgs& a) {
+  check_outputs(a);
   const Preset preset = scale_for_sampling(find_preset(a.preset), a.scale_model);
   trace::TraceReader reader(a.trace_path);
   const auto& header = reader.header();
+  if (!a.export_din_path.empty()) {
+    if (!a.export_pass.empty() &&
+        std::none_of(reader.passes().begin(), reader.passes().end(), [&](const auto& p) { return p.name == a.export_pass; }))
+      throw InputError("--export-pass: no pass named '" + a.export_pass + "' in " + a.trace_path);
+    if (a.export_cu >= preset.compute_units)
+      throw InputError("--export-cu: compute unit " + std::to_string(a.export_cu) + " does not exist (preset '" +
+                       preset.name + "' has " + std::to_string(preset.compute_units) + ")");
+  }
   SimOptions opt;
   opt.per_invocation = a.per_invocation;
   opt.l1_mrc = opt.l2_mrc = !a.mrc_path.empty() || !a.out_path.empty();
@@ -179,6 +197,7 @@ void print_din_level(const char* name, const DinLevelStats& s) {
 }
 
 void run_din(const CachesimArgs& a) {
+  check_outputs(a);
   const CacheConfig l1 = parse_cache_spec(a.l1, "--l1");
   const CacheConfig l2 = parse_cache_spec(a.l2, "--l2");
   const auto accesses = trace::read_din(a.din_path);
@@ -205,22 +224,26 @@ void add_cachesim_command(CLI::App& app) {
   auto* trace_opt = cmd->add_option("trace", args->trace_path, "Trace file written by `hybridprof trace`");
   auto* din_opt = cmd->add_option("--din", args->din_path, "Dinero IV text trace (r|w ADDR SIZE) to replay instead");
   trace_opt->excludes(din_opt);
-  cmd->add_option("--preset", args->preset, "GPU preset name (vega56, ga102, h100) or JSON file")
-      ->capture_default_str();
-  cmd->add_option("--out", args->out_path, "Write per-pass and per-buffer results as JSON");
+  // Options of one mode given in the other are errors, not silently ignored.
+  auto* preset = cmd->add_option("--preset", args->preset, "GPU preset name (vega56, ga102, h100) or JSON file")
+                     ->capture_default_str();
+  auto* out = cmd->add_option("--out", args->out_path, "Write per-pass and per-buffer results as JSON (trace files)");
   cmd->add_option("--mrc", args->mrc_path, "Write L1/L2 miss-ratio curves (CSV)");
-  cmd->add_option("--shards", args->shards, "Sample miss-ratio curves at this rate (SHARDS), 1 = exact")
-      ->check(CLI::Range(1e-6, 1.0));
-  cmd->add_flag("--per-invocation", args->per_invocation, "Include per-invocation L1/L2 miss counts in --out");
-  cmd->add_option("--scale-model", args->scale_model,
-                  "The trace records 1 in K workgroups (trace --sample-every K): replay it on 1/K of the CUs and L2")
-      ->check(CLI::Range(1u, 0xFFFFFu))
-      ->capture_default_str();
-  cmd->add_option("--export-din", args->export_din_path, "Write one CU's coalesced L1 load stream as Dinero text");
-  cmd->add_option("--export-pass", args->export_pass, "Pass to export (default: the first)");
-  cmd->add_option("--export-cu", args->export_cu, "Compute unit to export")->capture_default_str();
-  cmd->add_option("--l1", args->l1, "Dinero replay L1 as SIZE:LINE:ASSOC")->capture_default_str();
-  cmd->add_option("--l2", args->l2, "Dinero replay L2 as SIZE:LINE:ASSOC")->capture_default_str();
+  auto* shards = cmd->add_option("--shards", args->shards, "Sample miss-ratio curves at this rate (SHARDS), 1 = exact")
+                     ->check(finite_range(1e-6, 1.0));
+  auto* per_inv = cmd->add_flag("--per-invocation", args->per_invocation, "Include per-invocation L1/L2 miss counts in --out")
+                      ->needs(out);
+  auto* scale = cmd->add_option("--scale-model", args->scale_model,
+                                "The trace records 1 in K workgroups (trace --sample-every K): replay it on 1/K of the CUs and L2")
+                    ->check(CLI::Range(1u, 0xFFFFFu))
+                    ->capture_default_str();
+  auto* export_din = cmd->add_option("--export-din", args->export_din_path, "Write one CU's coalesced L1 load stream as Dinero text");
+  cmd->add_option("--export-pass", args->export_pass, "Pass to export (default: the first)")->needs(export_din);
+  cmd->add_option("--export-cu", args->export_cu, "Compute unit to export")->capture_default_str()->needs(export_din);
+  auto* l1 = cmd->add_option("--l1", args->l1, "Dinero replay L1 as SIZE:LINE:ASSOC")->capture_default_str();
+  auto* l2 = cmd->add_option("--l2", args->l2, "Dinero replay L2 as SIZE:LINE:ASSOC")->capture_default_str();
+  for (CLI::Option* o : {preset, out, shards, per_inv, scale, export_din}) din_opt->excludes(o);
+  trace_opt->excludes(l1)->excludes(l2);
   cmd->callback([args] {
     if (!args->din_path.empty())
       run_din(*args);

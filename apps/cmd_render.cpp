@@ -2,6 +2,7 @@
 #include "apps/cli_util.hpp"
 #include "apps/commands.hpp"
 #include "error.hpp"
+#include "output_path.hpp"
 #include "frame.hpp"
 #include "frame_profiler.hpp"
 #include "reference/reference.hpp"
@@ -29,6 +30,14 @@ struct RenderArgs {
   uint32_t cpu_reference = 0;  ///< > 0: render the CPU reference with this many reflection samples instead
   FrameOptions frame;
 };
+
+// Every output path is checked before any work: a bad --timings path fails at once, not after the frames
+// with the image already written.
+void check_outputs(const RenderArgs& a) {
+  check_image_output(a.out, "--out");
+  if (!a.timings_path.empty()) check_output_path(a.timings_path, "--timings");
+  if (!a.timeline_path.empty()) check_output_path(a.timeline_path, "--timeline");
+}
 
 // The converged CPU reference of the same frame (renderer/reference): no Vulkan device is needed.
 void run_reference(const RenderArgs& a) {
@@ -64,6 +73,7 @@ void run_reference(const RenderArgs& a) {
 }
 
 void run_render(const RenderArgs& a) {
+  check_outputs(a);
   if (a.cpu_reference > 0) return run_reference(a);
   const Aov aov = parse_aov(a.aov);
   FrameSettings settings = a.frame.settings();
@@ -148,12 +158,18 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--warmup", args->warmup, "frames rendered and discarded before the measured ones")
       ->check(CLI::Range(0u, 100000u))
       ->capture_default_str();
-  cmd->add_option("--timings", args->timings_path, "write the timing result (JSON: environment, statistics, raw samples)");
-  cmd->add_option("--timeline", args->timeline_path, "write a Chrome Trace Event timeline (opens in ui.perfetto.dev)");
-  cmd->add_flag("--counters", args->counters, "count rays, BVH nodes visited and triangles tested (deterministic)");
+  auto* timings = cmd->add_option("--timings", args->timings_path,
+                                  "write the timing result (JSON: environment, statistics, raw samples)");
+  auto* timeline = cmd->add_option("--timeline", args->timeline_path,
+                                   "write a Chrome Trace Event timeline (opens in ui.perfetto.dev)");
+  auto* counters = cmd->add_flag("--counters", args->counters, "count rays, BVH nodes visited and triangles tested (deterministic)");
+  // The reference renders on the CPU: it has no GPU timings or counters to write.
   cmd->add_option("--cpu-reference", args->cpu_reference,
                   "render the converged CPU reference instead, with N reflection samples per pixel (no GPU needed)")
-      ->check(CLI::Range(1u, 65536u));
+      ->check(CLI::Range(1u, 65536u))
+      ->excludes(timings)
+      ->excludes(timeline)
+      ->excludes(counters);
   cmd->callback([args] { run_render(*args); });
 }
 

@@ -6,6 +6,7 @@
 #include "cachesim/preset.hpp"
 #include "cachesim/simulator.hpp"
 #include "error.hpp"
+#include "output_path.hpp"
 #include "frame.hpp"
 #include "scene/load.hpp"
 #include "vk/context.hpp"
@@ -46,9 +47,11 @@ void run_trace(const TraceArgs& a) {
     else if (p == "reflections") co.reflections = true;
     else throw InputError("--passes: unknown pass '" + p + "' (choose shadows, reflections)");
   }
-  if (co.shadows && !settings.rt.shadows) throw InputError("--passes shadows: the shadow pass is off (--no-shadows)");
+  if (co.shadows && !settings.rt.shadows) {
+    throw InputError("--passes " + a.passes + ": names the shadow pass, which --no-shadows turns off");
+  }
   if (co.reflections && !settings.rt.reflections) {
-    throw InputError("--passes reflections: the reflection pass is off (--no-reflections)");
+    throw InputError("--passes " + a.passes + ": names the reflection pass, which --no-reflections turns off");
   }
   // Only what is traced is computed: a pass that is neither traced nor needed is not run.
   settings.rt.shadows = co.shadows || (settings.rt.shadows && !a.image_out.empty());
@@ -60,8 +63,20 @@ void run_trace(const TraceArgs& a) {
   co.sample_every = a.sample_every;
   co.sample_block = a.sample_block;
   co.buffer_bytes = uint64_t(a.buffer_mib) << 20;
-  // The preset is checked before any work, so a typo costs nothing.
+  // The outputs, the preset and the export's pass and CU are checked before any work, so a typo costs
+  // nothing and leaves no trace file behind.
+  check_output_path(a.out, "--out");
+  if (!a.image_out.empty()) check_image_output(a.image_out, "--image");
   const cachesim::Preset preset = a.din_out.empty() ? cachesim::Preset{} : cachesim::find_preset(a.preset);
+  if (!a.din_out.empty()) {
+    check_output_path(a.din_out, "--export-din");
+    if (!a.din_pass.empty() && !((a.din_pass == "shadows" && co.shadows) || (a.din_pass == "reflections" && co.reflections)))
+      throw InputError("--din-pass " + a.din_pass + ": not a traced pass (--passes " + a.passes + ")");
+    if (a.din_cu >= preset.compute_units) {
+      throw InputError("--din-cu " + std::to_string(a.din_cu) + ": preset " + preset.name + " has " +
+                       std::to_string(preset.compute_units) + " compute units");
+    }
+  }
 
   Scene scene = load_scene(a.frame.scene);
   a.frame.view.apply_light(scene);
@@ -127,14 +142,18 @@ void add_trace_command(CLI::App& app) {
   cmd->add_option("--trace-buffer-mib", a->buffer_mib, "GPU trace buffer per slice (bounded by maxStorageBufferRange)")
       ->check(CLI::Range(1u, 4096u))
       ->capture_default_str();
-  cmd->add_option("--frames-before", a->frames_before, "untraced frames rendered first (accumulation state)");
+  cmd->add_option("--frames-before", a->frames_before, "untraced frames rendered first (accumulation state)")
+      ->check(CLI::Range(0u, 100000u));
   cmd->add_option("--image-layout", a->image_layout, "how images map to addresses: tiled (8x8 texel tiles) or linear")
       ->capture_default_str();
   cmd->add_option("--image", a->image_out, "also write the traced frame's image (equal to an untraced frame's)");
-  cmd->add_option("--export-din", a->din_out, "write one CU's coalesced request stream as Dinero IV text");
-  cmd->add_option("--din-pass", a->din_pass, "pass to export (default: the first traced)");
-  cmd->add_option("--din-cu", a->din_cu, "compute unit to export")->capture_default_str();
-  cmd->add_option("--preset", a->preset, "GPU preset for the export's wave width, CUs and coalescing")->capture_default_str();
+  auto* din = cmd->add_option("--export-din", a->din_out, "write one CU's coalesced request stream as Dinero IV text");
+  // The export's options mean nothing without the export: given alone they are an error, not ignored.
+  cmd->add_option("--din-pass", a->din_pass, "pass to export (default: the first traced)")->needs(din);
+  cmd->add_option("--din-cu", a->din_cu, "compute unit to export")->capture_default_str()->needs(din);
+  cmd->add_option("--preset", a->preset, "GPU preset for the export's wave width, CUs and coalescing")
+      ->capture_default_str()
+      ->needs(din);
   cmd->callback([a] { run_trace(*a); });
 }
 

@@ -10,6 +10,7 @@
 #include "error.hpp"
 #include "input_file.hpp"
 #include "json_depth.hpp"
+#include "output_path.hpp"
 
 namespace hp {
 
@@ -315,6 +316,7 @@ TimingResult parse_timing_result(const json& doc) {
 }
 
 void write_json_atomically(const std::filesystem::path& path, const json& doc, int indent) {
+  check_output_path(path, "");
   // The temporary file sits in the same folder so the rename stays on one file system (atomic);
   // the pid keeps two processes writing the same result from sharing a temporary.
   std::filesystem::path tmp = path;

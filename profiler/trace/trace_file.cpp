@@ -7,12 +7,17 @@
 #include <system_error>
 
 #include "error.hpp"
+#include "output_path.hpp"
 
 namespace hp::trace {
 
 static_assert(std::endian::native == std::endian::little, "the trace format is little-endian");
 
 namespace {
+
+bool printable_ascii(const std::string& s) {
+  return std::all_of(s.begin(), s.end(), [](char c) { return c >= 0x20 && c <= 0x7E; });
+}
 
 constexpr uint32_t tag(char a, char b, char c, char d) {
   return uint32_t(uint8_t(a)) | uint32_t(uint8_t(b)) << 8 | uint32_t(uint8_t(c)) << 16 | uint32_t(uint8_t(d)) << 24;
@@ -130,6 +135,7 @@ struct CloseOnThrow {
 
 TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header)
     : path_(std::move(path)), tmp_path_(path_.string() + ".tmp") {
+  check_output_path(path_, "");
   file_ = std::fopen(tmp_path_.c_str(), "wb");
   if (!file_) throw InputError(tmp_path_.string() + ": cannot create trace file: " + std::strerror(errno));
   CloseOnThrow guard{file_, &tmp_path_};
@@ -238,6 +244,8 @@ static std::string one_line(std::string s) {
 void TraceReader::fail(const std::string& what) const { throw InputError(one_line(path_.string() + ": " + what)); }
 
 TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
+  std::error_code dir_ec;
+  if (std::filesystem::is_directory(path_, dir_ec)) fail("is a directory, not a trace file");
   file_ = std::fopen(path_.c_str(), "rb");
   if (!file_) fail(std::string("cannot open trace file: ") + std::strerror(errno));
   // Every fail() below throws out of the constructor: without this each rejected file leaked its FILE and
@@ -301,6 +309,8 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
             fail("malformed BUFS" + at + ": name of entry " + std::to_string(i) + " runs past the chunk");
           b.name.resize(e.name_bytes);
           if (!c.get(b.name.data(), e.name_bytes)) fail("malformed BUFS" + at + ": name of entry " + std::to_string(i));
+          // The writer's names are printable ASCII; anything else is corruption (and cannot go into JSON).
+          if (!printable_ascii(b.name)) fail("malformed BUFS" + at + ": name of entry " + std::to_string(i) + " is not printable ASCII");
           c.pos += pad8(e.name_bytes);
           if (e.kind > uint32_t(BufferKind::image_tiled) || e.id > HP_TRACE_BUFFER_MASK)
             fail("BUFS" + at + ": entry " + std::to_string(i) + " has an invalid kind or id");
@@ -330,11 +340,16 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
         if (e.name_bytes > payload.size() - c.pos) fail("malformed PASS" + at + ": name runs past the chunk");
         p.name.resize(e.name_bytes);
         if (!c.get(p.name.data(), e.name_bytes)) fail("malformed PASS" + at);
+        if (!printable_ascii(p.name)) fail("malformed PASS" + at + ": the name is not printable ASCII");
         for (int i = 0; i < 3; ++i) {
           p.dispatch.workgroup_size[i] = e.workgroup_size[i];
           p.dispatch.workgroup_count[i] = e.workgroup_count[i];
           if (e.workgroup_size[i] == 0) fail("PASS '" + p.name + "': workgroup size 0");
         }
+        unsigned __int128 invocations = 1;  // six 32-bit factors: 128 bits hold any product of four, then clamp
+        for (int i = 0; i < 3 && invocations <= 0xFFFFFFFFull; ++i)
+          invocations *= (unsigned __int128)e.workgroup_size[i] * e.workgroup_count[i];
+        if (invocations > 0xFFFFFFFFull) fail("PASS '" + p.name + "': more than 2^32 invocations");
         passes_.push_back(std::move(p));
       } else if (ch.tag == kTagEnd) {
         EndEntry e{};
@@ -344,6 +359,8 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
                std::to_string(e.passes) + " passes, the file holds " + std::to_string(total) + " in " +
                std::to_string(passes_.size()));
         have_end = true;
+        if (pos + ch.payload_bytes != file_size)
+          fail(std::to_string(file_size - pos - ch.payload_bytes) + " bytes after the END chunk");
       } else {
         fail("unknown chunk tag" + at);
       }

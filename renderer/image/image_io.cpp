@@ -1,5 +1,6 @@
 #include "error.hpp"
 #include "image/image.hpp"
+#include "output_path.hpp"
 
 #include <OpenImageIO/imageio.h>
 
@@ -30,18 +31,29 @@ std::string lower_extension(const std::string& path) {
 }
 }  // namespace
 
-void write_image(const std::string& path, const Image4f& image) {
+void check_image_output(const std::string& path, const std::string& what) {
   const std::string ext = lower_extension(path);
   if (ext != ".png" && ext != ".exr") {
-    throw InputError(path + ": unsupported image extension '" + ext + "' (use .png or .exr)");
+    throw InputError((what.empty() ? "" : what + " ") + path + ": unsupported image extension '" + ext +
+                     "' (use .png or .exr)");
   }
+  check_output_path(path, what);
+}
+
+void write_image(const std::string& path, const Image4f& image) {
+  check_image_output(path, "");
+  const std::string ext = lower_extension(path);
   const std::filesystem::path final_path(path);
   if (final_path.has_parent_path()) {
     std::error_code ec;
     std::filesystem::create_directories(final_path.parent_path(), ec);
   }
   // The temporary keeps the extension so that OpenImageIO picks the right format.
-  const std::string tmp = (final_path.parent_path() / ("." + final_path.stem().string() + ".tmp" + ext)).string();
+  std::string tmp_name = final_path.stem().string();  // appended, not "." + ...: GCC 12's -Wrestrict (PR 105651)
+  tmp_name.insert(0, 1, '.');
+  tmp_name += ".tmp";
+  tmp_name += ext;
+  const std::string tmp = (final_path.parent_path() / tmp_name).string();
   auto out = OIIO::ImageOutput::create(tmp);
   if (!out) throw InputError(path + ": cannot create an image writer: " + OIIO::geterror());
   bool ok = false;

@@ -8,6 +8,19 @@
 
 namespace hp::vk {
 
+namespace {
+
+// Out of device or host memory while allocating or binding: it is the size asked for (a resolution, a scene)
+// that does not fit this device, so an InputError naming it, not a missing device.
+void check_fits(VkResult r, const std::string& what, VkDeviceSize bytes) {
+  if (r != VK_ERROR_OUT_OF_DEVICE_MEMORY && r != VK_ERROR_OUT_OF_HOST_MEMORY) return;
+  throw InputError(what + " (" + std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB) does not fit in the device's memory (" +
+                   (r == VK_ERROR_OUT_OF_DEVICE_MEMORY ? "VK_ERROR_OUT_OF_DEVICE_MEMORY" : "VK_ERROR_OUT_OF_HOST_MEMORY") +
+                   "); a smaller resolution or scene needs less");
+}
+
+}  // namespace
+
 Buffer::Buffer(Context& ctx, VkDeviceSize size_bytes, VkBufferUsageFlags usage, bool host_visible)
     : device_(ctx.device()), size_(size_bytes) {
   VkBufferCreateInfo ci{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
@@ -25,9 +38,15 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size_bytes, VkBufferUsageFlags usage, 
   VkResult r = vkAllocateMemory(device_, &ai, nullptr, &memory_);
   if (r != VK_SUCCESS) {
     reset();
+    check_fits(r, "a buffer of " + std::to_string(size_bytes) + " bytes", req.size);
     HP_VK(r);
   }
-  HP_VK(vkBindBufferMemory(device_, buffer_, memory_, 0));
+  r = vkBindBufferMemory(device_, buffer_, memory_, 0);
+  if (r != VK_SUCCESS) {
+    reset();
+    check_fits(r, "a buffer of " + std::to_string(size_bytes) + " bytes", req.size);
+    HP_VK(r);
+  }
   if (host_visible) HP_VK(vkMapMemory(device_, memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
 }
 
@@ -119,12 +138,19 @@ Image::Image(Context& ctx, uint32_t width, uint32_t height, VkFormat format, VkI
   VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
   ai.allocationSize = req.size;
   ai.memoryTypeIndex = ctx.find_memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  const std::string what = "a " + std::to_string(width) + "x" + std::to_string(height) + " image";
   VkResult r = vkAllocateMemory(device_, &ai, nullptr, &memory_);
   if (r != VK_SUCCESS) {
     reset();
+    check_fits(r, what, req.size);
     HP_VK(r);
   }
-  HP_VK(vkBindImageMemory(device_, image_, memory_, 0));
+  r = vkBindImageMemory(device_, image_, memory_, 0);
+  if (r != VK_SUCCESS) {
+    reset();
+    check_fits(r, what, req.size);
+    HP_VK(r);
+  }
   VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
   vi.image = image_;
   vi.viewType = VK_IMAGE_VIEW_TYPE_2D;

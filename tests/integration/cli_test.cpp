@@ -8,6 +8,7 @@
 #include <fstream>
 #include <limits>
 #include <string>
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 namespace {
@@ -224,6 +225,61 @@ TEST(Cli, UnknownAovAndBadVectorAreExit2) {
   r = run("");  // no subcommand
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_EQ(line_count(r.output), 1u) << r.output;
+}
+
+// Audit finds (2026-11-30): outputs were checked only when written, after the work, with other outputs
+// already on disk; `--timings /dev/null` renamed a file over the device node (as root); NaN passed the
+// range checks; options of one mode were silently ignored in the other.
+TEST(Cli, OutputsAndOptionsAreCheckedBeforeAnyWork) {
+  const fs::path d = temp_dir();
+  std::ofstream(d / "afile") << "x";
+  const std::string under_file = (d / "afile" / "t.json").string();
+  CmdResult r = run("render --scene builtin:cornell --width 32 --height 24 --timings " + under_file + " --out " +
+                    (d / "f.png").string());
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("--timings " + under_file + ": " + (d / "afile").string() + " is not a folder"),
+            std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(d / "f.png")) << "the image was written before the bad --timings path was noticed";
+  // A special file is never replaced (a FIFO here; /dev/null in the audit).
+  const fs::path fifo = d / "fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  r = run("render --scene builtin:cornell --width 32 --height 24 --timeline " + fifo.string() + " --out " +
+          (d / "f.png").string());
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("is not a regular file"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  for (const char* bad : {"--fov nan", "--roughness-threshold nan"}) {
+    r = run(std::string("render --scene builtin:cornell ") + bad + " --out " + (d / "f.png").string());
+    EXPECT_EQ(r.code, 2) << bad << ": " << r.output;
+    EXPECT_NE(r.output.find("not a finite number"), std::string::npos) << r.output;
+  }
+  r = run("render --scene builtin:cornell --cpu-reference 4 --timings t.json --out " + (d / "f.png").string());
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--timings excludes --cpu-reference"), std::string::npos) << r.output;
+  // trace: a bad --image, an export of a pass that is not traced, an absurd frame count: no trace file.
+  const std::string trace = (d / "t.hptrace").string();
+  for (const std::string& bad : {std::string("--image x.jpg"), std::string("--passes shadows --export-din d.din --din-pass reflections"),
+                                 std::string("--frames-before 4294967295"), std::string("--preset h100")}) {
+    r = run("trace --scene builtin:cornell --width 32 --height 24 --out " + trace + " " + bad);
+    EXPECT_EQ(r.code, 2) << bad << ": " << r.output;
+    EXPECT_EQ(line_count(r.output), 1u) << r.output;
+    EXPECT_FALSE(fs::exists(trace)) << bad;
+  }
+  // cachesim: trace-file options with a Dinero replay, and the reverse, are errors.
+  std::ofstream(d / "t.din") << "r 0 4\n";
+  r = run("cachesim --din " + (d / "t.din").string() + " --preset h100");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--din excludes --preset"), std::string::npos) << r.output;
+  r = run("cachesim " + trace + " --l1 8k:64:4");
+  EXPECT_EQ(r.code, 2) << r.output;
+  // bvh: a bad --hits path is noticed before the triangles are exported.
+  r = run("bvh --scene builtin:cornell --export-triangles " + (d / "tris.bin").string() + " --rays " +
+          (d / "t.din").string() + " --hits " + (d / "afile" / "h.bin").string());
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--hits"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(d / "tris.bin"));
+  fs::remove_all(d);
 }
 
 TEST(Cli, NoVulkanDeviceIsExit3WithHowToInstall) {
