@@ -28,13 +28,16 @@ void add_gate_command(CLI::App& app) {
   cmd->add_flag("--deterministic-only", a->deterministic_only,
                 "compare only counters, BVH and cache counts (e.g. against a baseline from another machine)");
   cmd->add_flag("--verbose", a->verbose, "list identical deterministic metrics too");
-  cmd->add_flag("--ab", a->ab, "run both commands alternately in fresh processes and compare those runs");
-  cmd->add_option("--baseline-cmd", a->baseline_cmd, "--ab: baseline hybridprof command (run as `CMD run FILE --out DIR`)");
-  cmd->add_option("--candidate-cmd", a->candidate_cmd, "--ab: candidate hybridprof command");
-  cmd->add_option("--scenario", a->scenario, "--ab: scenario or matrix file both commands run");
-  cmd->add_option("--trials", a->trials, "--ab: fresh processes per side")->capture_default_str();
-  cmd->add_option("--work-dir", a->work_dir, "--ab: folder for the runs (default: a temporary folder, removed after)");
-  cmd->add_flag("--keep", a->keep, "--ab: keep the run folders");
+  auto* ab = cmd->add_flag("--ab", a->ab, "run both commands alternately in fresh processes and compare those runs");
+  // The --ab options without --ab would be ignored: they are errors instead.
+  cmd->add_option("--baseline-cmd", a->baseline_cmd, "--ab: baseline hybridprof command (run as `CMD run FILE --out DIR`)")
+      ->needs(ab);
+  cmd->add_option("--candidate-cmd", a->candidate_cmd, "--ab: candidate hybridprof command")->needs(ab);
+  cmd->add_option("--scenario", a->scenario, "--ab: scenario or matrix file both commands run")->needs(ab);
+  cmd->add_option("--trials", a->trials, "--ab: fresh processes per side")->capture_default_str()->needs(ab);
+  cmd->add_option("--work-dir", a->work_dir, "--ab: folder for the runs (default: a temporary folder, removed after)")
+      ->needs(ab);
+  cmd->add_flag("--keep", a->keep, "--ab: keep the run folders")->needs(ab);
   cmd->callback([a, cmd] {
     GateOptions o;
     // Precedence: defaults < policy file < options given on the command line.

@@ -19,10 +19,13 @@ void add_report_command(CLI::App& app) {
   cmd->add_option("dir", a->dir, "output folder of `hybridprof run`")->required();
   cmd->add_option("--format", a->format, "markdown (report.md + charts/) or gbench (Google Benchmark JSON)")
       ->capture_default_str();
-  cmd->add_option("--output", a->output, "gbench: the JSON file to write (default OUT/gbench.json)");
-  cmd->add_option("--time-unit", a->time_unit, "gbench: ns, us, ms or s")->capture_default_str();
-  cmd->callback([a] {
+  auto* output = cmd->add_option("--output", a->output, "gbench: the JSON file to write (default OUT/gbench.json)");
+  auto* unit = cmd->add_option("--time-unit", a->time_unit, "gbench: ns, us, ms or s")->capture_default_str();
+  cmd->callback([a, output, unit] {
     if (a->format == "markdown") {
+      // The gbench options given to a markdown report would be ignored: say so instead.
+      if (output->count() > 0) throw InputError("--output: only with --format gbench (markdown goes to OUT/report.md)");
+      if (unit->count() > 0) throw InputError("--time-unit: only with --format gbench");
       std::printf("report: %s\n", write_report(a->dir).c_str());
     } else if (a->format == "gbench") {
       std::printf("gbench: %s\n", write_gbench_export(a->dir, a->output, a->time_unit).c_str());

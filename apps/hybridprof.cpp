@@ -24,6 +24,20 @@ int main(int argc, char** argv) {
   hp::cli::add_cachesim_command(app);
   hp::cli::add_trace_command(app);
 #endif
+  // A first word that is neither an option nor a subcommand: name it (CLI11 would only say that a
+  // subcommand is required).
+  if (argc > 1 && argv[1][0] != '-') {
+    std::string known;
+    bool found = false;
+    for (const CLI::App* sub : app.get_subcommands({})) {
+      known += (known.empty() ? "" : ", ") + sub->get_name();
+      found = found || sub->get_name() == argv[1];
+    }
+    if (!found) {
+      std::fprintf(stderr, "hybridprof: error: unknown subcommand '%s' (known: %s)\n", argv[1], known.c_str());
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -340,8 +340,37 @@ Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<
   }
   m.name = doc.value("name", "");
   if (doc.contains("report")) {
-    if (!doc["report"].is_object()) fail(file, "report", "expected an object of report sections");
-    m.report = doc["report"];
+    // The report sections' shape is checked here, so a typo fails before the matrix runs, not in `report`
+    // afterwards; the metric names are checked by `report` (reports/tradeoff.cpp), which knows them.
+    const json& rep = doc["report"];
+    if (!rep.is_object()) fail(file, "report", "expected an object of report sections");
+    only_keys(rep, {"tradeoffs", "cache_sampling", "depth_error"}, file, "report");
+    for (const char* k : {"cache_sampling", "depth_error"}) {
+      if (rep.contains(k) && !rep[k].is_boolean()) fail(file, join("report", k), "expected true or false");
+    }
+    if (rep.contains("tradeoffs")) {
+      const json& ts = rep["tradeoffs"];
+      if (!ts.is_array()) fail(file, "report.tradeoffs", "expected a list of trade-off objects");
+      for (size_t i = 0; i < ts.size(); ++i) {
+        const std::string at = "report.tradeoffs[" + std::to_string(i) + "]";
+        only_keys(ts[i], {"title", "x", "y", "x_label", "y_label", "log_x", "log_y", "columns"}, file, at);
+        for (const char* k : {"x", "y"}) {
+          if (!ts[i].contains(k) || !ts[i][k].is_string()) fail(file, join(at, k), "a metric name, missing or not a string");
+        }
+        for (const char* k : {"title", "x_label", "y_label"}) {
+          if (ts[i].contains(k) && !ts[i][k].is_string()) fail(file, join(at, k), "expected a string");
+        }
+        for (const char* k : {"log_x", "log_y"}) {
+          if (ts[i].contains(k) && !ts[i][k].is_boolean()) fail(file, join(at, k), "expected true or false");
+        }
+        if (ts[i].contains("columns")) {
+          const json& c = ts[i]["columns"];
+          if (!c.is_array() || !std::all_of(c.begin(), c.end(), [](const json& v) { return v.is_string(); }))
+            fail(file, join(at, "columns"), "expected a list of metric names");
+        }
+      }
+    }
+    m.report = rep;
   }
   const json base = doc.value("base", json::object());
   parse_scenario(base, file, "base");  // validate the base alone first: clearer errors

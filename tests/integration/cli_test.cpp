@@ -282,6 +282,19 @@ TEST(Cli, OutputsAndOptionsAreCheckedBeforeAnyWork) {
   fs::remove_all(d);
 }
 
+TEST(Cli, UnknownSubcommandAndOptionsOfAnotherModeAreNamed) {
+  CmdResult r = run("bogus");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("unknown subcommand 'bogus' (known: render,"), std::string::npos) << r.output;
+  r = run("report /nonexistent --time-unit s");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--time-unit: only with --format gbench"), std::string::npos) << r.output;
+  r = run("gate --baseline a --candidate b --trials 3");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--trials requires --ab"), std::string::npos) << r.output;
+}
+
 TEST(Cli, NoVulkanDeviceIsExit3WithHowToInstall) {
   // An ICD list that names no existing driver: the loader finds no device.
   CmdResult r = run("render --scene builtin:cornell --width 8 --height 8 --out /tmp/never.png",

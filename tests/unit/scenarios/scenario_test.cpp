@@ -224,6 +224,18 @@ TEST(Matrix, CellsAreNamedCasesMergedOntoTheBase) {
             std::string::npos);
   EXPECT_NE(error_of(json::parse(R"({"base": {}, "cells": [], "axes": {}})")).find("cells"), std::string::npos);
   EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": 3})")).find("report"), std::string::npos);
+  // The report sections are checked when the matrix is read (audit find: a typo ran the whole matrix first).
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": {"foo": 1}})")).find("report.foo: unknown key"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": {"tradeoffs": "x"}})"))
+                .find("report.tradeoffs: expected a list"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": {"tradeoffs": [{"x": "a"}]}})"))
+                .find("report.tradeoffs[0].y"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": {"depth_error": 1}})"))
+                .find("report.depth_error: expected true or false"),
+            std::string::npos);
 }
 
 // Audit finds (2026-11-30): a 300 KB file of nested '[' overflowed the stack while the matrix was copied; a
