@@ -6,6 +6,15 @@
 
 namespace hp {
 
+glm::dvec3 view_up(const Camera& camera) {
+  // Looking along the up vector leaves lookAt no side axis: the view would be NaN and the image empty.
+  const glm::dvec3 up(camera.up);
+  const glm::dvec3 dir = glm::normalize(glm::dvec3(camera.target) - glm::dvec3(camera.position));
+  if (glm::length(glm::cross(dir, glm::normalize(up))) >= 1e-9) return up;
+  const glm::dvec3 a = glm::abs(dir);
+  return a.x <= a.y && a.x <= a.z ? glm::dvec3(1, 0, 0) : a.y <= a.z ? glm::dvec3(0, 1, 0) : glm::dvec3(0, 0, 1);
+}
+
 View make_view(const Camera& camera, float aspect, bool reversed_z) {
   View v;
   v.reversed_z = reversed_z;
@@ -25,7 +34,7 @@ View make_view(const Camera& camera, float aspect, bool reversed_z) {
   }
   v.eye = camera.position;
   const glm::dvec3 fwd = glm::dvec3(camera.target) - glm::dvec3(camera.position);
-  const glm::dmat4 rot = glm::lookAt(glm::dvec3(0.0), fwd, glm::dvec3(camera.up));
+  const glm::dmat4 rot = glm::lookAt(glm::dvec3(0.0), fwd, view_up(camera));
   const glm::dmat4 vp_rel = glm::dmat4(p) * rot;
   v.view_proj_rel = glm::mat4(vp_rel);
   v.inv_view_proj_rel = glm::mat4(glm::inverse(vp_rel));

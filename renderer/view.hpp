@@ -20,6 +20,11 @@ struct View {
   float far_depth() const { return reversed_z ? 0.0f : 1.0f; }
 };
 
+/// The up vector the view is built with: the camera's, or, when the camera looks along it (straight down
+/// at its target, say) and no side axis follows, the world axis least aligned with the view direction.
+/// Shared by make_view and the CPU reference's primary rays.
+glm::dvec3 view_up(const Camera& camera);
+
 /// Perspective view of `camera` for an image of width/height `aspect`. Standard depth maps near -> 0 and
 /// far -> 1; reversed-Z maps near -> 1 and far -> 0 (better float precision far away).
 View make_view(const Camera& camera, float aspect, bool reversed_z);

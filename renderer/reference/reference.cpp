@@ -4,6 +4,7 @@
 #include "reference/shading.hpp"
 #include "rt_geometry.hpp"
 #include "stable_id.hpp"
+#include "view.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -191,7 +192,7 @@ ReferenceImage render_reference(const Scene& scene, const Camera& camera, const 
 
   // The primary rays in double: direction through the pixel centre in camera space, then to world. The
   // direction's forward component is 1, so t is the view depth and [znear, zfar] is the raster's clip range.
-  const glm::dvec3 eye(camera.position), target(camera.target), up(camera.up);
+  const glm::dvec3 eye(camera.position), target(camera.target), up = view_up(camera);
   const glm::dvec3 fwd = glm::normalize(target - eye);
   const glm::dvec3 right = glm::normalize(glm::cross(fwd, up));
   const glm::dvec3 cam_up = glm::cross(right, fwd);

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -119,6 +120,33 @@ class ReferenceChecker {
     if (!root_.is_object()) fail(path_, "JSON", "the top level is not an object");
     ref(root_, "scene", "scene", "scenes");
     each("scenes", [&](const json& s, const std::string& f) { refs(s, "nodes", f + ".nodes", "nodes"); });
+    // tinygltf drops a field of the wrong type without a word (a rotation of "abc" became the identity,
+    // a byteOffset of -100 was read as 0): the fields this loader uses are type-checked here.
+    if (const auto a = root_.find("asset"); a != root_.end()) {
+      if (!a->is_object()) fail(path_, "asset", "expected an object");
+      const auto v = a->find("version");
+      if (v == a->end() || !v->is_string()) fail(path_, "asset.version", "missing or not a string");
+      if (!v->get<std::string>().starts_with("2.")) {
+        fail(path_, "asset.version", "'" + v->get<std::string>() + "': only glTF 2.x is supported");
+      }
+    }
+    each("nodes", [&](const json& n, const std::string& f) {
+      for (const char* k : {"matrix", "translation", "rotation", "scale"}) numbers(n, k, f);
+    });
+    each("bufferViews", [&](const json& v, const std::string& f) {
+      for (const char* k : {"byteOffset", "byteLength", "byteStride"}) count(v, k, f);
+    });
+    each("accessors", [&](const json& a, const std::string& f) {
+      for (const char* k : {"byteOffset", "count", "componentType"}) count(a, k, f);
+    });
+    each("materials", [&](const json& m, const std::string& f) {
+      if (const auto p = m.find("pbrMetallicRoughness"); p != m.end()) {
+        if (!p->is_object()) fail(path_, f + ".pbrMetallicRoughness", "expected an object");
+        numbers(*p, "baseColorFactor", f + ".pbrMetallicRoughness");
+        for (const char* k : {"metallicFactor", "roughnessFactor"}) number(*p, k, f + ".pbrMetallicRoughness");
+      }
+      numbers(m, "emissiveFactor", f);
+    });
     each("nodes", [&](const json& n, const std::string& f) {
       refs(n, "children", f + ".children", "nodes");
       ref(n, "mesh", f + ".mesh", "meshes");
@@ -175,6 +203,19 @@ class ReferenceChecker {
     if (i < 0 || static_cast<uint64_t>(i) >= n)
       fail(path_, field,
            "index " + std::to_string(i) + " out of range (" + target + " has " + std::to_string(n) + " entries)");
+  }
+  void numbers(const json& obj, const char* key, const std::string& f) const {
+    const auto it = obj.find(key);
+    if (it == obj.end()) return;
+    if (!it->is_array() || !std::all_of(it->begin(), it->end(), [](const json& x) { return x.is_number(); }))
+      fail(path_, f + "." + key, "expected an array of numbers");
+  }
+  void number(const json& obj, const char* key, const std::string& f) const {
+    if (const auto it = obj.find(key); it != obj.end() && !it->is_number()) fail(path_, f + "." + key, "expected a number");
+  }
+  void count(const json& obj, const char* key, const std::string& f) const {
+    if (const auto it = obj.find(key); it != obj.end() && !it->is_number_unsigned())
+      fail(path_, f + "." + key, "expected a non-negative integer, got " + it->dump());
   }
   void ref(const json& obj, const char* key, const std::string& field, const char* target) const {
     if (const auto it = obj.find(key); it != obj.end()) check(*it, field, target);
@@ -396,9 +437,37 @@ class Converter {
       if (node.mesh >= 0) {
         if (std::size_t(node.mesh) >= model_.meshes.size())
           fail(path_, idx("nodes", item.node) + ".mesh", "index " + std::to_string(node.mesh) + " out of range");
-        for (uint32_t mesh : meshes_of(scene, node.mesh)) scene.instances.push_back(Instance{mesh, glm::mat4(world)});
+        for (uint32_t mesh : meshes_of(scene, node.mesh)) {
+          check_world_bounds(scene.meshes[mesh], world, idx("nodes", item.node));
+          scene.instances.push_back(Instance{mesh, glm::mat4(world)});
+        }
       }
       for (auto c = node.children.rbegin(); c != node.children.rend(); ++c) stack.push_back({*c, world});
+    }
+  }
+
+  /// World positions past +-1e18 (a scale of 1e300, a translation of 1e38) overflow the BVH's surface areas
+  /// (float) or the positions themselves: the node that puts them there is named instead of building a tree
+  /// of NaN costs. The mesh's bounding box corners are transformed in double.
+  void check_world_bounds(const Mesh& mesh, const glm::dmat4& world, const std::string& node) const {
+    constexpr double kLimit = 1e18;
+    if (mesh.positions.empty()) return;
+    glm::dvec3 lo(mesh.positions[0]), hi(mesh.positions[0]);
+    for (const glm::vec3& p : mesh.positions) {
+      lo = glm::min(lo, glm::dvec3(p));
+      hi = glm::max(hi, glm::dvec3(p));
+    }
+    for (int c = 0; c < 8; ++c) {
+      const glm::dvec3 corner((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
+      const glm::dvec4 w = world * glm::dvec4(corner, 1.0);
+      for (int k = 0; k < 3; ++k) {
+        if (!(std::abs(w[k]) <= kLimit)) {
+          char at[32];
+          std::snprintf(at, sizeof at, "%.3g", w[k]);
+          fail(path_, node, "its world transform puts mesh '" + mesh.name + "' at " + at +
+                                " (positions must stay within +-1e18)");
+        }
+      }
     }
   }
 

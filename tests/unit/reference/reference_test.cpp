@@ -111,6 +111,33 @@ TEST(Reference, ReflectionsConvergeWithSamples) {
   EXPECT_LT(e64, e4 * 0.5);
 }
 
+// Audit find (2026-11-30): a camera straight above its target, with the default up vector (0, 1, 0), gave a
+// NaN view and an empty image. The view now falls back to another up axis.
+TEST(View, LookingAlongTheUpVectorStillSees) {
+  Camera cam;
+  cam.position = {0.0f, 10.0f, 0.0f};
+  cam.target = {0.0f, 0.0f, 0.0f};
+  const View v = make_view(cam, 1.0f, false);
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) ASSERT_TRUE(std::isfinite(v.view_proj_rel[c][r])) << c << "," << r;
+  // The centre of the image looks straight down: its point at some depth lies below the eye on the y axis.
+  const glm::vec3 p = unproject(v, 31.5f, 31.5f, 64, 64, 0.5f);
+  EXPECT_NEAR(p.x, 0.0f, 1e-3f);
+  EXPECT_NEAR(p.z, 0.0f, 1e-3f);
+  EXPECT_LT(p.y, 10.0f);
+  // And the reference renderer sees the box from above.
+  const Scene scene = make_cornell_scene();
+  const Aabb b = world_bounds(scene);
+  const glm::vec3 centre = (b.min + b.max) * 0.5f;
+  Camera above = scene.camera;
+  above.target = centre;
+  above.position = centre + glm::vec3(0.0f, 0.5f * (b.max.y - b.min.y) + 2.0f * (b.max.x - b.min.x), 0.0f);
+  const ReferenceImage r = render_reference(scene, above, small(32, 32, 1));
+  uint32_t covered = 0;
+  for (uint32_t i = 0; i < 32 * 32; ++i) covered += r.position.rgba[4 * i + 3] > 0.5f ? 1u : 0u;
+  EXPECT_GT(covered, 32u * 32u / 4u);
+}
+
 TEST(Reference, PassesFollowTheSettings) {
   const Scene scene = make_cornell_scene();
   ReferenceSettings s = small(48, 36, 2);

@@ -7,6 +7,8 @@
 #include <glm/gtc/constants.hpp>
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <cmath>
 #include <limits>
 
@@ -251,6 +253,38 @@ TEST(GltfErrors, DeeplyNestedJsonIsNamedNotACrash) {
   text.insert(text.find('{') + 1, "\"extras\": {\"s\": \"" + std::string(1000, '[') + "\\\"\", \"a\": [[[[1]]]]},");
   test::write_text(path, text);
   EXPECT_NO_THROW((void)load_scene(path));
+}
+
+// Audit finds (2026-11-30): tinygltf drops a field of the wrong type silently, and a huge scale or
+// translation gave a BVH of NaN costs and an empty image.
+TEST(GltfErrors, WrongTypesAndWorldsOutOfRangeAreNamed) {
+  struct Case {
+    std::function<void(nlohmann::json&)> edit;
+    std::string field, reason;
+  };
+  const std::vector<Case> cases = {
+      {[](nlohmann::json& d) { d["nodes"][0]["rotation"] = "abc"; }, "nodes[0].rotation", "expected an array of numbers"},
+      {[](nlohmann::json& d) { d["nodes"][0]["scale"] = {1, "x", 1}; }, "nodes[0].scale", "expected an array of numbers"},
+      {[](nlohmann::json& d) { d["bufferViews"][0]["byteOffset"] = -100; }, "bufferViews[0].byteOffset", "non-negative integer"},
+      {[](nlohmann::json& d) { d["accessors"][0]["count"] = 2.5; }, "accessors[0].count", "non-negative integer"},
+      {[](nlohmann::json& d) { d["asset"]["version"] = "1.0"; }, "asset.version", "only glTF 2.x"},
+      {[](nlohmann::json& d) { d["materials"] = {{{"pbrMetallicRoughness", {{"roughnessFactor", "x"}}}}}; },
+       "materials[0].pbrMetallicRoughness.roughnessFactor", "expected a number"},
+      {[](nlohmann::json& d) { d["nodes"][0]["scale"] = {1e300, 1e300, 1e300}; }, "nodes[0]", "within +-1e18"},
+      {[](nlohmann::json& d) { d["nodes"][0]["translation"] = {0, 1e38, 0}; }, "nodes[0]", "within +-1e18"},
+  };
+  for (const Case& c : cases) {
+    TempDir dir;
+    QuadGltf q;
+    c.edit(q.doc);
+    SCOPED_TRACE(c.field);
+    expect_input_error(q.write(dir), c.field, c.reason);
+  }
+  // A large world that fits (1e6 units from the origin) still loads.
+  TempDir dir;
+  QuadGltf q;
+  q.doc["nodes"][0]["translation"] = {1e6, 0, 0};
+  EXPECT_NO_THROW((void)load_scene(q.write(dir)));
 }
 
 TEST(GltfErrors, OutOfRangeAccessorIndex) {
