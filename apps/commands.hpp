@@ -1,5 +1,6 @@
-// The subcommands of `hybridprof`, one file each. Each adds itself to the app with its options and a
-// callback; errors are thrown (hp::InputError, hp::DeviceError) and turned into exit codes by main.
+// The subcommands of `hybridprof`, in thin cmd_*.cpp files (`devices` beside `render`, `merge` beside
+// `run`). Each adds itself to the app with its options and a callback; errors are thrown (hp::InputError,
+// hp::DeviceError) and turned into exit codes by main.
 #pragma once
 
 #include <CLI/CLI.hpp>
