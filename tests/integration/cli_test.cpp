@@ -45,6 +45,14 @@ size_t line_count(const std::string& s) {
   return n;
 }
 
+// A bad-input failure as the README promises: exit 2 and one line that names `what` (a file, field,
+// option or limit).
+void expect_bad_input(const CmdResult& r, const std::string& what) {
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_EQ(line_count(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find(what), std::string::npos) << "expected '" << what << "' in: " << r.output;
+}
+
 bool have_vulkan() { return run("devices").code == 0; }
 
 // Skips a test without a Vulkan device, or fails it where HP_TESTS_REQUIRE_VULKAN=1 (scripts/test under CI).
@@ -99,8 +107,7 @@ TEST(Cli, CachesimExportsOneComputeUnitOrNamesTheLimitAndWritesNothing) {
   CmdResult r = run("trace --scene builtin:cornell --width 64 --height 48 --out " + trace.string());
   ASSERT_EQ(r.code, 0) << r.output;
   r = run("cachesim " + trace.string() + " --preset vega56 --export-din " + din.string() + " --export-cu 56");
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("compute unit 56 does not exist (preset 'vega56' has 56)"), std::string::npos) << r.output;
+  expect_bad_input(r, "compute unit 56 does not exist (preset 'vega56' has 56)");
   EXPECT_FALSE(fs::exists(din));
   EXPECT_FALSE(fs::exists(din.string() + ".tmp"));
   // A good export: the file has exactly the lines the command reports.
@@ -154,8 +161,7 @@ TEST(Cli, BvhGpuCastsTheRaysAndAgreesWithTheReference) {
 
 TEST(Cli, BvhGpuOptionsNeedGpu) {
   const CmdResult r = run("bvh --scene builtin:cornell --geometry soup");
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("--gpu"), std::string::npos) << r.output;
+  expect_bad_input(r, "--gpu");
 }
 
 TEST(Cli, CpuReferenceNeedsNoDevice) {
@@ -178,16 +184,12 @@ TEST(Cli, CpuReferenceNeedsNoDevice) {
 
 TEST(Cli, BadSceneIsOneLineExit2) {
   CmdResult r = run("render --scene /nonexistent/scene.gltf --out /tmp/never.png");
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_EQ(line_count(r.output), 1u) << r.output;
-  EXPECT_NE(r.output.find("/nonexistent/scene.gltf"), std::string::npos) << r.output;
+  expect_bad_input(r, "/nonexistent/scene.gltf");
 }
 
 TEST(Cli, UnknownBuiltinIsOneLineExit2) {
   CmdResult r = run("render --scene builtin:nope --out /tmp/never.png");
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_EQ(line_count(r.output), 1u) << r.output;
-  EXPECT_NE(r.output.find("builtin:nope"), std::string::npos) << r.output;
+  expect_bad_input(r, "builtin:nope");
   EXPECT_NE(r.output.find("builtin:pica"), std::string::npos) << "the known ones are listed: " << r.output;
 }
 
@@ -195,33 +197,23 @@ TEST(Cli, AbsurdResolutionNamesTheLimitAndWritesNothing) {
   const fs::path d = temp_dir();
   const fs::path out = d / "huge.png";
   CmdResult r = run("render --scene builtin:cornell --width 100000 --height 10 --out " + out.string());
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_EQ(line_count(r.output), 1u) << r.output;
-  EXPECT_NE(r.output.find("limit"), std::string::npos) << r.output;
+  expect_bad_input(r, "limit");
   EXPECT_FALSE(fs::exists(out));
   r = run("render --scene builtin:cornell --width 0 --height 10 --out " + out.string());
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_EQ(line_count(r.output), 1u) << r.output;
-  EXPECT_NE(r.output.find("0x10"), std::string::npos) << r.output;
+  expect_bad_input(r, "0x10");
   EXPECT_FALSE(fs::exists(out));
   fs::remove_all(d);
 }
 
 TEST(Cli, UnknownAovAndBadVectorAreExit2) {
   CmdResult r = run("render --scene builtin:cornell --aov bogus --out /tmp/never.png");
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("--aov"), std::string::npos) << r.output;
+  expect_bad_input(r, "--aov");
   r = run("render --scene builtin:cornell --light-dir 1,nan,0 --out /tmp/never.png");
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("--light-dir"), std::string::npos) << r.output;
+  expect_bad_input(r, "--light-dir");
   r = run("render --bogus-option");
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_EQ(line_count(r.output), 1u) << r.output;
-  EXPECT_NE(r.output.find("--bogus-option"), std::string::npos) << r.output;
+  expect_bad_input(r, "--bogus-option");
   r = run("render --width");  // an option without its value
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_EQ(line_count(r.output), 1u) << r.output;
-  EXPECT_NE(r.output.find("--width"), std::string::npos) << r.output;
+  expect_bad_input(r, "--width");
   r = run("");  // no subcommand
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_EQ(line_count(r.output), 1u) << r.output;
@@ -246,8 +238,7 @@ TEST(Cli, OutputsAndOptionsAreCheckedBeforeAnyWork) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   r = run("render --scene builtin:cornell --width 32 --height 24 --timeline " + fifo.string() + " --out " +
           (d / "f.png").string());
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("is not a regular file"), std::string::npos) << r.output;
+  expect_bad_input(r, "is not a regular file");
   EXPECT_TRUE(fs::is_fifo(fifo));
   for (const char* bad : {"--fov nan", "--roughness-threshold nan"}) {
     r = run(std::string("render --scene builtin:cornell ") + bad + " --out " + (d / "f.png").string());
@@ -255,8 +246,7 @@ TEST(Cli, OutputsAndOptionsAreCheckedBeforeAnyWork) {
     EXPECT_NE(r.output.find("not a finite number"), std::string::npos) << r.output;
   }
   r = run("render --scene builtin:cornell --cpu-reference 4 --timings t.json --out " + (d / "f.png").string());
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("--timings excludes --cpu-reference"), std::string::npos) << r.output;
+  expect_bad_input(r, "--timings excludes --cpu-reference");
   // trace: a bad --image, an export of a pass that is not traced, an absurd frame count: no trace file.
   const std::string trace = (d / "t.hptrace").string();
   for (const std::string& bad : {std::string("--image x.jpg"), std::string("--passes shadows --export-din d.din --din-pass reflections"),
@@ -269,30 +259,24 @@ TEST(Cli, OutputsAndOptionsAreCheckedBeforeAnyWork) {
   // cachesim: trace-file options with a Dinero replay, and the reverse, are errors.
   std::ofstream(d / "t.din") << "r 0 4\n";
   r = run("cachesim --din " + (d / "t.din").string() + " --preset h100");
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("--din excludes --preset"), std::string::npos) << r.output;
+  expect_bad_input(r, "--din excludes --preset");
   r = run("cachesim " + trace + " --l1 8k:64:4");
   EXPECT_EQ(r.code, 2) << r.output;
   // bvh: a bad --hits path is noticed before the triangles are exported.
   r = run("bvh --scene builtin:cornell --export-triangles " + (d / "tris.bin").string() + " --rays " +
           (d / "t.din").string() + " --hits " + (d / "afile" / "h.bin").string());
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("--hits"), std::string::npos) << r.output;
+  expect_bad_input(r, "--hits");
   EXPECT_FALSE(fs::exists(d / "tris.bin"));
   fs::remove_all(d);
 }
 
 TEST(Cli, UnknownSubcommandAndOptionsOfAnotherModeAreNamed) {
   CmdResult r = run("bogus");
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_EQ(line_count(r.output), 1u) << r.output;
-  EXPECT_NE(r.output.find("unknown subcommand 'bogus' (known: render,"), std::string::npos) << r.output;
+  expect_bad_input(r, "unknown subcommand 'bogus' (known: render,");
   r = run("report /nonexistent --time-unit s");
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("--time-unit: only with --format gbench"), std::string::npos) << r.output;
+  expect_bad_input(r, "--time-unit: only with --format gbench");
   r = run("gate --baseline a --candidate b --trials 3");
-  EXPECT_EQ(r.code, 2) << r.output;
-  EXPECT_NE(r.output.find("--trials requires --ab"), std::string::npos) << r.output;
+  expect_bad_input(r, "--trials requires --ab");
 }
 
 TEST(Cli, NoVulkanDeviceIsExit3WithHowToInstall) {
