@@ -271,12 +271,12 @@ TEST(Cli, OutputsAndOptionsAreCheckedBeforeAnyWork) {
 }
 
 TEST(Cli, UnknownSubcommandAndOptionsOfAnotherModeAreNamed) {
-  CmdResult r = run("bogus");
-  expect_bad_input(r, "unknown subcommand 'bogus' (known: render,");
-  r = run("report /nonexistent --time-unit s");
-  expect_bad_input(r, "--time-unit: only with --format gbench");
-  r = run("gate --baseline a --candidate b --trials 3");
-  expect_bad_input(r, "--trials requires --ab");
+  const std::pair<const char*, const char*> cases[] = {
+      {"bogus", "unknown subcommand 'bogus' (known: render,"},
+      {"report /nonexistent --time-unit s", "--time-unit: only with --format gbench"},
+      {"gate --baseline a --candidate b --trials 3", "--trials requires --ab"},
+  };
+  for (const auto& [args, what] : cases) expect_bad_input(run(args), what);
 }
 
 TEST(Cli, NoVulkanDeviceIsExit3WithHowToInstall) {
