@@ -227,7 +227,7 @@ void add_cachesim_command(CLI::App& app) {
   // Options of one mode given in the other are errors, not silently ignored.
   auto* preset = cmd->add_option("--preset", args->preset, "GPU preset name (vega56, ga102, h100) or JSON file")
                      ->capture_default_str();
-  auto* out = cmd->add_option("--out", args->out_path, "Write per-pass and per-buffer results as JSON (trace files)");
+  auto* out = cmd->add_option("--out", args->out_path, "Write per-pass and per-buffer results, with the miss-ratio curves, as JSON (trace files)");
   cmd->add_option("--mrc", args->mrc_path, "Write L1/L2 miss-ratio curves (CSV)");
   auto* shards = cmd->add_option("--shards", args->shards, "Sample miss-ratio curves at this rate (SHARDS), 1 = exact")
                      ->check(finite_range(1e-6, 1.0));

@@ -152,7 +152,8 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--aov", args->aov,
                   "what to write: color, depth, normal, albedo, roughness, metallic, shadow, reflection")
       ->capture_default_str();
-  cmd->add_option("--frames", args->frames, "measured frames (accumulated; the last one is written)")
+  cmd->add_option("--frames", args->frames, "measured frames (accumulated; the last one is written; with --timings, as many frames without "
+                  "queries are interleaved and accumulate too)")
       ->check(CLI::Range(1u, 100000u))
       ->capture_default_str();
   cmd->add_option("--warmup", args->warmup, "frames rendered and discarded before the measured ones")

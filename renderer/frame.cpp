@@ -79,7 +79,8 @@ Frame::Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const F
   const bool traced = settings.rt.shadows || settings.rt.reflections;
   if (traced) {
     rt_geometry_ = build_rt_geometry(scene, settings.bvh);
-    rt_scene_ = std::make_unique<RtScene>(ctx, scene, *rt_geometry_, settings.geometry, settings.rt.reflections);
+    rt_scene_ = std::make_unique<RtScene>(ctx, scene, *rt_geometry_, settings.geometry, settings.rt.reflections, true,
+                                          settings.rt.reflections || settings.rt.dump_rays);
     Aabb bounds;
     if (!rt_geometry_->bvh.nodes.empty()) {
       bounds.min = rt_geometry_->bvh.nodes[0].bmin;
@@ -293,7 +294,7 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
   if (!trace_buffer_ || trace_buffer_->size() != bytes) {
     trace_buffer_ = std::make_unique<vk::Buffer>(ctx_, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   }
-  rt_passes_->attach_trace_buffer(ctx_, *trace_buffer_);
+  rt_passes_->attach_trace_buffer(ctx_, *trace_buffer_, o.shadows, o.reflections);
   const uint32_t capacity = uint32_t((bytes - sizeof(gpu::TraceBufferHeader)) / sizeof(gpu::TraceRecord));
   auto* head = static_cast<gpu::TraceBufferHeader*>(trace_buffer_->mapped());
   const auto* recs = reinterpret_cast<const gpu::TraceRecord*>(head + 1);
@@ -359,7 +360,7 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
   if (settings_.rt.shadows) {
     if (o.shadows) {
       capture("shadows", Traced::shadows, rt_passes_->workgroups(Traced::shadows), 8, 8, nullptr, nullptr);
-    } else {
+    } else if (o.final_image) {
       ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_shadows(cmd); });
     }
   }
@@ -374,7 +375,7 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
       ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_args_and_sort(cmd); });
       const uint32_t rays = rt_passes_->read_compacted_count(ctx_);
       capture("consume", Traced::consume, rt_passes_->workgroups(Traced::consume, rays), 64, 1, nullptr, nullptr);
-    } else {
+    } else if (o.final_image) {
       ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
         rt_passes_->record_compact(cmd);
         rt_passes_->record_sort(cmd);
@@ -385,14 +386,16 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
     if (o.reflections) {
       capture("reflections", Traced::reflections, rt_passes_->workgroups(Traced::reflections), 8, 8, nullptr,
               nullptr);
-    } else {
+    } else if (o.final_image) {
       ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_reflections(cmd); });
     }
   }
-  ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
-    if (settings_.rt.reflections) rt_passes_->record_accumulate(cmd);
-    composite_pass_->record(cmd, color_);
-  });
+  if (o.final_image) {
+    ctx_.submit_and_wait([&](VkCommandBuffer cmd) {
+      if (settings_.rt.reflections) rt_passes_->record_accumulate(cmd);
+      composite_pass_->record(cmd, color_);
+    });
+  }
   ++frame_index_;
   ++sample_index_;
   return out;

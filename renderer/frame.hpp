@@ -81,6 +81,9 @@ struct CaptureOptions {
   uint32_t sample_block = 1;
   uint64_t buffer_bytes = 0;    ///< trace buffer size; 0 = min(64 MiB, maxStorageBufferRange)
   bool tiled_images = true;     ///< G-buffer and outputs laid out in 8x8-texel tiles (else linear rows)
+  /// Also run the enabled passes that are not traced, then accumulate and composite, so that the frame's
+  /// image is whole (`trace --image`). Off: only the G-buffer and the traced passes run.
+  bool final_image = true;
 };
 
 struct CapturedPass {
@@ -127,7 +130,10 @@ class Frame {
   std::optional<FrameQueries> first_frame_queries() const { return first_queries_; }
   bool timestamps_supported() const { return timestamps_.supported(); }
   /// Whether render(FrameQueries::pipeline_statistics) counts invocations: counters on, queries supported.
-  bool pipeline_statistics_available() const { return settings_.rt.counters && invocations_.supported(); }
+  /// Invocation counts come with the ray counters, which only a frame with a ray-tracing pass has.
+  bool pipeline_statistics_available() const {
+    return settings_.rt.counters && (settings_.rt.shadows || settings_.rt.reflections) && invocations_.supported();
+  }
 
   Image4f read_color() const;
   /// G-buffer and ray-tracing views: depth in r (raw depth-buffer value), normal rgb (world, unit), albedo

@@ -36,7 +36,7 @@ constexpr VkFormat kTriple = VK_FORMAT_R32G32B32_UINT;  // a vertex, or a triang
 }  // namespace
 
 RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, GeometryLayout layout, bool shading,
-                 bool allow_geometry_texels)
+                 bool allow_geometry_texels, bool slot_map)
     : layout_(layout), object_leaves_(g.bvh.granularity == bvh::Granularity::object) {
   const auto& leaf = g.leaf;
   const size_t slots = leaf.triangles.size();
@@ -118,7 +118,7 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   soup_ = upload(ctx, soup, uploaded_bytes_, texel_usage);
   normals_ = upload(ctx, normals, uploaded_bytes_, texel_usage);
   soup_normals_ = upload(ctx, soup_normals, uploaded_bytes_, texel_usage);
-  slot_scene_ = upload(ctx, leaf.scene_index, uploaded_bytes_, texel_usage);
+  slot_scene_ = upload(ctx, slot_map ? leaf.scene_index : std::vector<uint32_t>{}, uploaded_bytes_, texel_usage);
   // Without texels, bindings 29-36 still need valid views: any small texel buffer does (never read).
   if (!geometry_texels_) texel_dummy_ = vk::Buffer(ctx, 48, VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);
   const auto view = [&](const vk::Buffer& b, VkFormat f) {

@@ -24,8 +24,10 @@ class RtScene {
  public:
   /// `shading`: also upload normals, per-slot material ids and materials (reflections shade their hits).
   /// `allow_geometry_texels`: false forces the storage loads (to compare the two paths).
+  /// `slot_map`: upload the slot -> scene triangle map, which only closest-hit ties and ray dumps read (a
+  /// frame of any-hit shadow rays without dumps leaves it out: 4 bytes a triangle).
   RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& geometry, GeometryLayout layout, bool shading,
-          bool allow_geometry_texels = true);
+          bool allow_geometry_texels = true, bool slot_map = true);
 
   GeometryLayout layout() const { return layout_; }
   bool object_leaves() const { return object_leaves_; }

@@ -264,6 +264,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     ProfileOptions po;
     po.warmup = s.warmup;
     po.frames = s.frames;
+    po.measure_query_overhead = s.query_overhead;
     const FrameTimings timings = profile_frames(frame, po);
     const fs::path cell_dir = out / "cells" / id;
     fs::create_directories(cell_dir);
@@ -300,6 +301,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       co.sample_every = s.trace_sample_every;
       co.sample_block = s.trace_sample_block;
       co.tiled_images = s.trace_tiled_images;
+      co.final_image = false;  // the cell's images come from the timed frames: only the traced passes run
       const fs::path trace_path = cell_dir / "trace.hptrace";
       CacheAnalysisOptions ao;
       ao.preset = s.cache_preset;

@@ -27,6 +27,9 @@ struct Scenario {
   FrameSettings frame;           ///< resolution, passes and their options, BVH build
   uint32_t frames = 10;          ///< measured frames
   uint32_t warmup = 3;           ///< discarded frames before them
+  /// Also measure the timestamp queries' overhead: as many frames again without queries, interleaved with
+  /// the measured ones (ProfileOptions::measure_query_overhead). Off unless asked: it doubles the frames.
+  bool query_overhead = false;
   std::string cache_preset = "vega56";
   /// Memory-trace capture for the cache simulator: the passes to trace (empty = none), every k-th
   /// workgroup, whether the trace file is kept beside the results, the image address layout.

@@ -237,13 +237,14 @@ glm::uvec2 RayTracingPasses::workgroups(Traced pass, uint32_t rays) const {
   }
 }
 
-void RayTracingPasses::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer) {
+void RayTracingPasses::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer, bool shadows,
+                                           bool reflections) {
   descriptors_.write_buffer(21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
-  if (options_.shadows && !shadow_traced_.handle()) {
+  if (options_.shadows && shadows && !shadow_traced_.handle()) {
     shadow_traced_ = create_rt_pipeline(ctx, shadows_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
   }
-  const bool compact = options_.reflections && options_.reflection_path == ReflectionPath::compact;
-  if (options_.reflections && !compact && !reflection_traced_.handle()) {
+  const bool compact = options_.reflections && reflections && options_.reflection_path == ReflectionPath::compact;
+  if (options_.reflections && reflections && !compact && !reflection_traced_.handle()) {
     reflection_traced_ =
         create_rt_pipeline(ctx, reflections_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
   }

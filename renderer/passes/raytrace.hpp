@@ -101,7 +101,9 @@ class RayTracingPasses {
 
   /// Memory-trace capture: binds `trace_buffer` (a TraceBufferHeader then TraceRecords) and builds the
   /// instrumented pipelines of the enabled passes (compiled from the same sources with HP_TRACE).
-  void attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer);
+  /// Only the instrumented pipelines of the passes to be traced (`shadows`, `reflections`: the compaction
+  /// path's compact and consume) are built.
+  void attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer, bool shadows, bool reflections);
   /// Records one slice of a traced pass: workgroup rows [first_row, first_row + rows) of the full
   /// dispatch; every `sample_every`-th workgroup (in dispatch order) records its accesses.
   enum class Traced { shadows, reflections, compact, consume };

@@ -101,6 +101,39 @@ TEST(Capture, TracedImageEqualsUntracedAndRecordsAreComplete) {
   fs::remove(tiny.file);
 }
 
+// Audit find (2026-11-30): a capture ran every enabled pass and the composite even when only one pass was
+// traced and nobody read the image (every cell of `hybridprof run` with a trace). final_image = false runs
+// the traced passes alone, with the same records.
+TEST(Capture, WithoutTheFinalImageOnlyTheTracedPassesRun) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = small(64, 48);
+  s.rt.counters = true;  // what ran shows in the frame's ray counters
+  CaptureOptions o;
+  o.reflections = false;  // shadows only, though reflections are enabled
+  auto run = [&](bool final_image, const char* name) {
+    o.final_image = final_image;
+    const fs::path file = fs::temp_directory_path() / ("hp_capture_" + std::to_string(::getpid()) + name);
+    Frame frame(*ctx, scene, scene.camera, s);
+    std::vector<CapturedPass> passes;
+    {
+      trace::TraceWriter writer(file, frame.trace_header(o.tiled_images));
+      passes = frame.render_captured(o, writer);
+      writer.finish();
+    }
+    fs::remove(file);
+    return std::make_pair(passes, frame.read_counters());
+  };
+  const auto [whole, whole_counts] = run(true, "whole");
+  const auto [lean, lean_counts] = run(false, "lean");
+  ASSERT_EQ(lean.size(), 1u);
+  EXPECT_EQ(lean[0].pass, "shadows");
+  EXPECT_EQ(lean[0].records, whole[0].records);
+  EXPECT_EQ(lean_counts.shadow_rays, whole_counts.shadow_rays);
+  EXPECT_GT(whole_counts.reflection_rays, 0u) << "the whole frame runs the untraced reflection pass";
+  EXPECT_EQ(lean_counts.reflection_rays, 0u) << "the lean capture must not run it";
+}
+
 TEST(Capture, SamplingRecordsOnlySampledWorkgroupsAndReplays) {
   HP_REQUIRE_VULKAN(ctx);
   const Scene scene = load_scene("builtin:pica");

@@ -153,5 +153,25 @@ TEST(Profile, InvocationsWithoutWarmupTakeOneExtraFrame) {
   }
 }
 
+// Audit find (2026-11-30): a frame with no ray-tracing pass still rendered an extra frame to count
+// invocations it never reports (the counters come with the ray passes).
+TEST(Profile, NoRayPassNoInvocationFrame) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:cornell");
+  FrameSettings s;
+  s.width = 40;
+  s.height = 24;
+  s.rt.counters = true;  // asked for, but there is nothing to count
+  Frame frame(*ctx, scene, scene.camera, s);
+  EXPECT_FALSE(frame.pipeline_statistics_available());
+  ProfileOptions o;
+  o.warmup = 1;
+  o.frames = 2;
+  o.measure_query_overhead = false;
+  const FrameTimings t = profile_frames(frame, o);
+  EXPECT_TRUE(t.frame_invocations().empty());
+  EXPECT_EQ(frame.samples_accumulated(), 3u) << "1 warm-up + 2 measured frames, no extra counting frame";
+}
+
 }  // namespace
 }  // namespace hp

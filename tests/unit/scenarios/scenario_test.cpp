@@ -103,6 +103,11 @@ TEST(Scenario, IdIsStableAndDependsOnConfigOnly) {
   // Pinned: a change to the canonical form changes every id, which must be a deliberate decision
   // (baselines are keyed by id; update this literal and the baselines together).
   EXPECT_EQ(parse_scenario(json::object(), "d.json").id(), "0124b5bbf58c0e65");
+  // The query-overhead measurement is off unless asked (it doubles the frames) and enters the id only then.
+  const Scenario q = parse_scenario(json::parse(R"({"query_overhead": true})"), "q.json");
+  EXPECT_TRUE(q.query_overhead);
+  EXPECT_FALSE(parse_scenario(json::object(), "d.json").query_overhead);
+  EXPECT_NE(q.id(), "0124b5bbf58c0e65");
 }
 
 TEST(Matrix, ExpandsInFileOrderWithExcludes) {
