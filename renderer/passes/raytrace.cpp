@@ -122,9 +122,12 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   reflection_dump_ = vk::Buffer(ctx, options.dump_rays ? uint64_t(grid_w_) * grid_h_ * sizeof(gpu::RayDump) : 4,
                                 dump_usage, false);
   const VkImageUsageFlags img_usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
-  shadow_mask_ = vk::Image(ctx, width_, height_, VK_FORMAT_R32_SFLOAT, img_usage);
-  reflection_ = vk::Image(ctx, grid_w_, grid_h_, VK_FORMAT_R32G32B32A32_SFLOAT, img_usage);
-  accum_ = vk::Image(ctx, grid_w_, grid_h_, VK_FORMAT_R32G32B32A32_SFLOAT, img_usage);
+  // A disabled pass's output is a 1x1 stand-in (the composite reads it only when the pass is on): a frame
+  // without reflections does not hold two 16-byte-per-cell images for them (29 MiB at 1280x720).
+  const bool sh = options.shadows, refl = options.reflections;
+  shadow_mask_ = vk::Image(ctx, sh ? width_ : 1, sh ? height_ : 1, VK_FORMAT_R32_SFLOAT, img_usage);
+  reflection_ = vk::Image(ctx, refl ? grid_w_ : 1, refl ? grid_h_ : 1, VK_FORMAT_R32G32B32A32_SFLOAT, img_usage);
+  accum_ = vk::Image(ctx, refl ? grid_w_ : 1, refl ? grid_h_ : 1, VK_FORMAT_R32G32B32A32_SFLOAT, img_usage);
 
   std::vector<VkDescriptorSetLayoutBinding> b;
   b.push_back({0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kCS, nullptr});

@@ -1,6 +1,7 @@
 // The GPU ray-tracing passes against the C++ reference traversal, on the very rays the shaders cast (the
 // shaders dump them), and the properties the study's experiments rely on.
 #include "cpu_agreement.hpp"
+#include "error.hpp"
 #include "vulkan_env.hpp"
 
 #include "bvh/traverse.hpp"
@@ -176,6 +177,29 @@ TEST(RayTrace, NoRaysNoBvh) {
   ASSERT_EQ(t.passes.size(), 2u);
   EXPECT_EQ(t.passes[0].name, "gbuffer");
   EXPECT_EQ(t.passes[1].name, "composite");
+}
+
+// Audit find (2026-11-30): a frame without reflections still held full-size reflection and accumulation
+// images, and a shadow-only frame the slot -> scene map that only closest-hit rays read.
+TEST(RayTrace, AShadowOnlyFrameHoldsNothingForReflections) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:cornell");
+  FrameSettings s;
+  s.width = 64;
+  s.height = 48;
+  s.rt.shadows = true;
+  Frame frame(*ctx, scene, scene.camera, s);
+  frame.render();
+  const RayTracingPasses& rt = *frame.rt_passes();
+  EXPECT_EQ(rt.shadow_mask().width(), 64u);
+  EXPECT_EQ(rt.reflection_accum().width(), 1u);
+  EXPECT_EQ(rt.reflection_accum().height(), 1u);
+  EXPECT_LE(frame.rt_scene()->slot_scene().size(), 48u) << "the slot map is a stand-in";
+  const Image4f mask = frame.read_aov(Aov::shadow);
+  size_t dark = 0;
+  for (size_t i = 0; i < mask.rgba.size(); i += 4) dark += mask.rgba[i] == 0.0f;
+  EXPECT_GT(dark, 0u) << "the shadow pass still works";
+  EXPECT_THROW(frame.read_aov(Aov::reflection), InputError);
 }
 
 TEST(RayTrace, TimestampsAreOrderedPerPass) {
