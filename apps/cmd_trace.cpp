@@ -11,6 +11,8 @@
 #include "scene/load.hpp"
 #include "vk/context.hpp"
 
+#include <algorithm>
+#include <vector>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -71,8 +73,19 @@ void run_trace(const TraceArgs& a) {
   const cachesim::Preset preset = a.din_out.empty() ? cachesim::Preset{} : cachesim::find_preset(a.preset);
   if (!a.din_out.empty()) {
     check_output_path(a.din_out, "--export-din");
-    if (!a.din_pass.empty() && !((a.din_pass == "shadows" && co.shadows) || (a.din_pass == "reflections" && co.reflections)))
-      throw InputError("--din-pass " + a.din_pass + ": not a traced pass (--passes " + a.passes + ")");
+    // The names the capture gives its passes: the compaction path traces its compact and consume passes.
+    std::vector<std::string> traced;
+    if (co.shadows) traced.push_back("shadows");
+    if (co.reflections && settings.rt.reflection_path == ReflectionPath::compact) {
+      traced.insert(traced.end(), {"compact", "consume"});
+    } else if (co.reflections) {
+      traced.push_back("reflections");
+    }
+    if (!a.din_pass.empty() && std::find(traced.begin(), traced.end(), a.din_pass) == traced.end()) {
+      std::string names;
+      for (const std::string& n : traced) names += (names.empty() ? "" : ", ") + n;
+      throw InputError("--din-pass " + a.din_pass + ": not a traced pass (traced: " + names + ")");
+    }
     if (a.din_cu >= preset.compute_units) {
       throw InputError("--din-cu " + std::to_string(a.din_cu) + ": preset " + preset.name + " has " +
                        std::to_string(preset.compute_units) + " compute units");

@@ -1,4 +1,4 @@
-// Reading a whole file a user names (scenario, preset, policy, results, timing result, ray file): a missing
+// Reading a whole file a user names (scenario, preset, policy, results, timing result): a missing
 // file, a directory or an unreadable file is an InputError naming the path and what was expected, not the
 // standard library's "basic_filebuf::underflow" escaping as an internal error.
 #pragma once

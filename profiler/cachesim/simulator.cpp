@@ -292,7 +292,7 @@ PassResult Simulator::run_pass(const trace::PassInfo& pass, std::span<const trac
 
 void Simulator::begin_pass(const trace::PassInfo& pass) {
   const auto& d = pass.dispatch;
-  if (d.invocations() > 0xFFFFFFFFull) throw InputError("pass '" + pass.name + "': more than 2^32 invocations");
+  if (d.invocations() > 0xFFFFFFFFull) throw InputError("pass '" + pass.name + "': 2^32 invocations or more");
   const Cache& l1 = hierarchy_.l1(0);
   pass_ = std::make_unique<PassState>(preset_.wave_width, l1, preset_.coalescing == Coalescing::sector);
   PassState& ps = *pass_;

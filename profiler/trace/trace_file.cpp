@@ -349,7 +349,7 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
         unsigned __int128 invocations = 1;  // six 32-bit factors: 128 bits hold any product of four, then clamp
         for (int i = 0; i < 3 && invocations <= 0xFFFFFFFFull; ++i)
           invocations *= (unsigned __int128)e.workgroup_size[i] * e.workgroup_count[i];
-        if (invocations > 0xFFFFFFFFull) fail("PASS '" + p.name + "': more than 2^32 invocations");
+        if (invocations > 0xFFFFFFFFull) fail("PASS '" + p.name + "': 2^32 invocations or more");
         passes_.push_back(std::move(p));
       } else if (ch.tag == kTagEnd) {
         EndEntry e{};

@@ -15,6 +15,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <iostream>
 #include <optional>
 #include <string_view>
@@ -214,8 +215,14 @@ class ReferenceChecker {
     if (const auto it = obj.find(key); it != obj.end() && !it->is_number()) fail(path_, f + "." + key, "expected a number");
   }
   void count(const json& obj, const char* key, const std::string& f) const {
-    if (const auto it = obj.find(key); it != obj.end() && !it->is_number_unsigned())
-      fail(path_, f + "." + key, "expected a non-negative integer, got " + it->dump());
+    const auto it = obj.find(key);
+    if (it == obj.end() || it->is_number_unsigned()) return;
+    // JSON Schema counts 0.0 as an integer: a whole, non-negative float is one too.
+    if (it->is_number_float()) {
+      const double v = it->get<double>();
+      if (v >= 0.0 && v == std::floor(v)) return;
+    }
+    fail(path_, f + "." + key, "expected a non-negative integer, got " + it->dump());
   }
   void ref(const json& obj, const char* key, const std::string& field, const char* target) const {
     if (const auto it = obj.find(key); it != obj.end()) check(*it, field, target);
@@ -438,7 +445,7 @@ class Converter {
         if (std::size_t(node.mesh) >= model_.meshes.size())
           fail(path_, idx("nodes", item.node) + ".mesh", "index " + std::to_string(node.mesh) + " out of range");
         for (uint32_t mesh : meshes_of(scene, node.mesh)) {
-          check_world_bounds(scene.meshes[mesh], world, idx("nodes", item.node));
+          check_world_bounds(scene.meshes[mesh], mesh, world, idx("nodes", item.node));
           scene.instances.push_back(Instance{mesh, glm::mat4(world)});
         }
       }
@@ -449,14 +456,19 @@ class Converter {
   /// World positions past +-1e18 (a scale of 1e300, a translation of 1e38) overflow the BVH's surface areas
   /// (float) or the positions themselves: the node that puts them there is named instead of building a tree
   /// of NaN costs. The mesh's bounding box corners are transformed in double.
-  void check_world_bounds(const Mesh& mesh, const glm::dmat4& world, const std::string& node) const {
+  void check_world_bounds(const Mesh& mesh, uint32_t mesh_index, const glm::dmat4& world, const std::string& node) {
     constexpr double kLimit = 1e18;
     if (mesh.positions.empty()) return;
-    glm::dvec3 lo(mesh.positions[0]), hi(mesh.positions[0]);
-    for (const glm::vec3& p : mesh.positions) {
-      lo = glm::min(lo, glm::dvec3(p));
-      hi = glm::max(hi, glm::dvec3(p));
+    // The mesh's box once per mesh, however many nodes instance it.
+    auto [box, fresh] = mesh_bounds_.try_emplace(mesh_index);
+    if (fresh) {
+      box->second = {glm::dvec3(mesh.positions[0]), glm::dvec3(mesh.positions[0])};
+      for (const glm::vec3& p : mesh.positions) {
+        box->second.first = glm::min(box->second.first, glm::dvec3(p));
+        box->second.second = glm::max(box->second.second, glm::dvec3(p));
+      }
     }
+    const glm::dvec3 lo = box->second.first, hi = box->second.second;
     for (int c = 0; c < 8; ++c) {
       const glm::dvec3 corner((c & 1) ? hi.x : lo.x, (c & 2) ? hi.y : lo.y, (c & 4) ? hi.z : lo.z);
       const glm::dvec4 w = world * glm::dvec4(corner, 1.0);
@@ -659,6 +671,7 @@ class Converter {
   const std::string& path_;
   const tinygltf::Model& model_;
   std::vector<std::optional<std::vector<uint32_t>>> mesh_cache_;
+  std::map<uint32_t, std::pair<glm::dvec3, glm::dvec3>> mesh_bounds_;  ///< hp mesh -> local box (check_world_bounds)
   std::optional<uint32_t> default_material_;
 };
 

@@ -250,7 +250,9 @@ TEST(Cli, OutputsAndOptionsAreCheckedBeforeAnyWork) {
   // trace: a bad --image, an export of a pass that is not traced, an absurd frame count: no trace file.
   const std::string trace = (d / "t.hptrace").string();
   for (const std::string& bad : {std::string("--image x.jpg"), std::string("--passes shadows --export-din d.din --din-pass reflections"),
-                                 std::string("--frames-before 4294967295"), std::string("--preset h100")}) {
+                                 std::string("--frames-before 4294967295"), std::string("--preset h100"),
+                                 // the compaction path traces passes named compact and consume
+                                 std::string("--reflection-path compact --passes reflections --export-din d.din --din-pass reflections")}) {
     r = run("trace --scene builtin:cornell --width 32 --height 24 --out " + trace + " " + bad);
     EXPECT_EQ(r.code, 2) << bad << ": " << r.output;
     EXPECT_EQ(line_count(r.output), 1u) << r.output;
@@ -260,8 +262,8 @@ TEST(Cli, OutputsAndOptionsAreCheckedBeforeAnyWork) {
   std::ofstream(d / "t.din") << "r 0 4\n";
   r = run("cachesim --din " + (d / "t.din").string() + " --preset h100");
   expect_bad_input(r, "--din excludes --preset");
-  r = run("cachesim " + trace + " --l1 8k:64:4");
-  EXPECT_EQ(r.code, 2) << r.output;
+  r = run("cachesim " + trace + " --l1 8k:64:4");  // (the trace file does not exist: the option is what fails)
+  expect_bad_input(r, "excludes --l1");
   // bvh: a bad --hits path is noticed before the triangles are exported.
   r = run("bvh --scene builtin:cornell --export-triangles " + (d / "tris.bin").string() + " --rays " +
           (d / "t.din").string() + " --hits " + (d / "afile" / "h.bin").string());
