@@ -30,7 +30,10 @@ std::string gbench_name(const CellResult& c, const std::string& pass) {
       std::string value = axis_value_text(v);
       std::replace(value.begin(), value.end(), '/', '_');
       std::replace(value.begin(), value.end(), ' ', '_');
-      name += "/" + axis_leaf(k) + ":" + value;
+      name += '/';  // appended piece by piece: GCC 12's -Wrestrict (PR 105651) on "/" + string
+      name += axis_leaf(k);
+      name += ':';
+      name += value;
     }
   }
   return name + "/" + pass;

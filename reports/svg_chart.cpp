@@ -302,7 +302,12 @@ std::string render(const LineChart& c) {
     for (size_t k = 0; k < order.size(); ++k) order[k] = k;
     std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return l.x[a] < l.x[b]; });
     std::string pts;
-    for (size_t k : order) pts += (pts.empty() ? "" : " ") + num(f.px(l.x[k])) + "," + num(f.py(l.y[k]));
+    for (size_t k : order) {  // appended piece by piece: "..." + string trips GCC 12's -Wrestrict (PR 105651)
+      if (!pts.empty()) pts += ' ';
+      pts += num(f.px(l.x[k]));
+      pts += ',';
+      pts += num(f.py(l.y[k]));
+    }
     s += "<g class=\"series\">\n<polyline class=\"line\" fill=\"none\" stroke-width=\"2\" stroke=\"" + std::string(colour(i)) +
          "\" points=\"" + pts + "\"/>\n";
     for (size_t k : order) {
