@@ -137,7 +137,9 @@ void CacheAnalysis::end_pass() {
   }
   pj["buffers"] = buffers;
   if (o.curves) pj["mrc"] = {{"l1", curve_json(r.l1_curve)}, {"l2", curve_json(r.l2_curve)}};
-  if (!o.heatmap_dir.empty()) {
+  // Per-pixel heatmaps for the passes whose invocations are pixels (8x8 groups over the image or the
+  // reflection grid); the 1D passes (consume: one invocation per compacted ray, the sort kernels) have none.
+  if (!o.heatmap_dir.empty() && info.dispatch.workgroup_size[1] > 1) {
     // The pass's own pixel grid: shadows cover the image; reflections their (possibly reduced) grid.
     uint32_t w = header_.image_width, h = header_.image_height;
     if (info.name == "reflections") {

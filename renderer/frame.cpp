@@ -1,5 +1,7 @@
 #include "frame.hpp"
 
+#include "sort/radix_config.h"
+
 #include <bit>
 
 #include "common/trace_buffers.h"
@@ -262,6 +264,11 @@ trace::TraceHeader Frame::trace_header(bool tiled) const {
     add(HP_TBUF_SORT_KEYS, "sort_keys", cells * 4);
     add(HP_TBUF_SORT_VALUES, "sort_values", cells * 4);
     add(HP_TBUF_RAY_COUNT, "ray_count", 16);
+    if (const RadixSort* sorter = rt_passes_->sorter()) {
+      add(HP_TBUF_SORT_SCRATCH_KEYS, "sort_scratch_keys", sorter->scratch_bytes());
+      add(HP_TBUF_SORT_SCRATCH_VALUES, "sort_scratch_values", sorter->scratch_bytes());
+      add(HP_TBUF_SORT_HISTOGRAMS, "sort_histograms", sorter->histogram_bytes());
+    }
   }
   add_image(HP_TBUF_GBUF_DEPTH, "gbuffer_depth", settings_.width, settings_.height, 4);
   add_image(HP_TBUF_GBUF_NORMAL, "gbuffer_normal_roughness", settings_.width, settings_.height, 8);
@@ -307,11 +314,13 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
     rt_passes_->record_prepare(cmd);
   });
   using Traced = RayTracingPasses::Traced;
-  // Captures one pass in slices of workgroup rows (a row of groups for the 1D consume pass). `save` runs
-  // before each slice and `restore` after an overflow, for passes whose writes are not idempotent (the
-  // compaction's atomic append).
-  auto capture = [&](const char* name, Traced pass, glm::uvec2 wg, uint32_t group_w, uint32_t group_h,
-                     const std::function<void()>& save, const std::function<void()>& restore) {
+  // Captures one dispatch in slices: of workgroup rows for a 2D pass, of groups for a 1D one (the consume
+  // pass, the sort kernels). `run_slice(first, n)` records and runs units [first, first + n) with the
+  // instrumented pipeline. `save` runs before each slice and `restore` after an overflow, for passes whose
+  // writes are not idempotent (the compaction's atomic append).
+  auto capture_slices = [&](const std::string& name, glm::uvec2 wg, uint32_t group_w, uint32_t group_h, bool one_d,
+                            const std::function<void(uint32_t, uint32_t)>& run_slice,
+                            const std::function<void()>& save, const std::function<void()>& restore) {
     trace::PassInfo info;
     info.name = name;
     info.dispatch.workgroup_size[0] = group_w;
@@ -323,8 +332,6 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
     cp.pass = name;
     cp.workgroups = uint64_t(wg.x) * wg.y;
     for (uint64_t w = 0; w < cp.workgroups; ++w) cp.sampled_workgroups += ((w >> block_log2) % o.sample_every) == 0;
-    // 2D passes slice rows of wg.x groups; the 1D consume pass slices its single row group by group.
-    const bool one_d = pass == Traced::consume;
     const uint32_t units = one_d ? wg.x : wg.y;
     const uint64_t groups_per_unit = one_d ? 1 : wg.x;
     uint32_t step = units;  // first try: the whole pass in one slice
@@ -334,8 +341,7 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
       head->count = 0;
       head->capacity = capacity;
       head->pass_id = pass_index;
-      rt_passes_->set_slice(unit, sampling);
-      ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_traced_slice(cmd, pass, unit, n); });
+      run_slice(unit, n);
       const uint32_t count = head->count;
       if (count > capacity) {
         if (n == 1) {
@@ -354,8 +360,19 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
       ++cp.slices;
       unit += n;
     }
-    rt_passes_->set_slice(0, 0);
     out.push_back(cp);
+  };
+  // A ray-tracing pass: 8x8 groups, except the consume pass's one row of 64-wide groups.
+  auto capture = [&](const char* name, Traced pass, glm::uvec2 wg, uint32_t group_w, uint32_t group_h,
+                     const std::function<void()>& save, const std::function<void()>& restore) {
+    capture_slices(
+        name, wg, group_w, group_h, pass == Traced::consume,
+        [&](uint32_t unit, uint32_t n) {
+          rt_passes_->set_slice(unit, sampling);
+          ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_traced_slice(cmd, pass, unit, n); });
+        },
+        save, restore);
+    rt_passes_->set_slice(0, 0);
   };
   if (settings_.rt.shadows) {
     if (o.shadows) {
@@ -372,7 +389,18 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
       capture("compact", Traced::compact, rt_passes_->workgroups(Traced::compact), 8, 8,
               [&] { saved = rt_passes_->read_compacted_count(ctx_); },
               [&] { ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_reset_count(cmd, saved); }); });
-      ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_args_and_sort(cmd); });
+      ctx_.submit_and_wait([&](VkCommandBuffer cmd) { rt_passes_->record_args(cmd); });
+      // The sort's dispatches, each a traced pass of its own (1D, 256-thread groups). They are idempotent
+      // but for the scan, which is one workgroup: it runs whole or fails with the capacity named.
+      for (const RadixSort::Step& step : rt_passes_->sort_steps()) {
+        capture_slices(
+            step.name, {step.groups, 1u}, RADIX_THREADS, 1, true,
+            [&](uint32_t first, uint32_t n) {
+              ctx_.submit_and_wait(
+                  [&](VkCommandBuffer cmd) { rt_passes_->record_traced_sort_step(cmd, step, first, n, sampling); });
+            },
+            nullptr, nullptr);
+      }
       const uint32_t rays = rt_passes_->read_compacted_count(ctx_);
       capture("consume", Traced::consume, rt_passes_->workgroups(Traced::consume, rays), 64, 1, nullptr, nullptr);
     } else if (o.final_image) {

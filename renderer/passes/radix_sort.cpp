@@ -2,26 +2,36 @@
 
 #include "error.hpp"
 #include "shaders/sort_radix_copy_comp.h"
+#include "shaders/sort_radix_copy_traced_comp.h"
 #include "shaders/sort_radix_histogram_comp.h"
+#include "shaders/sort_radix_histogram_traced_comp.h"
 #include "shaders/sort_radix_scan_comp.h"
+#include "shaders/sort_radix_scan_traced_comp.h"
 #include "shaders/sort_radix_scatter_comp.h"
+#include "shaders/sort_radix_scatter_traced_comp.h"
 #include "sort/radix_config.h"
 
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace hp {
 namespace {
 
+// radix_common.glsl's push constants.
 struct RadixPush {
   uint32_t shift;
   uint32_t capacity;
   uint32_t key_mask;
+  uint32_t first_group = 0;  ///< a traced slice's first block
+  uint32_t sampling = 0;     ///< the capture's workgroup sampling (traced variants)
+  uint32_t to_caller = 0;    ///< the set reads the scratch buffers (trace buffer ids)
 };
 
+// 0-5 the kernels' buffers, 21 the trace buffer of the instrumented variants (common/trace_capture.glsl).
 std::vector<VkDescriptorSetLayoutBinding> sort_bindings() {
   std::vector<VkDescriptorSetLayoutBinding> b;
-  for (uint32_t i = 0; i < 6; ++i)
+  for (uint32_t i : {0u, 1u, 2u, 3u, 4u, 5u, 21u})
     b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
   return b;
 }
@@ -68,6 +78,55 @@ RadixSort::RadixSort(vk::Context& ctx, uint32_t capacity) : capacity_(capacity) 
   scan_ = vk::create_compute_pipeline(ctx, sort_radix_scan_comp, layout);
   scatter_ = vk::create_compute_pipeline(ctx, sort_radix_scatter_comp, layout);
   copy_ = vk::create_compute_pipeline(ctx, sort_radix_copy_comp, layout);
+  no_trace_ = vk::Buffer(ctx, 16, usage, false);
+  for (vk::DescriptorSet* set : {&to_scratch_, &to_caller_}) set->write_buffer(21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, no_trace_.handle());
+}
+
+std::vector<RadixSort::Step> RadixSort::steps(uint32_t key_bits) const {
+  std::vector<Step> out;
+  const uint32_t passes = pass_count(key_bits);
+  for (uint32_t p = 0; p < passes; ++p) {
+    const std::string d = std::to_string(p);
+    out.push_back({Step::Kernel::histogram, p, blocks_, "sort_histogram_" + d});
+    out.push_back({Step::Kernel::scan, p, 1, "sort_scan_" + d});
+    out.push_back({Step::Kernel::scatter, p, blocks_, "sort_scatter_" + d});
+  }
+  if (passes % 2 == 1) out.push_back({Step::Kernel::copy, passes, blocks_, "sort_copy"});
+  return out;
+}
+
+void RadixSort::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer) {
+  for (vk::DescriptorSet* set : {&to_scratch_, &to_caller_}) set->write_buffer(21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
+  if (histogram_traced_.handle()) return;
+  const VkPipelineLayout layout = to_scratch_.pipeline_layout();
+  histogram_traced_ = vk::create_compute_pipeline(ctx, sort_radix_histogram_traced_comp, layout);
+  scan_traced_ = vk::create_compute_pipeline(ctx, sort_radix_scan_traced_comp, layout);
+  scatter_traced_ = vk::create_compute_pipeline(ctx, sort_radix_scatter_traced_comp, layout);
+  copy_traced_ = vk::create_compute_pipeline(ctx, sort_radix_copy_traced_comp, layout);
+}
+
+void RadixSort::record_traced_step(VkCommandBuffer cmd, const Step& step, const vk::Buffer& keys,
+                                   const vk::Buffer& values, const vk::Buffer& count, uint32_t key_bits,
+                                   uint32_t first_group, uint32_t groups, uint32_t sampling) {
+  if (!histogram_traced_.handle()) throw std::logic_error("RadixSort::record_traced_step: attach_trace_buffer first");
+  bind(keys, values, count);
+  const VkPipelineLayout layout = to_scratch_.pipeline_layout();
+  const uint32_t key_mask = key_bits >= 32 ? 0xFFFFFFFFu : ((1u << key_bits) - 1u);
+  // Pass p reads the caller's buffers when p is even (record()'s ping-pong); the copy reads the scratch.
+  const bool to_caller = step.kernel == Step::Kernel::copy || step.digit_pass % 2 == 1;
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+  VkDescriptorSet s = (to_caller ? to_caller_ : to_scratch_).set();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &s, 0, nullptr);
+  const RadixPush push{step.kernel == Step::Kernel::copy ? 0u : step.digit_pass * RADIX_BITS, capacity_, key_mask,
+                       first_group, sampling, to_caller ? 1u : 0u};
+  vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+  const vk::Pipeline* p[] = {&histogram_traced_, &scan_traced_, &scatter_traced_, &copy_traced_};
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p[int(step.kernel)]->handle());
+  vkCmdDispatch(cmd, groups, 1, 1);
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT);
 }
 
 void RadixSort::bind(const vk::Buffer& keys, const vk::Buffer& values, const vk::Buffer& count) {
@@ -118,7 +177,7 @@ void RadixSort::record(VkCommandBuffer cmd, const vk::Buffer& keys, const vk::Bu
   };
   for (uint32_t pass = 0; pass < passes; ++pass) {
     bind_set(pass % 2 == 0 ? to_scratch_ : to_caller_);
-    const RadixPush push{pass * RADIX_BITS, capacity_, key_mask};
+    const RadixPush push{pass * RADIX_BITS, capacity_, key_mask, 0, 0, pass % 2 == 1 ? 1u : 0u};
     vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
     dispatch(histogram_, blocks_);
     compute_to_compute(cmd);
@@ -130,7 +189,7 @@ void RadixSort::record(VkCommandBuffer cmd, const vk::Buffer& keys, const vk::Bu
   if (passes % 2 == 1) {
     // The last pass wrote the scratch buffers; to_caller_ reads them and writes the caller's.
     bind_set(to_caller_);
-    const RadixPush push{0, capacity_, key_mask};
+    const RadixPush push{0, capacity_, key_mask, 0, 0, 1};
     vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
     dispatch(copy_, blocks_);
   }

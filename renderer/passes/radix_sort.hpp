@@ -9,6 +9,8 @@
 #include "vk/resources.hpp"
 
 #include <cstdint>
+#include <string>
+#include <vector>
 
 namespace hp {
 
@@ -39,6 +41,27 @@ class RadixSort {
   void record(VkCommandBuffer cmd, const vk::Buffer& keys, const vk::Buffer& values, const vk::Buffer& count,
               uint32_t key_bits);
 
+  // ---- memory-trace capture (Frame::render_captured) ---------------------------------------------------
+  /// One dispatch of a sort, as a capture traces it: the digit pass's histogram, scan and scatter, then the
+  /// final copy after an odd number of passes. `name` is the traced pass's ("sort_scatter_1").
+  struct Step {
+    enum class Kernel { histogram, scan, scatter, copy } kernel;
+    uint32_t digit_pass = 0;
+    uint32_t groups = 0;  ///< workgroups of the dispatch (256 threads each)
+    std::string name;
+  };
+  /// The dispatches record() makes for `key_bits`, in order.
+  std::vector<Step> steps(uint32_t key_bits) const;
+  /// Binds the trace buffer (binding 21) and builds the instrumented variants of the kernels.
+  void attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer);
+  /// Records workgroups [first_group, first_group + groups) of one step with its instrumented variant, with
+  /// the workgroup sampling word of the capture, between barriers (each step is its own submission).
+  void record_traced_step(VkCommandBuffer cmd, const Step& step, const vk::Buffer& keys, const vk::Buffer& values,
+                          const vk::Buffer& count, uint32_t key_bits, uint32_t first_group, uint32_t groups,
+                          uint32_t sampling);
+  uint64_t scratch_bytes() const { return scratch_keys_.size(); }
+  uint64_t histogram_bytes() const { return histograms_.size(); }
+
  private:
   void bind(const vk::Buffer& keys, const vk::Buffer& values, const vk::Buffer& count);
 
@@ -56,6 +79,8 @@ class RadixSort {
   vk::Pipeline scan_;
   vk::Pipeline scatter_;
   vk::Pipeline copy_;
+  vk::Pipeline histogram_traced_, scan_traced_, scatter_traced_, copy_traced_;
+  vk::Buffer no_trace_;  ///< binding 21 until a trace buffer is attached (the plain kernels never read it)
   VkBuffer bound_keys_ = VK_NULL_HANDLE;
   VkBuffer bound_values_ = VK_NULL_HANDLE;
   VkBuffer bound_count_ = VK_NULL_HANDLE;

@@ -251,6 +251,7 @@ void RayTracingPasses::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& t
     reflection_traced_ =
         create_rt_pipeline(ctx, reflections_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
   }
+  if (compact && sorter_) sorter_->attach_trace_buffer(ctx, trace_buffer);
   if (compact && !compact_traced_.handle()) {
     compact_traced_ = create_rt_pipeline(ctx, compact_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
     consume_traced_ = create_rt_pipeline(ctx, consume_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
@@ -345,9 +346,14 @@ void RayTracingPasses::record_args(VkCommandBuffer cmd) const {
                          VK_ACCESS_2_TRANSFER_READ_BIT);
 }
 
-void RayTracingPasses::record_args_and_sort(VkCommandBuffer cmd) {
-  record_args(cmd);
-  record_sort(cmd);
+std::vector<RadixSort::Step> RayTracingPasses::sort_steps() const {
+  return sorter_ ? sorter_->steps(sort_key_bits(options_.sort)) : std::vector<RadixSort::Step>{};
+}
+
+void RayTracingPasses::record_traced_sort_step(VkCommandBuffer cmd, const RadixSort::Step& step, uint32_t first_group,
+                                               uint32_t groups, uint32_t sampling) {
+  sorter_->record_traced_step(cmd, step, sort_keys_, sort_values_, ray_count_, sort_key_bits(options_.sort), first_group,
+                              groups, sampling);
 }
 
 void RayTracingPasses::record_reset_count(VkCommandBuffer cmd, uint32_t count) const {

@@ -100,9 +100,8 @@ class RayTracingPasses {
   const vk::Image& reflection_accum() const { return accum_; }
 
   /// Memory-trace capture: binds `trace_buffer` (a TraceBufferHeader then TraceRecords) and builds the
-  /// instrumented pipelines of the enabled passes (compiled from the same sources with HP_TRACE).
-  /// Only the instrumented pipelines of the passes to be traced (`shadows`, `reflections`: the compaction
-  /// path's compact and consume) are built.
+  /// instrumented pipelines (compiled from the same sources with HP_TRACE) of the passes to be traced:
+  /// `shadows`, `reflections` (the compaction path's compact, sort kernels and consume).
   void attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer, bool shadows, bool reflections);
   /// Records one slice of a traced pass: workgroup rows [first_row, first_row + rows) of the full
   /// dispatch; every `sample_every`-th workgroup (in dispatch order) records its accesses.
@@ -112,8 +111,13 @@ class RayTracingPasses {
   /// Workgroups of a pass's full dispatch, x and y: 8x8 invocations each, except the consume pass
   /// (64 x 1, one row of ceil(rays / 64) groups; `rays` is read back by the caller).
   glm::uvec2 workgroups(Traced pass, uint32_t rays = 0) const;
-  /// Records the compaction path's untraced middle: the consume dispatch arguments and the sort.
-  void record_args_and_sort(VkCommandBuffer cmd);
+  /// Records the consume dispatch arguments (from the compacted count).
+  void record_args(VkCommandBuffer cmd) const;
+  /// The ray sort's dispatches (none without a sort key), and one slice of one of them traced.
+  std::vector<RadixSort::Step> sort_steps() const;
+  void record_traced_sort_step(VkCommandBuffer cmd, const RadixSort::Step& step, uint32_t first_group,
+                               uint32_t groups, uint32_t sampling);
+  const RadixSort* sorter() const { return sorter_.get(); }
   /// Sets the compacted ray count (capture: restart an overflowed compaction slice).
   void record_reset_count(VkCommandBuffer cmd, uint32_t count) const;
 
@@ -124,7 +128,6 @@ class RayTracingPasses {
  private:
   void bind(VkCommandBuffer cmd, const vk::Pipeline& p) const;
   void dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h) const;
-  void record_args(VkCommandBuffer cmd) const;
 
   RayTracingOptions options_;
   uint32_t width_, height_, grid_w_, grid_h_;

@@ -21,6 +21,10 @@
 #define HP_TBUF_SORT_KEYS 15u
 #define HP_TBUF_SORT_VALUES 16u
 #define HP_TBUF_RAY_COUNT 17u
-#define HP_TBUF_COUNT 18u
+// The radix sort's own buffers (shaders/sort/): the ping-pong halves and the per-block histograms.
+#define HP_TBUF_SORT_SCRATCH_KEYS 18u
+#define HP_TBUF_SORT_SCRATCH_VALUES 19u
+#define HP_TBUF_SORT_HISTOGRAMS 20u
+#define HP_TBUF_COUNT 21u
 
 #endif

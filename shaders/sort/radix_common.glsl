@@ -4,11 +4,15 @@
 #define HP_SORT_RADIX_COMMON_GLSL
 
 #include "sort/radix_config.h"
+#include "common/trace_capture.glsl"
 
 layout(push_constant) uniform RadixPush {
-  uint shift;     // first key bit of this pass's digit
-  uint capacity;  // elements the buffers hold; the live count is clamped to it
-  uint key_mask;  // the caller's significant key bits: a last pass that straddles them ignores the rest
+  uint shift;        // first key bit of this pass's digit
+  uint capacity;     // elements the buffers hold; the live count is clamped to it
+  uint key_mask;     // the caller's significant key bits: a last pass that straddles them ignores the rest
+  uint first_group;  // the block of this dispatch's first workgroup (a traced slice; 0 otherwise)
+  uint sampling;     // the traced variants' workgroup sampling (HP_TRACE_BEGIN)
+  uint to_caller;    // the bound set reads the scratch buffers and writes the caller's (trace buffer ids)
 } pc;
 
 layout(set = 0, binding = 0, std430) readonly buffer KeysIn { uint keys_in[]; };
@@ -22,7 +26,21 @@ layout(set = 0, binding = 4, std430) buffer Histograms { uint histograms[]; };
 // dispatches can be sized for the capacity without a CPU readback.
 layout(set = 0, binding = 5, std430) readonly buffer Count { uint live_count; };
 
-uint radix_count() { return min(live_count, pc.capacity); }
+// The workgroup's block in the whole dispatch (a traced slice starts at first_group). RADIX_TRACE_BEGIN
+// starts the traced variants' recording; a macro, since it needs gl_WorkGroupSize, which a kernel may use
+// only after its local_size declaration.
+#define RADIX_GROUP (gl_WorkGroupID.x + pc.first_group)
+#define RADIX_TRACE_BEGIN() HP_TRACE_BEGIN(uvec2(RADIX_GROUP, 0u), 1u, pc.sampling)
+// Buffer ids for the records: which of the caller's and the scratch buffers the set binds where.
+uint hp_sort_keys_in() { return pc.to_caller != 0u ? HP_TBUF_SORT_SCRATCH_KEYS : HP_TBUF_SORT_KEYS; }
+uint hp_sort_values_in() { return pc.to_caller != 0u ? HP_TBUF_SORT_SCRATCH_VALUES : HP_TBUF_SORT_VALUES; }
+uint hp_sort_keys_out() { return pc.to_caller != 0u ? HP_TBUF_SORT_KEYS : HP_TBUF_SORT_SCRATCH_KEYS; }
+uint hp_sort_values_out() { return pc.to_caller != 0u ? HP_TBUF_SORT_VALUES : HP_TBUF_SORT_SCRATCH_VALUES; }
+
+uint radix_count() {
+  HP_REC_LOAD(HP_TBUF_RAY_COUNT, 0u, 4u);
+  return min(live_count, pc.capacity);
+}
 uint radix_blocks(uint n) { return (n + RADIX_BLOCK - 1u) / RADIX_BLOCK; }
 uint radix_digit(uint key) { return ((key & pc.key_mask) >> pc.shift) & (RADIX_DIGITS - 1u); }
 

@@ -13,6 +13,7 @@ layout(local_size_x = RADIX_THREADS) in;
 shared uint s_part[RADIX_THREADS];
 
 void main() {
+  RADIX_TRACE_BEGIN();
   const uint nb = radix_blocks(radix_count());
   const uint t = gl_LocalInvocationID.x;
   const uint d = t / LANES;
@@ -22,7 +23,10 @@ void main() {
   const uint b1 = min(b0 + per, nb);
 
   uint sum = 0u;
-  for (uint b = b0; b < b1; ++b) sum += histograms[b * RADIX_DIGITS + d];
+  for (uint b = b0; b < b1; ++b) {
+    HP_REC_LOAD(HP_TBUF_SORT_HISTOGRAMS, (b * RADIX_DIGITS + d) * 4u, 4u);
+    sum += histograms[b * RADIX_DIGITS + d];
+  }
   s_part[t] = sum;  // t == d * LANES + j: digit-major, lanes in block order
   memoryBarrierShared();
   barrier();
@@ -39,7 +43,9 @@ void main() {
   barrier();
   uint run = s_part[t];
   for (uint b = b0; b < b1; ++b) {
+    HP_REC_LOAD(HP_TBUF_SORT_HISTOGRAMS, (b * RADIX_DIGITS + d) * 4u, 4u);
     const uint c = histograms[b * RADIX_DIGITS + d];
+    HP_REC_STORE(HP_TBUF_SORT_HISTOGRAMS, (b * RADIX_DIGITS + d) * 4u, 4u);
     histograms[b * RADIX_DIGITS + d] = run;
     run += c;
   }

@@ -23,8 +23,9 @@ shared uint s_group[GROUPS];       // their sums per group of GROUP_SIZE threads
 shared uint s_base[RADIX_DIGITS];  // global offset of the digit minus its block-local start
 
 void main() {
+  RADIX_TRACE_BEGIN();
+  const uint block = RADIX_GROUP;
   const uint n = radix_count();
-  const uint block = gl_WorkGroupID.x;
   if (block >= radix_blocks(n)) return;
   const uint t = gl_LocalInvocationID.x;
   const uint first = block * RADIX_BLOCK + t * RADIX_ITEMS;
@@ -32,7 +33,10 @@ void main() {
 
   for (uint d = 0u; d < RADIX_DIGITS; ++d) s_cnt[d * RADIX_THREADS + t] = 0u;
   // Only thread t touches column t here, so plain increments suffice.
-  for (uint i = first; i < last; ++i) s_cnt[radix_digit(keys_in[i]) * RADIX_THREADS + t] += 1u;
+  for (uint i = first; i < last; ++i) {
+    HP_REC_LOAD(hp_sort_keys_in(), i * 4u, 4u);
+    s_cnt[radix_digit(keys_in[i]) * RADIX_THREADS + t] += 1u;
+  }
   memoryBarrierShared();
   barrier();
 
@@ -76,17 +80,24 @@ void main() {
   barrier();
   // s_cnt[d][0] is where digit d starts inside the block; the output index of an element is
   // global_offset[block][d] + (its block-local position - that start). Read before thread 0 bumps it.
-  if (t < RADIX_DIGITS) s_base[t] = histograms[block * RADIX_DIGITS + t] - s_cnt[t * RADIX_THREADS];
+  if (t < RADIX_DIGITS) {
+    HP_REC_LOAD(HP_TBUF_SORT_HISTOGRAMS, (block * RADIX_DIGITS + t) * 4u, 4u);
+    s_base[t] = histograms[block * RADIX_DIGITS + t] - s_cnt[t * RADIX_THREADS];
+  }
   memoryBarrierShared();
   barrier();
 
   for (uint i = first; i < last; ++i) {
+    HP_REC_LOAD(hp_sort_keys_in(), i * 4u, 4u);
     const uint key = keys_in[i];
     const uint cell = radix_digit(key) * RADIX_THREADS + t;
     const uint pos = s_cnt[cell];
     s_cnt[cell] = pos + 1u;
     const uint dst = s_base[radix_digit(key)] + pos;  // unsigned wrap-around cancels exactly
+    HP_REC_STORE(hp_sort_keys_out(), dst * 4u, 4u);
     keys_out[dst] = key;
+    HP_REC_LOAD(hp_sort_values_in(), i * 4u, 4u);
+    HP_REC_STORE(hp_sort_values_out(), dst * 4u, 4u);
     values_out[dst] = values_in[i];
   }
 }

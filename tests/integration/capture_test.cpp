@@ -270,21 +270,24 @@ TEST(Capture, CompactionSubPassesAreTracedWithoutLosingRays) {
   ASSERT_GT(rays, 500u);
 
   const Captured big = capture(*ctx, scene, s, CaptureOptions{}, "compact_big");
-  ASSERT_EQ(big.passes.size(), 2u);
-  EXPECT_EQ(big.passes[0].pass, "compact");
-  EXPECT_EQ(big.passes[1].pass, "consume");
-  EXPECT_EQ(big.passes[1].workgroups, (rays + 63) / 64) << "one consume thread per compacted ray";
+  // The octant key is 3 bits: one digit pass of the radix sort, then the copy back from the scratch
+  // buffers; each of its dispatches is a traced pass of its own.
+  std::vector<std::string> names;
+  for (const auto& p : big.passes) names.push_back(p.pass);
+  ASSERT_EQ(names, (std::vector<std::string>{"compact", "sort_histogram_0", "sort_scan_0", "sort_scatter_0", "sort_copy",
+                                             "consume"}));
+  const auto& consume = big.passes.back();
+  EXPECT_EQ(consume.workgroups, (rays + 63) / 64) << "one consume thread per compacted ray";
   EXPECT_EQ(std::memcmp(big.image.rgba.data(), untraced.rgba.data(), untraced.rgba.size() * 4), 0);
 
   CaptureOptions o;
-  const uint64_t least = std::min(big.passes[0].records, big.passes[1].records);
+  const uint64_t least = std::min(big.passes[0].records, consume.records);
   o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (least * 3 / 4);
   const Captured tiny = capture(*ctx, scene, s, o, "compact_tiny");
-  ASSERT_EQ(tiny.passes.size(), 2u);
+  ASSERT_EQ(tiny.passes.size(), big.passes.size());
   EXPECT_GT(tiny.passes[0].reruns, 0u) << "the compaction's first slice must overflow";
-  EXPECT_EQ(tiny.passes[0].records, big.passes[0].records);
-  EXPECT_EQ(tiny.passes[1].workgroups, big.passes[1].workgroups) << "a re-run slice appended its rays twice";
-  EXPECT_EQ(tiny.passes[1].records, big.passes[1].records);
+  for (size_t i = 0; i < big.passes.size(); ++i) EXPECT_EQ(tiny.passes[i].records, big.passes[i].records) << names[i];
+  EXPECT_EQ(tiny.passes.back().workgroups, consume.workgroups) << "a re-run slice appended its rays twice";
   EXPECT_EQ(std::memcmp(tiny.image.rgba.data(), untraced.rgba.data(), untraced.rgba.size() * 4), 0);
   trace::TraceReader r(big.file);
   std::set<uint32_t> buffers;
@@ -292,6 +295,22 @@ TEST(Capture, CompactionSubPassesAreTracedWithoutLosingRays) {
   for (uint32_t b : {HP_TBUF_COMPACT_RAYS, HP_TBUF_SORT_KEYS, HP_TBUF_SORT_VALUES, HP_TBUF_RAY_COUNT}) {
     EXPECT_TRUE(buffers.count(b)) << "compaction never touched buffer " << b;
   }
+  // The sort's passes: every live key read by the histogram, the scatter moving every pair into the
+  // scratch buffers, the copy moving them back (records per kernel follow from the ray count).
+  auto accesses = [&](uint32_t pass) {
+    std::map<std::pair<uint32_t, uint32_t>, uint64_t> n;  // (buffer, kind) -> records
+    for (const auto& rec : r.read_pass(pass)) ++n[{gpu::trace_buffer(rec.info), gpu::trace_kind(rec.info)}];
+    return n;
+  };
+  const auto hist = accesses(1), scatter = accesses(3), copy = accesses(4);
+  EXPECT_EQ((hist.at({HP_TBUF_SORT_KEYS, HP_TRACE_LOAD})), rays);
+  EXPECT_GT((hist.at({HP_TBUF_SORT_HISTOGRAMS, HP_TRACE_STORE})), 0u);
+  EXPECT_EQ((scatter.at({HP_TBUF_SORT_KEYS, HP_TRACE_LOAD})), 2u * rays) << "counted, then moved";
+  EXPECT_EQ((scatter.at({HP_TBUF_SORT_SCRATCH_KEYS, HP_TRACE_STORE})), rays);
+  EXPECT_EQ((scatter.at({HP_TBUF_SORT_SCRATCH_VALUES, HP_TRACE_STORE})), rays);
+  EXPECT_EQ((copy.at({HP_TBUF_SORT_SCRATCH_KEYS, HP_TRACE_LOAD})), rays);
+  EXPECT_EQ((copy.at({HP_TBUF_SORT_VALUES, HP_TRACE_STORE})), rays);
+  EXPECT_TRUE(accesses(2).count({HP_TBUF_SORT_HISTOGRAMS, HP_TRACE_STORE})) << "the scan rewrites the histograms";
   fs::remove(big.file);
   fs::remove(tiny.file);
 }
