@@ -499,8 +499,8 @@ void comparisons_section(const std::vector<CellResult>& cells, std::string& s) {
   }
   s += "For each axis and each pair of its values, cells whose other axes are equal are compared. Change is the "
        "ratio of the medians minus one; p is a two-sided Mann-Whitney U test over the raw frame samples of the "
-       "two cells, per comparison and not corrected for multiplicity (the gate corrects; with fewer than 4 frames "
-       "per side no p-value can fall below 0.05). Counter changes are per frame; \"=\" means identical.\n\n";
+       "two cells, per comparison and not corrected for multiplicity (the gate corrects; with fewer than 4 untied frames "
+       "per side no p-value can fall below 0.05; tied samples use the normal approximation). Counter changes are per frame; \"=\" means identical.\n\n";
   for (const std::string& axis : axes) {
     std::vector<json> values;
     for (const CellResult& c : cells)

@@ -152,8 +152,10 @@ MedianCi median_ci_bootstrap(std::span<const double> samples, std::size_t resamp
   ci.method = "bootstrap-percentile";
   ci.low = quantile_sorted(medians, tail);
   ci.high = quantile_sorted(medians, 1.0 - tail);
-  // One or two values cannot say anything about spread; flag it like the order-statistic CI.
-  ci.valid = samples.size() >= 3;
+  // Every resampled median lies within [min, max], which holds the true median only with probability
+  // 1 - 2^(1-n): below the level (n < 6 at 95%) the interval cannot have its nominal coverage, so it is
+  // flagged like the order-statistic CI.
+  ci.valid = 1.0 - std::ldexp(1.0, 1 - int(std::min<std::size_t>(samples.size(), 64))) >= level;
   return ci;
 }
 
@@ -197,7 +199,7 @@ double hodges_lehmann_shift(std::span<const double> x, std::span<const double> y
   return median_in_place(d);
 }
 
-MannWhitneyResult mann_whitney_u(std::span<const double> x, std::span<const double> y) {
+MannWhitneyResult mann_whitney_u(std::span<const double> x, std::span<const double> y, bool with_shift) {
   require_finite(x, "Mann-Whitney x");
   require_finite(y, "Mann-Whitney y");
   const std::size_t m = x.size();
@@ -232,7 +234,7 @@ MannWhitneyResult mann_whitney_u(std::span<const double> x, std::span<const doub
   const double dm = static_cast<double>(m);
   const double dn = static_cast<double>(n);
   r.u = rank_sum_x - dm * (dm + 1.0) / 2.0;
-  r.hodges_lehmann = hodges_lehmann_shift(x, y);
+  if (with_shift) r.hodges_lehmann = hodges_lehmann_shift(x, y);
 
   if (m < 50 && n < 50 && !ties) {
     r.exact = true;

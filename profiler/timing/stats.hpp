@@ -99,11 +99,13 @@ struct MannWhitneyResult {
   double p_value = 1.0;    // two-sided
   bool exact = false;
   double z = 0.0;          // continuity-corrected z of the normal approximation; 0 when exact
-  double hodges_lehmann = 0.0;  // median of all x_i - y_j: the location shift of x relative to y
+  // Median of all x_i - y_j, the location shift of x relative to y: only with `with_shift` (it holds all
+  // m * n differences: 800 MB for 10,000 frames a side), else 0.
+  double hodges_lehmann = 0.0;
 };
 
 // Both samples non-empty and finite, else std::invalid_argument.
-MannWhitneyResult mann_whitney_u(std::span<const double> x, std::span<const double> y);
+MannWhitneyResult mann_whitney_u(std::span<const double> x, std::span<const double> y, bool with_shift = false);
 
 // Hodges-Lehmann two-sample shift: median of the m*n differences x_i - y_j.
 double hodges_lehmann_shift(std::span<const double> x, std::span<const double> y);

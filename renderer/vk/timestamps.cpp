@@ -61,11 +61,12 @@ std::vector<TimestampQueries::Interval> TimestampQueries::read(Context&) const {
   std::vector<uint64_t> ticks(used_);
   HP_VK(vkGetQueryPoolResults(device_, pool_, 0, used_, ticks.size() * sizeof(uint64_t), ticks.data(),
                               sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+  auto unwrap = [&](uint64_t t) { return unwrapped_timestamp_ns(t, ticks[0], mask_, period_ns_); };
   for (size_t p = 0; p < slots_.size(); ++p) {
     Interval iv;
     iv.pass = names_[p];
-    iv.begin_ns = static_cast<uint64_t>(std::llround(double(ticks[slots_[p].first] & mask_) * period_ns_));
-    iv.end_ns = static_cast<uint64_t>(std::llround(double(ticks[slots_[p].second] & mask_) * period_ns_));
+    iv.begin_ns = static_cast<uint64_t>(std::llround(unwrap(ticks[slots_[p].first])));
+    iv.end_ns = static_cast<uint64_t>(std::llround(unwrap(ticks[slots_[p].second])));
     out.push_back(iv);
   }
   return out;

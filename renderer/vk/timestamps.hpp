@@ -13,6 +13,14 @@
 
 namespace hp::vk {
 
+/// A raw timestamp in ns, unwrapped against the frame's first one: the counter has timestampValidBits bits
+/// (`mask`) and wraps (every 68.7 s at 36 bits and 1 ns), so each tick is taken as `first` plus its
+/// distance from `first` modulo the counter. A frame that spans a wrap keeps ordered, positive intervals.
+inline double unwrapped_timestamp_ns(uint64_t tick, uint64_t first, uint64_t mask, double period_ns) {
+  const uint64_t base = first & mask;
+  return double(base + (((tick & mask) - base) & mask)) * period_ns;
+}
+
 class TimestampQueries {
  public:
   /// max_passes == 0 creates no pool: supported() is false, as on a queue without timestamps.

@@ -7,6 +7,7 @@
 #include "bvh/traverse.hpp"
 #include "frame.hpp"
 #include "scene/load.hpp"
+#include "vk/timestamps.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -200,6 +201,18 @@ TEST(RayTrace, AShadowOnlyFrameHoldsNothingForReflections) {
   for (size_t i = 0; i < mask.rgba.size(); i += 4) dark += mask.rgba[i] == 0.0f;
   EXPECT_GT(dark, 0u) << "the shadow pass still works";
   EXPECT_THROW(frame.read_aov(Aov::reflection), InputError);
+}
+
+// Audit find (2026-11-30): ticks were masked to timestampValidBits but not unwrapped, so a frame across the
+// counter's wrap had a pass ending before it began, and the run aborted.
+TEST(Timestamps, AFrameAcrossTheCounterWrapStaysOrdered) {
+  const uint64_t mask = (uint64_t(1) << 36) - 1;
+  const uint64_t first = mask - 100;  // 101 ticks before the wrap
+  const double begin = vk::unwrapped_timestamp_ns(first, first, mask, 1.0);
+  const double end = vk::unwrapped_timestamp_ns(50, first, mask, 1.0);  // after the wrap
+  EXPECT_EQ(end - begin, 151.0);
+  // Bits above the valid ones are ignored; without a wrap the value is the tick itself.
+  EXPECT_EQ(vk::unwrapped_timestamp_ns((uint64_t(7) << 40) | 1000, 500, mask, 2.0), 2000.0);
 }
 
 TEST(RayTrace, TimestampsAreOrderedPerPass) {

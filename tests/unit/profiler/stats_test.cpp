@@ -174,6 +174,21 @@ TEST(MedianCi, CoversTheTrueMedianAtLeastAtItsLevel) {
   EXPECT_LT(rate, 0.975);
 }
 
+// Audit find (2026-11-30): every resampled median lies in [min, max], which holds the median only with
+// probability 1 - 2^(1-n): a bootstrap interval of 5 values cannot have 95% coverage and says so.
+TEST(MedianCi, BootstrapOfFewValuesIsFlagged) {
+  SummaryOptions opt;
+  opt.bootstrap_resamples = 500;
+  for (std::size_t n : {3u, 5u, 6u}) {
+    std::vector<double> v;
+    for (std::size_t i = 1; i <= n; ++i) v.push_back(double(i));
+    const Summary s = summarize(v, opt);
+    ASSERT_TRUE(s.median_ci_bootstrap.has_value());
+    EXPECT_EQ(s.median_ci_bootstrap->valid, n >= 6) << n;
+    EXPECT_EQ(s.median_ci.valid, n >= 6) << n;
+  }
+}
+
 TEST(MedianCi, BootstrapIsDeterministicAndPlausible) {
   std::vector<double> v;
   for (int i = 1; i <= 50; ++i) v.push_back(i);

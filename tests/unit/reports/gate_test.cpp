@@ -114,6 +114,46 @@ TEST(Gate, HolmCorrectionDecides) {
   }
 }
 
+// Audit find (2026-11-30): the two-sided test is significant, the median rose 19%, yet most candidate
+// frames are faster (bimodal frame times, as stalls make them). That is not a regression.
+TEST(Gate, AMedianThatDisagreesWithTheRankTestDoesNotFail) {
+  auto bimodal = [](double low_ms, std::size_t n_low, double high_ms, std::size_t n_high, std::uint64_t seed) {
+    std::vector<double> v = test::samples(low_ms * 1e6, 0.01, n_low, seed);
+    const std::vector<double> hi = test::samples(high_ms * 1e6, 0.01, n_high, seed + 1);
+    v.insert(v.end(), hi.begin(), hi.end());
+    return v;
+  };
+  SynthCell b, c;
+  b.passes = {{"shadows", bimodal(1.0, 27, 1.5, 23, 1)}};
+  c.passes = {{"shadows", bimodal(0.5, 23, 1.2, 27, 3)}};
+  const GateOutcome o = run_gate(side({b}, "a"), side({c}, "b"), {});
+  const GateRow* r = row(o, "time shadows (ms)");
+  ASSERT_NE(r, nullptr);
+  ASSERT_TRUE(r->p_holm.has_value());
+  EXPECT_LT(*r->p_holm, 0.05) << "the rank test is significant";
+  EXPECT_GT(std::stod(r->candidate), std::stod(r->baseline) * 1.1) << "and the median rose past the threshold";
+  EXPECT_EQ(r->verdict, "pass") << format_gate(o);
+  EXPECT_EQ(o.exit_code, 0);
+}
+
+// Holm tests the largest p at alpha itself: with 4 untied frames a side (smallest p 0.0286) a comparison
+// can fail even among several, so no "cannot fail" note; with 3 a side (0.1) it cannot.
+TEST(Gate, TheCannotFailNoteFollowsTheSmallestPossibleP) {
+  auto cell = [](int i, std::size_t n, std::uint64_t side_seed) {  // no ties between the two sides
+    SynthCell c;
+    c.axes = {{"seed", i}};
+    c.passes = {{"shadows", test::samples(3e6 + 777.0 * double(side_seed), 0.02, n, 10 + i + 100 * side_seed)}};
+    return c;
+  };
+  auto note = [](const GateOutcome& o) {
+    for (const std::string& n : o.notes)
+      if (n.find("cannot fail") != std::string::npos) return true;
+    return false;
+  };
+  EXPECT_FALSE(note(run_gate(side({cell(0, 4, 1), cell(1, 20, 1)}, "a"), side({cell(0, 4, 2), cell(1, 20, 2)}, "b"), {})));
+  EXPECT_TRUE(note(run_gate(side({cell(0, 3, 1), cell(1, 20, 1)}, "a"), side({cell(0, 3, 2), cell(1, 20, 2)}, "b"), {})));
+}
+
 TEST(Gate, DifferentDevicesCannotCompareTimings) {
   SynthCell b = with_passes(30, 1), c = with_passes(30, 2, 0.03, 1.5);
   c.device = "NVIDIA H100";
