@@ -36,6 +36,19 @@ std::vector<VkDescriptorSetLayoutBinding> sort_bindings() {
   return b;
 }
 
+// Whatever produced the keys, values or count (a compute pass, a transfer) finishes before the sort ...
+void before_sort(VkCommandBuffer cmd) {
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+}
+
+// ... and the sorted buffers are visible to whatever comes after.
+void after_sort(VkCommandBuffer cmd) {
+  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                     VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT);
+}
+
 void compute_to_compute(VkCommandBuffer cmd) {
   vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
@@ -110,23 +123,27 @@ void RadixSort::record_traced_step(VkCommandBuffer cmd, const Step& step, const 
                                    uint32_t first_group, uint32_t groups, uint32_t sampling) {
   if (!histogram_traced_.handle()) throw std::logic_error("RadixSort::record_traced_step: attach_trace_buffer first");
   bind(keys, values, count);
+  before_sort(cmd);
+  record_step(cmd, step, key_bits, first_group, groups, sampling, true);
+  after_sort(cmd);
+}
+
+void RadixSort::record_step(VkCommandBuffer cmd, const Step& step, uint32_t key_bits, uint32_t first_group,
+                            uint32_t groups, uint32_t sampling, bool traced) const {
   const VkPipelineLayout layout = to_scratch_.pipeline_layout();
-  const uint32_t key_mask = key_bits >= 32 ? 0xFFFFFFFFu : ((1u << key_bits) - 1u);
-  // Pass p reads the caller's buffers when p is even (record()'s ping-pong); the copy reads the scratch.
+  // Digit pass p reads the caller's buffers when p is even and the scratch ones when odd (ping-pong); the
+  // final copy reads the scratch buffers.
   const bool to_caller = step.kernel == Step::Kernel::copy || step.digit_pass % 2 == 1;
-  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_WRITE_BIT,
-                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
-  VkDescriptorSet s = (to_caller ? to_caller_ : to_scratch_).set();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &s, 0, nullptr);
+  const VkDescriptorSet set = (to_caller ? to_caller_ : to_scratch_).set();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0, nullptr);
+  const uint32_t key_mask = key_bits >= 32 ? 0xFFFFFFFFu : ((1u << key_bits) - 1u);
   const RadixPush push{step.kernel == Step::Kernel::copy ? 0u : step.digit_pass * RADIX_BITS, capacity_, key_mask,
                        first_group, sampling, to_caller ? 1u : 0u};
   vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
-  const vk::Pipeline* p[] = {&histogram_traced_, &scan_traced_, &scatter_traced_, &copy_traced_};
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p[int(step.kernel)]->handle());
+  const vk::Pipeline* plain[] = {&histogram_, &scan_, &scatter_, &copy_};
+  const vk::Pipeline* instrumented[] = {&histogram_traced_, &scan_traced_, &scatter_traced_, &copy_traced_};
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, (traced ? instrumented : plain)[int(step.kernel)]->handle());
   vkCmdDispatch(cmd, groups, 1, 1);
-  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                     VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT);
 }
 
 void RadixSort::bind(const vk::Buffer& keys, const vk::Buffer& values, const vk::Buffer& count) {
@@ -157,44 +174,15 @@ void RadixSort::bind(const vk::Buffer& keys, const vk::Buffer& values, const vk:
 void RadixSort::record(VkCommandBuffer cmd, const vk::Buffer& keys, const vk::Buffer& values,
                        const vk::Buffer& count, uint32_t key_bits) {
   if (key_bits > 32) throw InputError("radix sort: key_bits " + std::to_string(key_bits) + " exceeds 32");
-  const uint32_t passes = pass_count(key_bits);
-  if (passes == 0) return;  // no significant bits: the stable order is the input order
+  const std::vector<Step> all = steps(key_bits);
+  if (all.empty()) return;  // no significant bits: the stable order is the input order
   bind(keys, values, count);
-
-  const VkPipelineLayout layout = to_scratch_.pipeline_layout();
-  const uint32_t key_mask = key_bits >= 32 ? 0xFFFFFFFFu : ((1u << key_bits) - 1u);
-  // Whatever produced the keys, values or count (a compute pass, a transfer) must finish first.
-  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_WRITE_BIT,
-                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
-  auto bind_set = [&](const vk::DescriptorSet& set) {
-    VkDescriptorSet s = set.set();
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &s, 0, nullptr);
-  };
-  auto dispatch = [&](const vk::Pipeline& p, uint32_t groups) {
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.handle());
-    vkCmdDispatch(cmd, groups, 1, 1);
-  };
-  for (uint32_t pass = 0; pass < passes; ++pass) {
-    bind_set(pass % 2 == 0 ? to_scratch_ : to_caller_);
-    const RadixPush push{pass * RADIX_BITS, capacity_, key_mask, 0, 0, pass % 2 == 1 ? 1u : 0u};
-    vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
-    dispatch(histogram_, blocks_);
-    compute_to_compute(cmd);
-    dispatch(scan_, 1);
-    compute_to_compute(cmd);
-    dispatch(scatter_, blocks_);
-    compute_to_compute(cmd);
+  before_sort(cmd);
+  for (size_t i = 0; i < all.size(); ++i) {
+    if (i > 0) compute_to_compute(cmd);
+    record_step(cmd, all[i], key_bits, 0, all[i].groups, 0, false);
   }
-  if (passes % 2 == 1) {
-    // The last pass wrote the scratch buffers; to_caller_ reads them and writes the caller's.
-    bind_set(to_caller_);
-    const RadixPush push{0, capacity_, key_mask, 0, 0, 1};
-    vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
-    dispatch(copy_, blocks_);
-  }
-  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                     VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT);
+  after_sort(cmd);
 }
 
 }  // namespace hp

@@ -64,6 +64,9 @@ class RadixSort {
 
  private:
   void bind(const vk::Buffer& keys, const vk::Buffer& values, const vk::Buffer& count);
+  /// One step's set, push constants, pipeline (plain or instrumented) and dispatch, no barriers.
+  void record_step(VkCommandBuffer cmd, const Step& step, uint32_t key_bits, uint32_t first_group, uint32_t groups,
+                   uint32_t sampling, bool traced) const;
 
   uint32_t capacity_ = 0;
   uint32_t blocks_ = 0;  ///< workgroups of the block kernels, covering the capacity
