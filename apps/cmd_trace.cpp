@@ -18,6 +18,7 @@
 #include <fstream>
 #include <memory>
 #include <sstream>
+#include <stdexcept>
 
 namespace hp::cli {
 
@@ -66,26 +67,13 @@ void run_trace(const TraceArgs& a) {
   co.sample_every = a.sample_every;
   co.sample_block = a.sample_block;
   co.buffer_bytes = uint64_t(a.buffer_mib) << 20;
-  // The outputs, the preset and the export's pass and CU are checked before any work, so a typo costs
-  // nothing and leaves no trace file behind.
+  // The outputs, the preset and the export's CU are checked before any work, so a typo costs nothing and
+  // leaves no trace file behind (the export's pass once the frame knows its passes, still before the capture).
   check_output_path(a.out, "--out");
   if (!a.image_out.empty()) check_image_output(a.image_out, "--image");
   const cachesim::Preset preset = a.din_out.empty() ? cachesim::Preset{} : cachesim::find_preset(a.preset);
   if (!a.din_out.empty()) {
     check_output_path(a.din_out, "--export-din");
-    // The names the capture gives its passes: the compaction path traces its compact and consume passes.
-    std::vector<std::string> traced;
-    if (co.shadows) traced.push_back("shadows");
-    if (co.reflections && settings.rt.reflection_path == ReflectionPath::compact) {
-      traced.insert(traced.end(), {"compact", "consume"});
-    } else if (co.reflections) {
-      traced.push_back("reflections");
-    }
-    if (!a.din_pass.empty() && std::find(traced.begin(), traced.end(), a.din_pass) == traced.end()) {
-      std::string names;
-      for (const std::string& n : traced) names += (names.empty() ? "" : ", ") + n;
-      throw InputError("--din-pass " + a.din_pass + ": not a traced pass (traced: " + names + ")");
-    }
     if (a.din_cu >= preset.compute_units) {
       throw InputError("--din-cu " + std::to_string(a.din_cu) + ": preset " + preset.name + " has " +
                        std::to_string(preset.compute_units) + " compute units");
@@ -97,6 +85,12 @@ void run_trace(const TraceArgs& a) {
   const Camera camera = a.frame.view.camera_for(scene, float(settings.width) / float(settings.height));
   vk::Context ctx({a.frame.device, a.frame.validate, true});
   Frame frame(ctx, scene, camera, settings);
+  const std::vector<std::string> traced = frame.captured_pass_names(co);
+  if (!a.din_out.empty() && !a.din_pass.empty() && std::find(traced.begin(), traced.end(), a.din_pass) == traced.end()) {
+    std::string names;
+    for (const std::string& n : traced) names += (names.empty() ? "" : ", ") + n;
+    throw InputError("--din-pass " + a.din_pass + ": not a traced pass (traced: " + names + ")");
+  }
   for (uint32_t i = 0; i < a.frames_before; ++i) frame.render(FrameQueries::none);  // untimed: nobody reads them
   const trace::TraceHeader header = frame.trace_header(co.tiled_images);
   const auto t0 = std::chrono::steady_clock::now();
@@ -117,22 +111,15 @@ void run_trace(const TraceArgs& a) {
               ctx.info().name.c_str(), s, a.out.c_str());
   if (!a.din_out.empty()) {
     trace::TraceReader reader(a.out);
-    int pass = -1;
-    for (size_t i = 0; i < reader.passes().size(); ++i) {
-      if (a.din_pass.empty() || reader.passes()[i].name == a.din_pass) {
-        pass = int(i);
-        break;
-      }
-    }
-    if (pass < 0) throw InputError("--din-pass " + a.din_pass + ": not a traced pass");
-    if (a.din_cu >= preset.compute_units) {
-      throw InputError("--din-cu " + std::to_string(a.din_cu) + ": preset " + preset.name + " has " +
-                       std::to_string(preset.compute_units) + " compute units");
+    // The file's passes are captured_pass_names' (checked above): the named one, or the first.
+    const uint32_t pass = a.din_pass.empty() ? 0u : uint32_t(std::find(traced.begin(), traced.end(), a.din_pass) - traced.begin());
+    if (pass >= reader.passes().size() || reader.passes()[pass].name != traced[pass]) {
+      throw std::logic_error("trace: the capture's passes are not captured_pass_names'");
     }
     cli::AtomicOutput out(a.din_out);
     const uint64_t lines = cachesim::export_din(
         out.stream(), preset, reader.header(), reader.passes()[pass],
-        [&](cachesim::Simulator& sim) { cachesim::feed_slices(sim, reader, uint32_t(pass)); }, a.din_cu);
+        [&](cachesim::Simulator& sim) { cachesim::feed_slices(sim, reader, pass); }, a.din_cu);
     out.commit();
     std::printf("Dinero export: %llu requests of CU %u (%s, pass %s) -> %s\n", (unsigned long long)lines, a.din_cu,
                 preset.name.c_str(), reader.passes()[pass].name.c_str(), a.din_out.c_str());

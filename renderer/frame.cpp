@@ -279,6 +279,22 @@ trace::TraceHeader Frame::trace_header(bool tiled) const {
   return h;
 }
 
+std::vector<std::string> Frame::captured_pass_names(const CaptureOptions& o) const {
+  std::vector<std::string> names;
+  if (!rt_passes_) return names;
+  if (settings_.rt.shadows && o.shadows) names.push_back("shadows");
+  if (settings_.rt.reflections && o.reflections) {
+    if (settings_.rt.reflection_path == ReflectionPath::compact) {
+      names.push_back("compact");
+      for (const RadixSort::Step& step : rt_passes_->sort_steps()) names.push_back(step.name);
+      names.push_back("consume");
+    } else {
+      names.push_back("reflections");
+    }
+  }
+  return names;
+}
+
 std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace::TraceSink& writer) {
   if (!rt_passes_) throw InputError("trace: no ray-tracing pass is enabled, nothing to trace");
   if (o.sample_every == 0 || o.sample_every > 0xFFFFFu) {

@@ -108,6 +108,10 @@ class Frame {
   /// simulator, both) before the next slice runs (bounded memory). A slice that overflows is re-run with fewer workgroup rows; a single row that
   /// does not fit is an InputError naming the limit. The image equals the untraced one.
   std::vector<CapturedPass> render_captured(const CaptureOptions& options, trace::TraceSink& sink);
+  /// The passes render_captured(options) traces, in its order: "shadows"; "reflections", or on the compaction
+  /// path "compact", the sort's steps (RadixSort::Step::name) and "consume". Known before the capture, so
+  /// a command can check a pass name before any work.
+  std::vector<std::string> captured_pass_names(const CaptureOptions& options) const;
   /// The trace file header for this frame: image size and the buffer table (ids of trace_buffers.h,
   /// consecutive 4 KiB-aligned synthetic base addresses, image layouts).
   trace::TraceHeader trace_header(bool tiled_images) const;

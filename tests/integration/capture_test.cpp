@@ -276,6 +276,7 @@ TEST(Capture, CompactionSubPassesAreTracedWithoutLosingRays) {
   for (const auto& p : big.passes) names.push_back(p.pass);
   ASSERT_EQ(names, (std::vector<std::string>{"compact", "sort_histogram_0", "sort_scan_0", "sort_scatter_0", "sort_copy",
                                              "consume"}));
+  EXPECT_EQ(plain.captured_pass_names(CaptureOptions{}), names) << "what a command checks names against";
   const auto& consume = big.passes.back();
   EXPECT_EQ(consume.workgroups, (rays + 63) / 64) << "one consume thread per compacted ray";
   EXPECT_EQ(std::memcmp(big.image.rgba.data(), untraced.rgba.data(), untraced.rgba.size() * 4), 0);

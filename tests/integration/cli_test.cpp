@@ -123,6 +123,12 @@ TEST(Cli, CachesimExportsOneComputeUnitOrNamesTheLimitAndWritesNothing) {
   EXPECT_EQ(lines, reported);
   EXPECT_GT(lines, 0u);
   EXPECT_FALSE(fs::exists(din.string() + ".tmp"));
+  // The sort's dispatches are traced passes too: `trace` can export one (checked before the capture).
+  r = run("trace --scene builtin:cornell --width 32 --height 24 --reflection-path compact --sort octant --passes reflections "
+          "--out " + trace.string() + " --export-din " + (d / "sort.din").string() + " --din-pass sort_scatter_0");
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("pass sort_scatter_0"), std::string::npos) << r.output;
+  EXPECT_TRUE(fs::exists(d / "sort.din"));
   fs::remove_all(d);
 }
 
