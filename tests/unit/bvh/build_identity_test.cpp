@@ -1,0 +1,153 @@
+// The builders' output is pinned: for fixed inputs and options, the flattened nodes and the primitive order
+// hash to values recorded from the reference implementation of the binned SAH builder. The CI gate's
+// metrics (BVH shape, cache counts) and the GPU = CPU agreement depend on the exact tree, so a faster
+// builder must make exactly the same decisions (bins, splits, ties, partition order) whatever the thread
+// count. A failure here means the tree changed: a new tree is a new, non-default option, not a new default.
+#include "bvh/bvh.hpp"
+#include "bvh_test_scenes.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cinttypes>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#if HP_BVH_TESTS_HAVE_SCENE
+#include "scene/load.hpp"
+#include "scene/scene.hpp"
+
+#include <filesystem>
+#endif
+
+namespace hp::bvh {
+namespace {
+
+using testing::exponential_clusters;
+using testing::random_soup;
+using testing::terrain;
+using testing::uv_sphere;
+
+/// FNV-1a over the flattened nodes and the leaf order.
+uint64_t tree_hash(const Bvh& b) {
+  uint64_t h = 1469598103934665603ull;
+  const auto mix = [&h](const void* p, std::size_t n) {
+    const auto* c = static_cast<const unsigned char*>(p);
+    for (std::size_t i = 0; i < n; ++i) {
+      h ^= c[i];
+      h *= 1099511628211ull;
+    }
+  };
+  mix(b.nodes.data(), b.nodes.size() * sizeof(gpu::BvhNode));
+  mix(b.prim_ids.data(), b.prim_ids.size() * sizeof(uint32_t));
+  return h;
+}
+
+struct Pinned {
+  std::size_t nodes;
+  std::size_t depth_limited;
+  uint64_t hash;
+};
+
+std::string hex(uint64_t h) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "0x%016" PRIx64, h);
+  return buf;
+}
+
+void expect_pinned(const char* what, const Bvh& b, const Pinned& want) {
+  EXPECT_EQ(b.nodes.size(), want.nodes) << what;
+  EXPECT_EQ(b.depth_limited_splits, want.depth_limited) << what;
+  EXPECT_EQ(hex(tree_hash(b)), hex(want.hash)) << what << " (nodes " << b.nodes.size() << ", depth-limited splits "
+                                              << b.depth_limited_splits << ")";
+}
+
+BuildOptions with_threads(int threads) {
+  BuildOptions o;
+  o.threads = threads;
+  return o;
+}
+
+TEST(BvhBuildIdentity, ProceduralScenesBuildThePinnedTrees) {
+  // 239,200 triangles: large enough that the builder forks and the top levels use the threaded paths.
+  const auto sphere = uv_sphere(300, 400).triangles();
+  for (const int threads : {1, 2, 3, 8}) {
+    const Pinned want{286607, 0, 0x53d1155c800e1dc0ull};
+    expect_pinned(("sphere threads " + std::to_string(threads)).c_str(), build_bvh(sphere, with_threads(threads)), want);
+  }
+  {
+    BuildOptions o;
+    o.all_axes = false;
+    expect_pinned("terrain largest axis", build_bvh(terrain(150).triangles(), o), Pinned{54765, 0, 0x223054e7d2d6a478ull});
+  }
+  {
+    BuildOptions o;
+    o.buckets = 32;
+    o.max_leaf_size = 1;
+    o.threads = 2;
+    expect_pinned("soup 32 buckets leaf 1", build_bvh(random_soup(50000, 9), o), Pinned{99999, 0, 0x727535b226de0647ull});
+  }
+  {
+    BuildOptions o;
+    o.buckets = 5;
+    o.max_leaf_size = 8;
+    o.traversal_cost = 1.0f;
+    expect_pinned("sphere 5 buckets leaf 8 cost 1", build_bvh(sphere, o), Pinned{243717, 0, 0xee593b7eec0d2051ull});
+  }
+  {
+    // Exponential clusters under a tight depth bound: the median-split fallback and its counter.
+    BuildOptions o;
+    o.max_depth = 16;
+    expect_pinned("clusters depth 16", build_bvh(exponential_clusters(-20, 20, 500, 5), o), Pinned{19709, 1254, 0x135d55557eeebf2cull});
+  }
+  {
+    // Coincident centroids: no axis can be binned, count splits only.
+    std::vector<Triangle> same(1000, Triangle{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}});
+    expect_pinned("identical triangles", build_bvh(same, BuildOptions{}), Pinned{511, 0, 0x3ca7ebd97e6110efull});
+  }
+  {
+    std::vector<uint32_t> first{0};
+    for (uint32_t k = 1; first.back() < sphere.size(); ++k) {
+      first.push_back(std::min<uint32_t>(static_cast<uint32_t>(sphere.size()), first.back() + 7 * (k % 13 + 1)));
+    }
+    BuildOptions o;
+    o.granularity = Granularity::object;
+    expect_pinned("sphere objects", build_bvh(sphere, o, first), Pinned{8917, 0, 0x467b907e8e2be532ull});
+  }
+}
+
+TEST(BvhBuildIdentity, FullSweepBuildsThePinnedTree) {
+  BuildOptions o;
+  o.full_sweep = true;
+  expect_pinned("terrain full sweep", build_bvh(terrain(100).triangles(), o), Pinned{24037, 0, 0xa4e947c537eb22f7ull});
+}
+
+#if HP_BVH_TESTS_HAVE_SCENE
+std::vector<Triangle> scene_triangles(const std::string& spec) {
+  const Scene scene = load_scene(spec);
+  const WorldGeometry world = world_geometry(scene);
+  return make_triangles(world.positions, world.indices);
+}
+
+TEST(BvhBuildIdentity, BuiltinScenesBuildThePinnedTrees) {
+  // The scenes the study and the CI gate use, with the default options.
+  const auto sphere = scene_triangles("builtin:sphere-1m");
+  expect_pinned("sphere-1m threads 1", build_bvh(sphere, with_threads(1)), Pinned{1155631, 0, 0x97d6d399854a0b9dull});
+  expect_pinned("sphere-1m threads 2", build_bvh(sphere, with_threads(2)), Pinned{1155631, 0, 0x97d6d399854a0b9dull});
+  expect_pinned("terrain-1m", build_bvh(scene_triangles("builtin:terrain-1m"), with_threads(2)),
+                Pinned{1043661, 0, 0x996888922b234ec2ull});
+  expect_pinned("pica", build_bvh(scene_triangles("builtin:pica"), BuildOptions{}), Pinned{69227, 0, 0x6db8123d3ae98ffdull});
+}
+
+TEST(BvhBuildIdentity, SharedScenesBuildThePinnedTrees) {
+  const std::filesystem::path root = std::filesystem::path(HP_SHARED_DIR) / "scenes";
+  const std::filesystem::path balloon = root / "Balloon" / "scene.gltf", helmet = root / "DamagedHelmet" / "DamagedHelmet.gltf";
+  if (!std::filesystem::exists(balloon) || !std::filesystem::exists(helmet)) GTEST_SKIP() << root << ": scenes not found";
+  expect_pinned("Balloon", build_bvh(scene_triangles(balloon.string()), BuildOptions{}), Pinned{37999, 0, 0xb2b85552d62c9ff4ull});
+  expect_pinned("DamagedHelmet", build_bvh(scene_triangles(helmet.string()), BuildOptions{}),
+                Pinned{20459, 0, 0xfa4e737639afdc5dull});
+}
+#endif
+
+}  // namespace
+}  // namespace hp::bvh
