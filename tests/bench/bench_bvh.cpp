@@ -8,6 +8,12 @@
 //
 // Scenes come from hp_scene (builtin:sphere-1m, builtin:terrain-1m, HP_SHARED_DIR/scenes/*) when it is built;
 // without it, a procedural 1M-triangle sphere and terrain stand in and the shared scenes are skipped.
+//
+// With Embree 3 (optional: libembree-dev, found by CMake; HP_BENCH_HAVE_EMBREE), the same triangles and
+// rays also go through Embree on one thread: embree/build_medium|build_high/<scene>/threads:1 (robust scene,
+// rtcCommitScene) and embree/trace/<scene>/... (rtcIntersect1 / rtcOccluded1). After the runs a table
+// prints ours, Embree's and ours / Embree per scene and row (medians over repetitions). disagree_per_M:
+// closest hits whose triangle differs from ours, per million rays (counted once, outside the timing).
 #include "bvh/bvh.hpp"
 #include "bvh/traverse.hpp"
 #include "../unit/bvh/bvh_test_scenes.hpp"
@@ -15,6 +21,8 @@
 #include <benchmark/benchmark.h>
 
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -27,6 +35,14 @@
 #include "scene/load.hpp"
 #include "scene/scene.hpp"
 #endif
+
+#if HP_BENCH_HAVE_EMBREE
+#include <embree3/rtcore.h>
+#endif
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
 
 namespace {
 
@@ -46,6 +62,10 @@ struct BenchScene {
   LeafOrderTriangles lt;
   double sah_sweep = 0.0, sah_binned = 0.0, sah_largest_axis = 0.0;
   std::vector<Ray> primary, random;
+#if HP_BENCH_HAVE_EMBREE
+  RTCScene embree = nullptr;  // medium quality, robust: what embree/trace/* traces
+  double disagree_primary = 0.0, disagree_random = 0.0;  // per million rays, closest hit
+#endif
 };
 
 glm::vec3 bounds_lo(const std::vector<Triangle>& tris) {
@@ -94,6 +114,76 @@ std::vector<Ray> random_rays(const std::vector<Triangle>& tris) {
   return rays;
 }
 
+#if HP_BENCH_HAVE_EMBREE
+/// One Embree device on one thread for every Embree row.
+RTCDevice embree_device() {
+  static RTCDevice device = [] {
+    RTCDevice d = rtcNewDevice("threads=1,set_affinity=0");
+    if (!d) {
+      std::fprintf(stderr, "bench_bvh: rtcNewDevice failed (error %d)\n", static_cast<int>(rtcGetDeviceError(nullptr)));
+      std::exit(1);
+    }
+    return d;
+  }();
+  return device;
+}
+
+/// The scene's triangles as one Embree triangle mesh (scene order, so Embree's primID is our scene index).
+RTCScene embree_scene(const std::vector<Triangle>& tris, RTCBuildQuality quality) {
+  RTCDevice device = embree_device();
+  RTCScene scene = rtcNewScene(device);
+  rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(scene, quality);
+  RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  rtcSetGeometryBuildQuality(geom, quality);
+  auto* v = static_cast<float*>(
+      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 3 * tris.size()));
+  auto* idx = static_cast<unsigned*>(
+      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), tris.size()));
+  std::memcpy(v, tris.data(), tris.size() * sizeof(Triangle));
+  for (std::size_t i = 0; i < 3 * tris.size(); ++i) idx[i] = static_cast<unsigned>(i);
+  rtcCommitGeometry(geom);
+  rtcAttachGeometry(scene, geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(scene);
+  return scene;
+}
+
+RTCRayHit embree_ray(const Ray& r) {
+  RTCRayHit rh;
+  rh.ray.org_x = r.origin.x;
+  rh.ray.org_y = r.origin.y;
+  rh.ray.org_z = r.origin.z;
+  rh.ray.tnear = r.tmin;
+  rh.ray.dir_x = r.dir.x;
+  rh.ray.dir_y = r.dir.y;
+  rh.ray.dir_z = r.dir.z;
+  rh.ray.time = 0.0f;
+  rh.ray.tfar = r.tmax;
+  rh.ray.mask = 0xffffffffu;
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  return rh;
+}
+
+/// Closest hits whose triangle differs from the reference traversal's, per million rays.
+double embree_disagreement(const BenchScene& s, const std::vector<Ray>& rays) {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  std::size_t differ = 0;
+  for (const Ray& r : rays) {
+    RTCRayHit rh = embree_ray(r);
+    rtcIntersect1(s.embree, &ctx, &rh);
+    const int32_t theirs = rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? -1 : static_cast<int32_t>(rh.hit.primID);
+    differ += theirs != intersect_closest(s.bvh, s.lt, r).prim;
+  }
+  return 1e6 * static_cast<double>(differ) / static_cast<double>(rays.size());
+}
+#endif
+
 std::unique_ptr<BenchScene> prepare(std::string name, std::vector<Triangle> tris, View view) {
   auto s = std::make_unique<BenchScene>();
   s->name = std::move(name);
@@ -110,6 +200,11 @@ std::unique_ptr<BenchScene> prepare(std::string name, std::vector<Triangle> tris
   s->lt = leaf_order(s->bvh, s->tris);
   s->primary = primary_rays(view);
   s->random = random_rays(s->tris);
+#if HP_BENCH_HAVE_EMBREE
+  s->embree = embree_scene(s->tris, RTC_BUILD_QUALITY_MEDIUM);
+  s->disagree_primary = embree_disagreement(*s, s->primary);
+  s->disagree_random = embree_disagreement(*s, s->random);
+#endif
   return s;
 }
 
@@ -204,6 +299,96 @@ void trace_bench(benchmark::State& state, const BenchScene* s, bool primary, boo
   state.counters["hit_%"] = 100.0 * static_cast<double>(hits) / n;
 }
 
+#if HP_BENCH_HAVE_EMBREE
+void embree_build_bench(benchmark::State& state, const BenchScene* s, RTCBuildQuality quality) {
+  for (auto _ : state) {
+    RTCScene scene = embree_scene(s->tris, quality);
+    state.PauseTiming();
+    rtcReleaseScene(scene);
+    state.ResumeTiming();
+  }
+  const double iters = static_cast<double>(state.iterations());
+  state.counters["Mtri/s"] = benchmark::Counter(static_cast<double>(s->tris.size()) * iters / 1e6, benchmark::Counter::kIsRate);
+  state.counters["triangles"] = static_cast<double>(s->tris.size());
+}
+
+void embree_trace_bench(benchmark::State& state, const BenchScene* s, bool primary, bool any) {
+  const std::vector<Ray>& rays = primary ? s->primary : s->random;
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  std::size_t hits = 0;
+  for (auto _ : state) {
+    hits = 0;
+    for (const Ray& r : rays) {
+      RTCRayHit rh = embree_ray(r);
+      if (any) {
+        rtcOccluded1(s->embree, &ctx, &rh.ray);
+        hits += rh.ray.tfar < 0.0f;  // Embree marks an occluded ray with tfar = -inf
+      } else {
+        rtcIntersect1(s->embree, &ctx, &rh);
+        hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+      }
+    }
+    benchmark::DoNotOptimize(hits);
+  }
+  const double n = static_cast<double>(rays.size());
+  state.counters["Mrays/s"] = benchmark::Counter(n * static_cast<double>(state.iterations()) / 1e6, benchmark::Counter::kIsRate);
+  state.counters["hit_%"] = 100.0 * static_cast<double>(hits) / n;
+  if (!any) state.counters["disagree_per_M"] = primary ? s->disagree_primary : s->disagree_random;
+}
+
+/// Which ours/Embree pair a registered benchmark belongs to, for the ratio table.
+struct PairKey {
+  std::string row;     // "build/sphere-1m" (Embree: medium and high), "trace/sphere-1m/primary/closest"
+  std::string theirs;  // "" for ours, else the Embree variant ("embree", "embree high")
+  std::string counter;
+};
+std::map<std::string, PairKey>& pair_keys() {
+  static std::map<std::string, PairKey> keys;
+  return keys;
+}
+
+/// The console output plus, at the end, ours vs Embree per row: medians of the runs' rate counters.
+class RatioReporter : public benchmark::ConsoleReporter {
+public:
+  void ReportRuns(const std::vector<Run>& runs) override {
+    ConsoleReporter::ReportRuns(runs);
+    for (const Run& run : runs) {
+      if (run.run_type != Run::RT_Iteration || run.error_occurred) continue;
+      const auto key = pair_keys().find(run.run_name.function_name);
+      if (key == pair_keys().end()) continue;
+      const auto c = run.counters.find(key->second.counter);
+      if (c != run.counters.end()) values_[key->second.row][key->second.theirs].push_back(c->second.value);
+    }
+  }
+  void Finalize() override {
+    ConsoleReporter::Finalize();
+    if (values_.empty()) return;
+    std::printf("\nours vs Embree %d.%d.%d (one thread each; medians of the runs above)\n", RTC_VERSION_MAJOR,
+                RTC_VERSION_MINOR, RTC_VERSION_PATCH);
+    std::printf("%-44s %-12s %12s %12s %8s\n", "row", "embree", "ours", "embree", "ratio");
+    for (auto& [row, by] : values_) {
+      const auto ours = by.find("");
+      if (ours == by.end()) continue;
+      const double o = median(ours->second);
+      for (auto& [who, v] : by) {
+        if (who.empty()) continue;
+        const double e = median(v);
+        std::printf("%-44s %-12s %12.3f %12.3f %8.2f\n", row.c_str(), who.c_str(), o, e, e > 0.0 ? o / e : 0.0);
+      }
+    }
+  }
+
+private:
+  static double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    const std::size_t n = v.size();
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+  }
+  std::map<std::string, std::map<std::string, std::vector<double>>> values_;
+};
+#endif
+
 #if HP_BENCH_HAVE_SCENE
 // Generating a built-in 1M-triangle scene (it was a timed unit test once; speed belongs here).
 void generate_bench(benchmark::State& state, const char* spec) {
@@ -235,8 +420,23 @@ int main(int argc, char** argv) {
       for (const bool any : {false, true}) {
         const std::string name = std::string("trace/") + s->name + (primary ? "/primary" : "/random") + (any ? "/any" : "/closest");
         benchmark::RegisterBenchmark(name.c_str(), trace_bench, s, primary, any)->Unit(benchmark::kMillisecond);
+#if HP_BENCH_HAVE_EMBREE
+        const std::string theirs = "embree/" + name;
+        benchmark::RegisterBenchmark(theirs.c_str(), embree_trace_bench, s, primary, any)->Unit(benchmark::kMillisecond);
+        pair_keys()[name] = PairKey{name, "", "Mrays/s"};
+        pair_keys()[theirs] = PairKey{name, "embree", "Mrays/s"};
+#endif
       }
     }
+#if HP_BENCH_HAVE_EMBREE
+    const std::string ours_build = "build/" + s->name + "/threads:1";
+    pair_keys()[ours_build] = PairKey{"build/" + s->name + "/threads:1", "", "Mtri/s"};
+    for (const auto& [quality, label] : {std::pair{RTC_BUILD_QUALITY_MEDIUM, "medium"}, std::pair{RTC_BUILD_QUALITY_HIGH, "high"}}) {
+      const std::string name = std::string("embree/build_") + label + "/" + s->name + "/threads:1";
+      benchmark::RegisterBenchmark(name.c_str(), embree_build_bench, s, quality)->Unit(benchmark::kMillisecond);
+      pair_keys()[name] = PairKey{ours_build, std::string("embree ") + label, "Mtri/s"};
+    }
+#endif
   }
 #if HP_BENCH_HAVE_SCENE
   for (const char* spec : {"builtin:sphere-1m", "builtin:terrain-1m"}) {
@@ -244,7 +444,14 @@ int main(int argc, char** argv) {
         ->Unit(benchmark::kMillisecond);
   }
 #endif
+#if HP_BENCH_HAVE_EMBREE
+  RatioReporter reporter;
+  benchmark::RunSpecifiedBenchmarks(&reporter);
+  for (const auto& sp : scenes) rtcReleaseScene(sp->embree);
+  rtcReleaseDevice(embree_device());
+#else
   benchmark::RunSpecifiedBenchmarks();
+#endif
   benchmark::Shutdown();
   return 0;
 }
