@@ -76,11 +76,19 @@ struct Range {
   uint32_t begin = 0, end = 0;
 };
 
+/// One SSE register in memory (a vector of __m128 itself would drop its alignment attribute).
+struct Lanes {
+  __m128 v;
+};
+
 /// Per-thread scratch, allocated once per worker so that nodes allocate nothing.
 struct Scratch {
-  explicit Scratch(int buckets) : bins(6 * buckets), right_cost(buckets) {}
+  explicit Scratch(int buckets) : bins(6 * buckets), right_cost(buckets), soa(8 * buckets) {}
   std::vector<Bin> bins;  // [set * 3 * buckets + axis * buckets + bin], two sets (see the binning loop)
   std::vector<float> right_cost;
+  // The three-axis sweep: N_B * S_B per bin (lane = axis), and the bins transposed to lane = axis
+  // (lo x, y, z, hi x, y, z, count per bin).
+  std::vector<Lanes> soa;
 };
 
 /// Bin index per axis for doubled centroid c: floor((c - cmin) * scale), clamped to the last bin. The same
@@ -234,6 +242,70 @@ private:
     int best_axis = -1, best_bin = -1;
     float best_cost = kInf;
     uint32_t best_left_count = 0;
+    if (p_.all_axes) {
+      sweep3(bins, nb, n, scale, s, best_axis, best_bin, best_cost, best_left_count);
+    } else {
+      sweep1(bins, nb, n, scale, s, best_axis, best_bin, best_cost, best_left_count);
+    }
+
+    // Compared in units of area times cost (no division, so a zero-area node stays finite).
+    const float node_area = half_area4(r.box.lo, r.box.hi);
+    const float split_cost = p_.traversal_cost * node_area + best_cost;
+    const float leaf_cost = static_cast<float>(n) * node_area;
+    if (n <= p_.max_leaf && (best_axis < 0 || leaf_cost <= split_cost)) return leaf(index, r);
+
+    const uint32_t larger_child = best_axis < 0 ? n : std::max(best_left_count, n - best_left_count);
+    if (best_axis < 0 || depth + 1 + levels_needed(larger_child, p_.max_leaf) > p_.max_depth) {
+      // The SAH split could not be finished within the depth left (or there is none): a median split
+      // halves the count, which always fits because this node's own range did.
+      if (n <= p_.max_leaf) return leaf(index, r);
+      if (best_axis >= 0) depth_limited_.fetch_add(1, std::memory_order_relaxed);
+      median_split(r, widest, left, right);
+      return finish_interior(index, r, widest, left, right, depth, s);
+    }
+
+    // Partition in place (Hoare), collecting the children's centroid bounds on the way. A primitive goes
+    // left when its bin index on best_axis is <= best_bin, i.e. when the unclamped bin coordinate is below
+    // best_bin + 1 (the clamp to the last bin never matters since best_bin + 1 <= buckets - 1): the same
+    // float arithmetic as bin_index, so binning and partitioning agree exactly.
+    const float part_min = cmin[best_axis], part_scale = scale[best_axis];
+    const float part_limit = static_cast<float>(best_bin + 1);
+    // The scalar lane of the same sum: (lo + hi) on one axis is the same float in a register lane or alone.
+    const auto goes_left = [&](const PrimRef* q) {
+      return ((&q->lo.x)[best_axis] + (&q->hi.x)[best_axis] - part_min) * part_scale < part_limit;
+    };
+    PrimRef* lp = prims_.data() + r.begin;
+    PrimRef* rp = prims_.data() + r.end;
+    // Register copies of the children's centroid bounds (left and right live in memory).
+    Box4 lc, rc;
+    for (;;) {
+      while (lp < rp) {
+        if (!goes_left(lp)) break;
+        lc.grow_point(_mm_add_ps(load3(lp->lo), load3(lp->hi)));
+        ++lp;
+      }
+      while (lp < rp) {
+        if (goes_left(rp - 1)) break;
+        rc.grow_point(_mm_add_ps(load3((rp - 1)->lo), load3((rp - 1)->hi)));
+        --rp;
+      }
+      if (lp >= rp) break;
+      std::swap(*lp, *(rp - 1));  // now *lp goes left and *(rp - 1) right; the loops above take them
+    }
+    left.cbox = lc;
+    right.cbox = rc;
+    const Bin* ab = bins + best_axis * nb;
+    for (int b = 0; b < nb; ++b) (b <= best_bin ? left : right).box.grow(ab[b].lo, ab[b].box_hi());
+    left.begin = r.begin;
+    left.end = static_cast<uint32_t>(lp - prims_.data());
+    right.begin = left.end;
+    right.end = r.end;
+    finish_interior(index, r, best_axis, left, right, depth, s);
+  }
+
+  /// The sweep of one axis at a time (the largest-axis rule bins a single axis).
+  void sweep1(const Bin* bins, int nb, uint32_t n, const float* scale, Scratch& s, int& best_axis, int& best_bin,
+              float& best_cost, uint32_t& best_left_count) const {
     for (int a = 0; a < 3; ++a) {
       if (scale[a] == 0.0f) continue;
       const Bin* ab = bins + a * nb;
@@ -259,59 +331,96 @@ private:
         }
       }
     }
+  }
 
-    // Compared in units of area times cost (no division, so a zero-area node stays finite).
-    const float node_area = half_area4(r.box.lo, r.box.hi);
-    const float split_cost = p_.traversal_cost * node_area + best_cost;
-    const float leaf_cost = static_cast<float>(n) * node_area;
-    if (n <= p_.max_leaf && (best_axis < 0 || leaf_cost <= split_cost)) return leaf(index, r);
-
-    const uint32_t larger_child = best_axis < 0 ? n : std::max(best_left_count, n - best_left_count);
-    if (best_axis < 0 || depth + 1 + levels_needed(larger_child, p_.max_leaf) > p_.max_depth) {
-      // The SAH split could not be finished within the depth left (or there is none): a median split
-      // halves the count, which always fits because this node's own range did.
-      if (n <= p_.max_leaf) return leaf(index, r);
-      if (best_axis >= 0) depth_limited_.fetch_add(1, std::memory_order_relaxed);
-      median_split(r, widest, left, right);
-      return finish_interior(index, r, widest, left, right, depth, s);
+  /// All three axes at once, one SSE lane per axis: the same operations in the same order per lane as
+  /// sweep1, so the same costs to the bit, and the same winner (axis-major order, first strict minimum).
+  /// Half area of a box is (ex * ey + ez * ex) + (ey * ez + 0), exactly as half_area4 evaluates it.
+  void sweep3(const Bin* bins, int nb, uint32_t n, const float* scale, Scratch& s, int& best_axis, int& best_bin,
+              float& best_cost, uint32_t& best_left_count) const {
+    __m128* soa = &s.soa.data()->v;
+    const __m128 zero = _mm_setzero_ps();
+    // Transpose: for bin b, lanes 0..2 = axes 0..2.
+    for (int b = 0; b < nb; ++b) {
+      const Bin& b0 = bins[b];
+      const Bin& b1 = bins[nb + b];
+      const Bin& b2 = bins[2 * nb + b];
+      // lo: (x0 y0 z0 .) (x1 y1 z1 .) (x2 y2 z2 .) -> (x0 x1 x2 .) (y0 y1 y2 .) (z0 z1 z2 .)
+      const __m128 l01lo = _mm_unpacklo_ps(b0.lo, b1.lo);  // x0 x1 y0 y1
+      const __m128 l01hi = _mm_unpackhi_ps(b0.lo, b1.lo);  // z0 z1 . .
+      const __m128 l2lo = _mm_unpacklo_ps(b2.lo, zero);    // x2 0 y2 0
+      const __m128 l2hi = _mm_unpackhi_ps(b2.lo, zero);    // z2 0 . 0
+      soa[7 * b + 0] = _mm_movelh_ps(l01lo, l2lo);
+      soa[7 * b + 1] = _mm_movehl_ps(l2lo, l01lo);
+      soa[7 * b + 2] = _mm_movelh_ps(l01hi, l2hi);
+      const __m128 h01lo = _mm_unpacklo_ps(b0.hi, b1.hi);
+      const __m128 h01hi = _mm_unpackhi_ps(b0.hi, b1.hi);  // z0 z1 c0 c1
+      const __m128 h2lo = _mm_unpacklo_ps(b2.hi, zero);
+      const __m128 h2hi = _mm_unpackhi_ps(b2.hi, zero);    // z2 0 c2 0
+      soa[7 * b + 3] = _mm_movelh_ps(h01lo, h2lo);
+      soa[7 * b + 4] = _mm_movehl_ps(h2lo, h01lo);
+      soa[7 * b + 5] = _mm_movelh_ps(h01hi, h2hi);
+      soa[7 * b + 6] = _mm_movehl_ps(h2hi, h01hi);  // counts c0 c1 c2 0 as integer bits
     }
-
-    // Partition in place (Hoare), collecting the children's centroid bounds on the way. A primitive goes
-    // left when its bin index on best_axis is <= best_bin, i.e. when the unclamped bin coordinate is below
-    // best_bin + 1 (the clamp to the last bin never matters since best_bin + 1 <= buckets - 1): the same
-    // float arithmetic as bin_index, so binning and partitioning agree exactly.
-    const float part_min = cmin[best_axis], part_scale = scale[best_axis];
-    const float part_limit = static_cast<float>(best_bin + 1);
-    const auto goes_left = [&](__m128 c) {
-      alignas(16) float cf[4];
-      _mm_store_ps(cf, c);
-      return (cf[best_axis] - part_min) * part_scale < part_limit;
+    const auto area = [](__m128 lx, __m128 ly, __m128 lz, __m128 hx, __m128 hy, __m128 hz) {
+      const __m128 ex = _mm_sub_ps(hx, lx), ey = _mm_sub_ps(hy, ly), ez = _mm_sub_ps(hz, lz);
+      const __m128 a = _mm_add_ps(_mm_mul_ps(ex, ey), _mm_mul_ps(ez, ex));
+      return _mm_add_ps(a, _mm_add_ps(_mm_mul_ps(ey, ez), _mm_setzero_ps()));
     };
-    PrimRef* lp = prims_.data() + r.begin;
-    PrimRef* rp = prims_.data() + r.end;
-    for (;;) {
-      while (lp < rp) {
-        const __m128 c = _mm_add_ps(load3(lp->lo), load3(lp->hi));
-        if (!goes_left(c)) break;
-        left.cbox.grow_point(c);
-        ++lp;
-      }
-      while (lp < rp) {
-        const __m128 c = _mm_add_ps(load3((rp - 1)->lo), load3((rp - 1)->hi));
-        if (goes_left(c)) break;
-        right.cbox.grow_point(c);
-        --rp;
-      }
-      if (lp >= rp) break;
-      std::swap(*lp, *(rp - 1));  // now *lp goes left and *(rp - 1) right; the loops above take them
+    const __m128 inf = _mm_set1_ps(kInf), ninf = _mm_set1_ps(-kInf);
+    __m128 lx = inf, ly = inf, lz = inf, hx = ninf, hy = ninf, hz = ninf;
+    __m128i count = _mm_setzero_si128();
+    __m128* right = soa + 7 * nb;
+    for (int b = nb - 1; b > 0; --b) {
+      const __m128* q = soa + 7 * b;
+      lx = _mm_min_ps(lx, q[0]);
+      ly = _mm_min_ps(ly, q[1]);
+      lz = _mm_min_ps(lz, q[2]);
+      hx = _mm_max_ps(hx, q[3]);
+      hy = _mm_max_ps(hy, q[4]);
+      hz = _mm_max_ps(hz, q[5]);
+      count = _mm_add_epi32(count, _mm_castps_si128(q[6]));
+      const __m128 nonzero = _mm_castsi128_ps(_mm_xor_si128(_mm_cmpeq_epi32(count, _mm_setzero_si128()), _mm_set1_epi32(-1)));
+      right[b - 1] = _mm_and_ps(nonzero, _mm_mul_ps(_mm_cvtepi32_ps(count), area(lx, ly, lz, hx, hy, hz)));
     }
-    const Bin* ab = bins + best_axis * nb;
-    for (int b = 0; b < nb; ++b) (b <= best_bin ? left : right).box.grow(ab[b].lo, ab[b].box_hi());
-    left.begin = r.begin;
-    left.end = static_cast<uint32_t>(lp - prims_.data());
-    right.begin = left.end;
-    right.end = r.end;
-    finish_interior(index, r, best_axis, left, right, depth, s);
+    lx = inf, ly = inf, lz = inf, hx = ninf, hy = ninf, hz = ninf;
+    count = _mm_setzero_si128();
+    // Lanes of axes that offer no split never win.
+    const __m128i axis_ok = _mm_castps_si128(_mm_cmpneq_ps(_mm_load_ps(scale), _mm_setzero_ps()));
+    const __m128i vn = _mm_set1_epi32(static_cast<int>(n));
+    __m128 lane_best = inf;
+    __m128i lane_bin = _mm_set1_epi32(-1), lane_count = _mm_setzero_si128();
+    for (int b = 0; b < nb - 1; ++b) {
+      const __m128* q = soa + 7 * b;
+      lx = _mm_min_ps(lx, q[0]);
+      ly = _mm_min_ps(ly, q[1]);
+      lz = _mm_min_ps(lz, q[2]);
+      hx = _mm_max_ps(hx, q[3]);
+      hy = _mm_max_ps(hy, q[4]);
+      hz = _mm_max_ps(hz, q[5]);
+      count = _mm_add_epi32(count, _mm_castps_si128(q[6]));
+      const __m128 cost = _mm_add_ps(_mm_mul_ps(_mm_cvtepi32_ps(count), area(lx, ly, lz, hx, hy, hz)), right[b]);
+      const __m128i valid = _mm_andnot_si128(
+          _mm_or_si128(_mm_cmpeq_epi32(count, _mm_setzero_si128()), _mm_cmpeq_epi32(count, vn)), axis_ok);
+      const __m128i better = _mm_and_si128(valid, _mm_castps_si128(_mm_cmplt_ps(cost, lane_best)));
+      const __m128 bf = _mm_castsi128_ps(better);
+      lane_best = _mm_or_ps(_mm_and_ps(bf, cost), _mm_andnot_ps(bf, lane_best));
+      lane_bin = _mm_or_si128(_mm_and_si128(better, _mm_set1_epi32(b)), _mm_andnot_si128(better, lane_bin));
+      lane_count = _mm_or_si128(_mm_and_si128(better, count), _mm_andnot_si128(better, lane_count));
+    }
+    alignas(16) float lb[4];
+    alignas(16) int32_t lbin[4], lcount[4];
+    _mm_store_ps(lb, lane_best);
+    _mm_store_si128(reinterpret_cast<__m128i*>(lbin), lane_bin);
+    _mm_store_si128(reinterpret_cast<__m128i*>(lcount), lane_count);
+    for (int a = 0; a < 3; ++a) {
+      if (lbin[a] >= 0 && lb[a] < best_cost) {
+        best_cost = lb[a];
+        best_axis = a;
+        best_bin = lbin[a];
+        best_left_count = static_cast<uint32_t>(lcount[a]);
+      }
+    }
   }
 
   /// Two primitives, about a third of all nodes: the binned search above would put them in bins 0 and 1
