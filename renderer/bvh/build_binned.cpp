@@ -97,6 +97,9 @@ inline __m128i bin_index(__m128 c, __m128 cmin, __m128 scale, __m128 last) {
   return _mm_cvttps_epi32(_mm_min_ps(_mm_mul_ps(_mm_sub_ps(c, cmin), scale), last));
 }
 
+/// Nodes at least this large are binned in runs (bin_runs).
+constexpr uint32_t kRunBinning = 64;
+
 class BinnedBuilder {
 public:
   BinnedBuilder(std::span<PrimRef> prims, const BuildParams& p) : prims_(prims), p_(p), forker_(p.threads) {
@@ -108,16 +111,26 @@ public:
   PairTree run() {
     Range root;
     std::vector<Range> parts(std::max(1, p_.threads));
+    std::vector<int> zeros(parts.size(), 0);
     Forker::parallel_chunks(prims_.size(), p_.threads, [&](std::size_t b, std::size_t e, std::size_t c) {
+      Box4 box, cbox;
+      const __m128i neg_zero = _mm_set1_epi32(static_cast<int>(0x80000000u));
+      __m128i z = _mm_setzero_si128();
       for (std::size_t i = b; i < e; ++i) {
         const __m128 lo = load3(prims_[i].lo), hi = load3(prims_[i].hi);
-        parts[c].box.grow(lo, hi);
-        parts[c].cbox.grow_point(_mm_add_ps(lo, hi));
+        box.grow(lo, hi);
+        cbox.grow_point(_mm_add_ps(lo, hi));
+        z = _mm_or_si128(z, _mm_or_si128(_mm_cmpeq_epi32(_mm_castps_si128(lo), neg_zero),
+                                          _mm_cmpeq_epi32(_mm_castps_si128(hi), neg_zero)));
       }
+      parts[c].box = box;
+      parts[c].cbox = cbox;
+      zeros[c] = _mm_movemask_epi8(z) != 0;
     });
-    for (const auto& part : parts) {
-      root.box.grow(part.box);
-      root.cbox.grow(part.cbox);
+    for (std::size_t c = 0; c < parts.size(); ++c) {
+      root.box.grow(parts[c].box);
+      root.cbox.grow(parts[c].cbox);
+      signed_zeros_ = signed_zeros_ || zeros[c];
     }
     root.begin = 0;
     root.end = static_cast<uint32_t>(prims_.size());
@@ -220,7 +233,10 @@ private:
         bs[2 * nb + b[2]].add(lo, hi);
       };
       uint32_t i = r.begin;
-      if (n >= 64) {
+      if (n >= kRunBinning && !signed_zeros_) {
+        bin_runs(r, nb, vmin, vscale, vlast, bins);
+        i = r.end;
+      } else if (n >= 64) {
         for (; i + 1 < r.end; i += 2) {
           bin_one(prims_[i], bins);
           bin_one(prims_[i + 1], bins2);
@@ -301,6 +317,45 @@ private:
     right.begin = left.end;
     right.end = r.end;
     finish_interior(index, r, best_axis, left, right, depth, s);
+  }
+
+  /// Binning of a large node as runs: consecutive primitives usually fall into the same bin on all three
+  /// axes (the range was partitioned spatially just before), so a run's box and count grow in registers
+  /// and reach the bins once per run instead of once per primitive. min/max are exact, so only the zero
+  /// signs could depend on the grouping (see signed_zeros_).
+  void bin_runs(const Range& r, int nb, __m128 vmin, __m128 vscale, __m128 vlast, Bin* bins) const {
+    const PrimRef* p = prims_.data() + r.begin;
+    const PrimRef* end = prims_.data() + r.end;
+    const __m128i axis_off = _mm_setr_epi32(0, nb, 2 * nb, 0);
+    __m128 run_lo = load3(p->lo), run_hi = load3(p->hi);
+    __m128i key = _mm_add_epi32(bin_index(_mm_add_ps(run_lo, run_hi), vmin, vscale, vlast), axis_off);
+    int32_t run_count = 1;
+    const auto flush = [&] {
+      alignas(16) int32_t b[4];
+      _mm_store_si128(reinterpret_cast<__m128i*>(b), key);
+      const __m128i add = _mm_setr_epi32(0, 0, 0, run_count);
+      for (int a = 0; a < 3; ++a) {
+        Bin& bin = bins[b[a]];
+        bin.lo = _mm_min_ps(bin.lo, run_lo);
+        bin.hi = _mm_castsi128_ps(_mm_add_epi32(_mm_castps_si128(_mm_max_ps(bin.hi, run_hi)), add));
+      }
+    };
+    for (++p; p < end; ++p) {
+      const __m128 lo = load3(p->lo), hi = load3(p->hi);
+      const __m128i k = _mm_add_epi32(bin_index(_mm_add_ps(lo, hi), vmin, vscale, vlast), axis_off);
+      if (_mm_movemask_epi8(_mm_cmpeq_epi32(k, key)) == 0xffff) {
+        run_lo = _mm_min_ps(run_lo, lo);
+        run_hi = _mm_max_ps(run_hi, hi);
+        ++run_count;
+        continue;
+      }
+      flush();
+      key = k;
+      run_lo = lo;
+      run_hi = hi;
+      run_count = 1;
+    }
+    flush();
   }
 
   /// The sweep of one axis at a time (the largest-axis rule bins a single axis).
@@ -480,6 +535,11 @@ private:
   std::size_t capacity_ = 0;
   std::atomic<uint32_t> next_node_{1};
   std::atomic<std::size_t> depth_limited_{0};
+  /// Some primitive bound is -0.0. Folding boxes with min/max in another order can then change a box's
+  /// zero sign (min and max keep their second operand on ties), so the builder keeps the reference order:
+  /// the paths that regroup the folds are only taken without signed zeros, where every order gives the
+  /// same bits.
+  bool signed_zeros_ = false;
 };
 
 }  // namespace
