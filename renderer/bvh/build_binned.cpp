@@ -102,10 +102,19 @@ constexpr uint32_t kRunBinning = 64;
 
 class BinnedBuilder {
 public:
-  BinnedBuilder(std::span<PrimRef> prims, const BuildParams& p) : prims_(prims), p_(p), forker_(p.threads) {
-    // Uninitialised on purpose: every node slot handed out is written before it is read.
+  BinnedBuilder(std::span<PrimRef> prims, const BuildParams& p)
+      : prims_(prims), p_(p), forker_(p.threads), dfs_(p.threads == 1) {
     capacity_ = std::max<std::size_t>(1, 2 * prims.size());
-    nodes_.reset(new gpu::BvhNode[capacity_]);
+    if (dfs_) {
+      // One thread builds depth first, so it can write the final layout directly (a node's first child
+      // right after it, the second after the first's subtree). A tree over N primitives has at most 2N - 1
+      // nodes: the reserve never reallocates, and its pages are touched only as nodes are written.
+      flat_.reserve(capacity_);
+      flat_.emplace_back();
+    } else {
+      // Uninitialised on purpose: every node slot handed out is written before it is read.
+      nodes_.reset(new gpu::BvhNode[capacity_]);
+    }
   }
 
   PairTree run() {
@@ -137,8 +146,13 @@ public:
     Scratch scratch(p_.buckets);
     build(0, root, 0, scratch);
     PairTree tree;
-    tree.nodes = std::move(nodes_);
-    tree.node_count = next_node_.load();
+    if (dfs_) {
+      tree.flat = std::move(flat_);
+      tree.flat_max_depth = max_depth_;
+    } else {
+      tree.nodes = std::move(nodes_);
+      tree.node_count = next_node_.load();
+    }
     tree.order.resize(prims_.size());
     for (std::size_t i = 0; i < prims_.size(); ++i) tree.order[i] = prims_[i].id;
     tree.depth_limited_splits = depth_limited_.load();
@@ -151,8 +165,14 @@ private:
     _mm_store_ps(f, v);
     return glm::vec3(f[0], f[1], f[2]);
   }
-  void leaf(uint32_t index, const Range& r) {
-    nodes_[index] = make_leaf(to_vec3(r.box.lo), to_vec3(r.box.hi), r.begin, r.end - r.begin);
+  void leaf(uint32_t index, const Range& r, int depth) {
+    const gpu::BvhNode node = make_leaf(to_vec3(r.box.lo), to_vec3(r.box.hi), r.begin, r.end - r.begin);
+    if (dfs_) {
+      flat_[index] = node;
+      max_depth_ = std::max(max_depth_, depth);
+    } else {
+      nodes_[index] = node;
+    }
   }
 
   Range range_of(uint32_t begin, uint32_t end) const {
@@ -182,9 +202,9 @@ private:
 
   void build(uint32_t index, const Range& r, int depth, Scratch& s) {
     const uint32_t n = r.end - r.begin;
-    if (n <= 1) return leaf(index, r);
+    if (n <= 1) return leaf(index, r, depth);
     // A split puts its children at depth + 1; with n <= max_leaf a leaf is always allowed instead.
-    if (n <= p_.max_leaf && depth + 1 > p_.max_depth) return leaf(index, r);
+    if (n <= p_.max_leaf && depth + 1 > p_.max_depth) return leaf(index, r, depth);
 
     alignas(16) float cmin[4], cext[4];
     _mm_store_ps(cmin, r.cbox.lo);
@@ -209,7 +229,7 @@ private:
     }
     Range left, right;
     if (first_axis < 0) {
-      if (n <= p_.max_leaf) return leaf(index, r);
+      if (n <= p_.max_leaf) return leaf(index, r, depth);
       median_split(r, widest, left, right);
       return finish_interior(index, r, widest, left, right, depth, s);
     }
@@ -217,7 +237,8 @@ private:
 
     // Binning.
     const __m128 vmin = r.cbox.lo, vscale = _mm_load_ps(scale), vlast = _mm_set1_ps(static_cast<float>(nb - 1));
-    const std::size_t used = (p_.all_axes && n >= 64 ? 6 : 3) * static_cast<std::size_t>(nb);
+    const bool runs = p_.all_axes && n >= kRunBinning && !signed_zeros_;
+    const std::size_t used = (p_.all_axes && n >= 64 && !runs ? 6 : 3) * static_cast<std::size_t>(nb);
     std::fill(s.bins.begin(), s.bins.begin() + used, Bin{});
     Bin* bins = s.bins.data();
     if (p_.all_axes) {
@@ -233,7 +254,7 @@ private:
         bs[2 * nb + b[2]].add(lo, hi);
       };
       uint32_t i = r.begin;
-      if (n >= kRunBinning && !signed_zeros_) {
+      if (runs) {
         bin_runs(r, nb, vmin, vscale, vlast, bins);
         i = r.end;
       } else if (n >= 64) {
@@ -268,13 +289,13 @@ private:
     const float node_area = half_area4(r.box.lo, r.box.hi);
     const float split_cost = p_.traversal_cost * node_area + best_cost;
     const float leaf_cost = static_cast<float>(n) * node_area;
-    if (n <= p_.max_leaf && (best_axis < 0 || leaf_cost <= split_cost)) return leaf(index, r);
+    if (n <= p_.max_leaf && (best_axis < 0 || leaf_cost <= split_cost)) return leaf(index, r, depth);
 
     const uint32_t larger_child = best_axis < 0 ? n : std::max(best_left_count, n - best_left_count);
     if (best_axis < 0 || depth + 1 + levels_needed(larger_child, p_.max_leaf) > p_.max_depth) {
       // The SAH split could not be finished within the depth left (or there is none): a median split
       // halves the count, which always fits because this node's own range did.
-      if (n <= p_.max_leaf) return leaf(index, r);
+      if (n <= p_.max_leaf) return leaf(index, r, depth);
       if (best_axis >= 0) depth_limited_.fetch_add(1, std::memory_order_relaxed);
       median_split(r, widest, left, right);
       return finish_interior(index, r, widest, left, right, depth, s);
@@ -490,7 +511,7 @@ private:
     const float a_right = half_area4(swap ? lo0 : lo1, swap ? hi0 : hi1);
     const float node_area = half_area4(r.box.lo, r.box.hi);
     const float split_cost = p_.traversal_cost * node_area + (1.0f * a_left + 1.0f * a_right);
-    if (2 <= p_.max_leaf && 2.0f * node_area <= split_cost) return leaf(index, r);
+    if (2 <= p_.max_leaf && 2.0f * node_area <= split_cost) return leaf(index, r, depth);
     // Splitting is within the depth bound: build() made a leaf when n <= max_leaf and depth + 1 exceeded
     // it, and with max_leaf = 1 the invariant depth + levels_needed(2) <= max_depth guarantees it.
     if (swap) std::swap(p[0], p[1]);
@@ -513,6 +534,17 @@ private:
 
   void finish_interior(uint32_t index, const Range& r, int axis, const Range& left, const Range& right, int depth,
                        Scratch& s) {
+    if (dfs_) {
+      flat_[index] = make_interior(to_vec3(r.box.lo), to_vec3(r.box.hi), 0, static_cast<uint32_t>(axis));
+      const auto first = static_cast<uint32_t>(flat_.size());
+      flat_.emplace_back();
+      build(first, left, depth + 1, s);
+      const auto second = static_cast<uint32_t>(flat_.size());
+      flat_.emplace_back();
+      flat_[index].offset = static_cast<int>(second);
+      build(second, right, depth + 1, s);
+      return;
+    }
     const uint32_t child = next_node_.fetch_add(2, std::memory_order_relaxed);
     nodes_[index] = make_interior(to_vec3(r.box.lo), to_vec3(r.box.hi), child, static_cast<uint32_t>(axis));
     forker_.fork_join(
@@ -534,6 +566,9 @@ private:
   std::unique_ptr<gpu::BvhNode[]> nodes_;
   std::size_t capacity_ = 0;
   std::atomic<uint32_t> next_node_{1};
+  bool dfs_;  ///< one thread: nodes go straight into flat_, depth first
+  std::vector<gpu::BvhNode> flat_;
+  int max_depth_ = 0;
   std::atomic<std::size_t> depth_limited_{0};
   /// Some primitive bound is -0.0. Folding boxes with min/max in another order can then change a box's
   /// zero sign (min and max keep their second operand on ties), so the builder keeps the reference order:

@@ -43,10 +43,13 @@ inline int levels_needed(uint64_t n, uint64_t leaf) {
 }
 
 /// Output of a builder before flattening: nodes where an interior node's children are the pair
-/// (offset, offset + 1), the root at 0; leaves index `order`.
+/// (offset, offset + 1), the root at 0; leaves index `order`. A builder that already produced the final
+/// depth-first layout returns it in `flat` instead (then `nodes` is null).
 struct PairTree {
   std::unique_ptr<gpu::BvhNode[]> nodes;  ///< uninitialised beyond node_count
   std::size_t node_count = 0;
+  std::vector<gpu::BvhNode> flat;  ///< the flattened layout of bvh.hpp, when the builder wrote it directly
+  int flat_max_depth = 0;          ///< with `flat`: interior nodes above the deepest leaf
   std::vector<uint32_t> order;  ///< leaf order -> scene index
   std::size_t depth_limited_splits = 0;
 };

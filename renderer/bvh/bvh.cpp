@@ -164,10 +164,15 @@ Bvh build_bvh(std::span<const Triangle> triangles, const BuildOptions& options, 
 
   const std::span<PrimRef> prims(refs.data.get(), refs.size);
   detail::PairTree tree = options.full_sweep ? detail::build_full_sweep(prims, params) : detail::build_binned(prims, params);
-  bvh.nodes.reserve(tree.node_count);
-  Flattener f{tree.nodes.get(), bvh.nodes};
-  f.emit(0, 0);
-  bvh.max_depth = f.max_depth;
+  if (tree.nodes) {
+    bvh.nodes.reserve(tree.node_count);
+    Flattener f{tree.nodes.get(), bvh.nodes};
+    f.emit(0, 0);
+    bvh.max_depth = f.max_depth;
+  } else {
+    bvh.nodes = std::move(tree.flat);
+    bvh.max_depth = tree.flat_max_depth;
+  }
   bvh.prim_ids = std::move(tree.order);
   bvh.depth_limited_splits = tree.depth_limited_splits;
   if (bvh.max_depth > options.max_depth) {
