@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <cstring>
 #include <memory>
 
 #include <emmintrin.h>
@@ -83,8 +84,9 @@ struct Lanes {
 
 /// Per-thread scratch, allocated once per worker so that nodes allocate nothing.
 struct Scratch {
-  explicit Scratch(int buckets) : bins(6 * buckets), right_cost(buckets), soa(8 * buckets) {}
+  explicit Scratch(int buckets) : bins(6 * buckets), empty_bins(6 * buckets), right_cost(buckets), soa(8 * buckets) {}
   std::vector<Bin> bins;  // [set * 3 * buckets + axis * buckets + bin], two sets (see the binning loop)
+  std::vector<Bin> empty_bins;  // as many empty bins, copied over `bins` at each node
   std::vector<float> right_cost;
   // The three-axis sweep: N_B * S_B per bin (lane = axis), and the bins transposed to lane = axis
   // (lo x, y, z, hi x, y, z, count per bin).
@@ -239,7 +241,7 @@ private:
     const __m128 vmin = r.cbox.lo, vscale = _mm_load_ps(scale), vlast = _mm_set1_ps(static_cast<float>(nb - 1));
     const bool runs = p_.all_axes && n >= kRunBinning && !signed_zeros_;
     const std::size_t used = (p_.all_axes && n >= 64 && !runs ? 6 : 3) * static_cast<std::size_t>(nb);
-    std::fill(s.bins.begin(), s.bins.begin() + used, Bin{});
+    std::memcpy(static_cast<void*>(s.bins.data()), s.empty_bins.data(), used * sizeof(Bin));
     Bin* bins = s.bins.data();
     if (p_.all_axes) {
       // Two bin sets, even and odd primitives: neighbouring primitives usually land in the same bin, and
