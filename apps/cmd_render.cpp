@@ -27,6 +27,7 @@ struct RenderArgs {
   uint32_t warmup = 0;
   std::string timings_path, timeline_path;
   bool counters = false;
+  bool overlap = false;
   uint32_t cpu_reference = 0;  ///< > 0: render the CPU reference with this many reflection samples instead
   FrameOptions frame;
 };
@@ -72,6 +73,24 @@ void run_reference(const RenderArgs& a) {
               a.out.c_str());
 }
 
+void print_overlap(const OverlapSummary& o, TimingSource source) {
+  auto ci = [](const MedianCi& c, double scale, const char* unit) {
+    char b[96];
+    if (c.valid) std::snprintf(b, sizeof b, " [%.3f%s, %.3f%s]", c.low * scale, unit, c.high * scale, unit);
+    else std::snprintf(b, sizeof b, " (too few pairs for a 95%% CI)");
+    return std::string(b);
+  };
+  std::printf("  frame as recorded (passes free to overlap, %s): %.3f ms%s; serialized passes sum %.3f ms\n",
+              source == TimingSource::CpuWall ? "one submission, host clock" : "timestamps at its ends only",
+              o.overlapped_frame_ns.median * 1e-6, ci(o.overlapped_frame_ns.median_ci, 1e-6, "").c_str(),
+              o.serialized_sum_ns.median * 1e-6);
+  if (o.saving_ns && o.saving_fraction) {
+    std::printf("  overlap saves %.3f ms%s, %.2f%%%s of the serialized sum (paired over %u frames)\n", *o.saving_ns * 1e-6,
+                ci(o.saving_ns_ci, 1e-6, "").c_str(), *o.saving_fraction * 100.0,
+                ci(o.saving_fraction_ci, 100.0, "%").c_str(), o.frames);
+  }
+}
+
 void run_render(const RenderArgs& a) {
   check_outputs(a);
   if (a.cpu_reference > 0) return run_reference(a);
@@ -90,6 +109,8 @@ void run_render(const RenderArgs& a) {
   po.frames = a.frames;
   // The overhead of the queries is measured only when a timing result is asked for (it doubles the frames).
   po.measure_query_overhead = !a.timings_path.empty();
+  // So is the frame as the application records it (serialized passes would otherwise hide any overlap).
+  po.measure_overlap = a.overlap || !a.timings_path.empty() || !a.timeline_path.empty();
   const FrameTimings timings = profile_frames(frame, po);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   write_image(a.out, frame.read_aov(aov));
@@ -105,13 +126,15 @@ void run_render(const RenderArgs& a) {
   std::printf("%s: %zu triangles, %ux%u on %s (%s), %u frame(s) in %.1f ms (CPU wall) -> %s\n",
               scene.name.c_str(), triangle_count(scene), settings.width, settings.height, ctx.info().name.c_str(),
               ctx.info().driver_info.c_str(), a.frames, ms, a.out.c_str());
-  std::printf("%u warm-up + %u measured frames (%s), %u samples accumulated; per pass: median [95%% CI] ms\n",
-              a.warmup, a.frames, std::string(to_string(summary.source)).c_str(), frame.samples_accumulated());
+  std::printf("%u warm-up + %u measured frames (%s), passes %s, %u samples accumulated; per pass: median [95%% CI] ms\n",
+              a.warmup, a.frames, std::string(to_string(summary.source)).c_str(),
+              std::string(to_string(summary.pass_isolation)).c_str(), frame.samples_accumulated());
   for (const auto& p : summary.passes) {
     std::printf("  %-12s %8.3f [%8.3f, %8.3f]%s\n", p.pass.c_str(), p.duration_ns.median * 1e-6,
                 p.duration_ns.median_ci.low * 1e-6, p.duration_ns.median_ci.high * 1e-6,
                 p.duration_ns.median_ci.valid ? "" : " (too few frames for a 95% CI: full range)");
   }
+  if (summary.overlap) print_overlap(*summary.overlap, summary.source);
   if (summary.query_overhead) {
     const QueryOverhead& q = *summary.query_overhead;
     // The paired estimate, with its CI, first: the ratio of the two sides' medians has no interval and
@@ -155,7 +178,8 @@ void add_render_command(CLI::App& app) {
                   "what to write: color, depth, normal, albedo, roughness, metallic, shadow, reflection")
       ->capture_default_str();
   cmd->add_option("--frames", args->frames, "measured frames (accumulated; the last one is written; with --timings, as many frames without "
-                  "queries are interleaved and accumulate too)")
+                  "queries are interleaved and accumulate too; frames timed for --overlap repeat a measured frame's "
+                  "sample and leave the accumulation unchanged)")
       ->check(CLI::Range(1u, 100000u))
       ->capture_default_str();
   cmd->add_option("--warmup", args->warmup, "frames rendered and discarded before the measured ones")
@@ -166,13 +190,17 @@ void add_render_command(CLI::App& app) {
   auto* timeline = cmd->add_option("--timeline", args->timeline_path,
                                    "write a Chrome Trace Event timeline (opens in ui.perfetto.dev)");
   auto* counters = cmd->add_flag("--counters", args->counters, "count rays, BVH nodes visited and triangles tested (deterministic)");
+  auto* overlap = cmd->add_flag("--overlap", args->overlap,
+                                "also time, beside each measured frame, the same frame without the dependencies that "
+                                "serialize the timed passes (on with --timings or --timeline)");
   // The reference renders on the CPU: it has no GPU timings or counters to write.
   cmd->add_option("--cpu-reference", args->cpu_reference,
                   "render the converged CPU reference instead, with N reflection samples per pixel (no GPU needed)")
       ->check(CLI::Range(1u, 65536u))
       ->excludes(timings)
       ->excludes(timeline)
-      ->excludes(counters);
+      ->excludes(counters)
+      ->excludes(overlap);
   cmd->callback([args] { run_render(*args); });
 }
 
@@ -183,9 +211,9 @@ void add_devices_command(CLI::App& app) {
     if (devices.empty()) throw DeviceError("no Vulkan device found; install lavapipe (apt-get install mesa-vulkan-drivers)");
     for (size_t i = 0; i < devices.size(); ++i) {
       const auto& d = devices[i];
-      std::printf("%zu: %s [%s] driver %s (%s), Vulkan %s, subgroup %u, timestamp period %.3f ns (%u valid bits), "
+      std::printf("%zu: %s [%s] driver %s %s (%s), Vulkan %s, subgroup %u, timestamp period %.3f ns (%u valid bits), "
                   "max storage buffer %llu MiB\n",
-                  i, d.name.c_str(), d.type.c_str(), d.driver_name.c_str(), d.driver_info.c_str(),
+                  i, d.name.c_str(), d.type.c_str(), d.driver_name.c_str(), d.driver_version.c_str(), d.driver_info.c_str(),
                   d.api_version.c_str(), d.subgroup_size, d.timestamp_period_ns, d.timestamp_valid_bits,
                   static_cast<unsigned long long>(d.max_storage_buffer_range >> 20));
     }

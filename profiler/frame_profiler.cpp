@@ -16,7 +16,7 @@ std::string host_timing_note(bool asked) {
 
 DeviceDescription describe_device(const vk::Context& ctx) {
   const vk::DeviceInfo& i = ctx.info();
-  return {i.name, i.type, i.driver_name, i.driver_info, i.api_version};
+  return {i.name, i.type, i.driver_name, i.driver_info, i.driver_version, i.api_version};
 }
 
 FrameSample to_frame_sample(const FrameTiming& timing, const RayCounters* c) {
@@ -69,15 +69,23 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o) {
   }
   if (statistics && !counted) count_invocations();
   std::vector<double> with_queries, without_queries;
+  // The overlapped frame repeats the measured frame's sample (Frame::render_overlapped): the same work.
+  auto overlapped = [&](bool previous) {
+    const FrameTiming f = frame.render_overlapped(previous);
+    timings.add_overlapped({f.span->begin_ns, f.span->end_ns});
+  };
   for (uint32_t i = 0; i < o.frames; ++i) {
     // Frames without queries alternate before and after the measured one (A B B A ...), so that neither
-    // side is always the first after a readback.
+    // side is always the first after a readback; the overlapped frames alternate the other way round, so
+    // each of the two kinds of extra frame is next to the measured one.
     const bool overhead = o.measure_query_overhead && gpu;
     if (overhead && i % 2 == 1) without_queries.push_back(double(frame.render(FrameQueries::none).cpu_wall_ns));
+    if (o.measure_overlap && i % 2 == 0) overlapped(false);
     const FrameTiming t = frame.render();
     with_queries.push_back(double(t.cpu_wall_ns));
     RayCounters c;
     if (counters) c = frame.read_counters();
+    if (o.measure_overlap && i % 2 == 1) overlapped(true);
     timings.add(to_frame_sample(t, counters ? &c : nullptr));
     if (overhead && i % 2 == 0) without_queries.push_back(double(frame.render(FrameQueries::none).cpu_wall_ns));
   }

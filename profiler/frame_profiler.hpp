@@ -16,6 +16,10 @@ struct ProfileOptions {
   /// Also run `frames` frames without queries, interleaved with the measured ones, and record the
   /// difference of the median CPU wall times as the query overhead.
   bool measure_query_overhead = true;
+  /// Also run, beside each measured frame, the frame as the application records it (FrameQueries::
+  /// frame_span: no dependency added between passes), for FrameTimings::overlapped(): what overlapping
+  /// passes saves against the serialized frames whose pass times the tables show.
+  bool measure_overlap = true;
 };
 
 /// The one-line note for a run whose passes are timed on the host (Frame::timestamps_supported() false):

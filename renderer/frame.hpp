@@ -50,7 +50,14 @@ Aov parse_aov(const std::string& name);  // throws InputError listing the choice
 /// invocation counts, which do not change from frame to frame, are taken in a frame of their own.
 enum class FrameQueries {
   none,                 ///< no query (cpu_wall_ns only): the other side of the query-overhead pairs
-  timestamps,           ///< a timestamp at each pass boundary
+  /// A timestamp at each pass boundary, and before each boundary an execution dependency (ALL_COMMANDS ->
+  /// ALL_COMMANDS) so that no pass starts before the previous one is done: each interval holds one pass
+  /// (PassIsolation::Serialized). Without it a device that overlaps independent passes (Mesa 25 lavapipe,
+  /// every GPU) lets a boundary fall inside the next pass's work.
+  timestamps,
+  /// The frame as the application records it: the passes with only their own dependencies, a timestamp
+  /// before the first and after the last (FrameTiming::span, no pass times).
+  frame_span,
   pipeline_statistics,  ///< compute invocations per compute pass, no timestamps (needs counters on)
 };
 
@@ -63,6 +70,8 @@ struct FrameTiming {
     uint64_t duration_ns() const { return end_ns - begin_ns; }
   };
   std::vector<Pass> passes;
+  /// FrameQueries::frame_span: the frame's begin and end on the timing source's clock.
+  std::optional<Pass> span;
   uint64_t cpu_wall_ns = 0;  ///< record + submit + wait, on the host
   std::string source;
   /// Compute-shader invocations per compute pass (pipeline statistics queries), when counters are on and
@@ -103,6 +112,12 @@ class Frame {
   /// with and without queries measure the queries' own overhead; with `pipeline_statistics` the frame
   /// fills compute_invocations (when counters are on and the device has the queries) and no pass times.
   FrameTiming render(FrameQueries queries = FrameQueries::timestamps);
+  /// The frame as the application records it, timed as a whole (FrameQueries::frame_span), repeating the
+  /// sample the next render() draws (`previous` false) or the one the last render() drew (true): the same
+  /// work as that frame. The sample index and the accumulated reflections are left as they were (the
+  /// running mean is copied aside and back in submissions of their own), so frames timed this way beside
+  /// the measured ones change neither their rays nor the final image.
+  FrameTiming render_overlapped(bool previous);
   /// Renders one frame like render(), with the chosen ray-tracing passes run as their instrumented variants
   /// in slices that each fit the trace buffer; each slice's records go to `sink` (a trace file, the cache
   /// simulator, both) before the next slice runs (bounded memory). A slice that overflows is re-run with fewer workgroup rows; a single row that

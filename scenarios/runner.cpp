@@ -265,6 +265,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     po.warmup = s.warmup;
     po.frames = s.frames;
     po.measure_query_overhead = s.query_overhead;
+    po.measure_overlap = s.overlap;
     const FrameTimings timings = profile_frames(frame, po);
     const fs::path cell_dir = out / "cells" / id;
     fs::create_directories(cell_dir);

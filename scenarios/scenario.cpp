@@ -108,7 +108,7 @@ struct Reader {
 const std::set<std::string> kTopKeys = {"name", "scene", "camera", "light", "resolution", "reversed_z", "passes",
                                         "geometry", "jitter", "shadow_offset", "bias", "reflection_scale",
                                         "roughness_threshold", "reflection_shadows", "bvh", "frames", "warmup",
-                                        "counters", "query_overhead", "seed", "cache_preset", "inject", "trace",
+                                        "counters", "query_overhead", "overlap", "seed", "cache_preset", "inject", "trace",
                                         "reflection_path", "sort", "writeback", "transform", "error"};
 
 json vec_json(const std::optional<glm::vec3>& v) {
@@ -203,6 +203,7 @@ Scenario parse_scenario(const json& j, const std::string& file, const std::strin
   s.warmup = uint32_t(r.integer("warmup", 3, 0, 100000));
   f.rt.counters = r.boolean("counters", true);
   s.query_overhead = r.boolean("query_overhead", false);
+  s.overlap = r.boolean("overlap", true);
   f.rt.seed = uint32_t(r.integer("seed", 1, 0, 0xFFFFFFFFll));
   s.cache_preset = r.string("cache_preset", s.cache_preset);
   if (r.get("cache_preset")) {
@@ -311,6 +312,7 @@ json Scenario::canonical() const {
                       {"translate", {world_translate.x, world_translate.y, world_translate.z}}};
   }
   if (query_overhead) j["query_overhead"] = true;  // only when set, like the keys above: ids stay
+  if (!overlap) j["overlap"] = false;              // only when off: ids stay
   if (error) {
     j["error"] = {{"frames", error_frames}, {"reference_samples", reference_samples},
                   {"threshold", error_threshold}, {"flip", error_flip}};

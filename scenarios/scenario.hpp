@@ -30,6 +30,10 @@ struct Scenario {
   /// Also measure the timestamp queries' overhead: as many frames again without queries, interleaved with
   /// the measured ones (ProfileOptions::measure_query_overhead). Off unless asked: it doubles the frames.
   bool query_overhead = false;
+  /// Also time, beside each measured (serialized) frame, the frame as the application records it, with
+  /// no dependency added between passes (ProfileOptions::measure_overlap): what overlapping the passes
+  /// saves. On unless turned off.
+  bool overlap = true;
   std::string cache_preset = "vega56";
   /// Memory-trace capture for the cache simulator: the passes to trace (empty = none), every k-th
   /// workgroup, whether the trace file is kept beside the results, the image address layout.

@@ -13,7 +13,8 @@ struct DeviceDescription {
   std::string name;         // VkPhysicalDeviceProperties::deviceName
   std::string type;         // "cpu", "discrete-gpu", "integrated-gpu", ...
   std::string driver_name;  // VkPhysicalDeviceDriverProperties::driverName ("llvmpipe")
-  std::string driver_info;  // driverInfo ("Mesa 22.3.6 (LLVM 15.0.6)")
+  std::string driver_info;  // driverInfo ("Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)")
+  std::string driver_version;  // driverVersion decoded ("25.0.7"; vk::driver_version_string)
   std::string api_version;  // "1.3.230"
 
   bool operator==(const DeviceDescription&) const = default;

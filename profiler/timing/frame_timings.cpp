@@ -42,6 +42,47 @@ TimingSource timing_source_from_string(std::string_view text) {
   throw std::invalid_argument("unknown timing source '" + std::string(text) + "'");
 }
 
+std::string_view to_string(PassIsolation isolation) {
+  switch (isolation) {
+    case PassIsolation::Serialized: return "serialized";
+    case PassIsolation::HostSubmissions: return "host-submissions";
+    case PassIsolation::Unisolated: return "unisolated";
+  }
+  return "unknown";
+}
+
+PassIsolation pass_isolation_from_string(std::string_view text) {
+  if (text == "serialized") return PassIsolation::Serialized;
+  if (text == "host-submissions") return PassIsolation::HostSubmissions;
+  if (text == "unisolated") return PassIsolation::Unisolated;
+  throw std::invalid_argument("unknown pass isolation '" + std::string(text) + "'");
+}
+
+OverlapSummary paired_overlap(std::span<const double> serialized_sum_ns, std::span<const double> overlapped_ns) {
+  if (serialized_sum_ns.size() != overlapped_ns.size())
+    throw std::invalid_argument("paired_overlap: " + std::to_string(serialized_sum_ns.size()) + " serialized frames, " +
+                                std::to_string(overlapped_ns.size()) + " overlapped");
+  OverlapSummary o;
+  o.frames = std::uint32_t(overlapped_ns.size());
+  if (overlapped_ns.empty()) return o;
+  o.overlapped_frame_ns = summarize(overlapped_ns);
+  o.serialized_sum_ns = summarize(serialized_sum_ns);
+  std::vector<double> d, f;
+  for (std::size_t i = 0; i < overlapped_ns.size(); ++i) {
+    d.push_back(serialized_sum_ns[i] - overlapped_ns[i]);
+    if (serialized_sum_ns[i] > 0.0) f.push_back((serialized_sum_ns[i] - overlapped_ns[i]) / serialized_sum_ns[i]);
+  }
+  std::sort(d.begin(), d.end());
+  o.saving_ns = quantile_sorted(d, 0.5);
+  o.saving_ns_ci = median_ci_order_statistic(d);
+  if (!f.empty()) {
+    std::sort(f.begin(), f.end());
+    o.saving_fraction = quantile_sorted(f, 0.5);
+    o.saving_fraction_ci = median_ci_order_statistic(f);
+  }
+  return o;
+}
+
 double QueryOverhead::overhead_fraction() const {
   return frame_ns_without_queries > 0.0 ? overhead_ns() / frame_ns_without_queries : 0.0;
 }
@@ -66,7 +107,10 @@ QueryOverhead paired_query_overhead(std::span<const double> with_queries, std::s
 }
 
 FrameTimings::FrameTimings(std::uint32_t warmup, std::uint32_t measured, TimingSource source)
-    : warmup_wanted_(warmup), measured_wanted_(measured), source_(source) {
+    : warmup_wanted_(warmup),
+      measured_wanted_(measured),
+      source_(source),
+      isolation_(source == TimingSource::CpuWall ? PassIsolation::HostSubmissions : PassIsolation::Serialized) {
   measured_.reserve(measured);
 }
 
@@ -92,20 +136,25 @@ TimingSummary FrameTimings::summarize(const SummaryOptions& options) const {
   s.warmup_frames = warmup_seen_;
   s.measured_frames = static_cast<std::uint32_t>(measured_.size());
   s.query_overhead = overhead_;
+  s.pass_isolation = isolation_;
 
   std::vector<std::string> order;
   std::map<std::string, std::vector<double>> per_pass;
   std::vector<double> frame_ns;
   std::vector<double> wall_ns;
+  std::vector<double> pass_sum_ns;
   for (const FrameSample& f : measured_) {
     std::map<std::string, std::uint64_t> in_frame;  // summed per name within the frame
+    std::uint64_t sum = 0;
     for (const PassSample& p : f.passes) {
       if (!per_pass.contains(p.pass)) {
         per_pass[p.pass];
         order.push_back(p.pass);
       }
       in_frame[p.pass] += p.duration_ns();
+      sum += p.duration_ns();
     }
+    pass_sum_ns.push_back(static_cast<double>(sum));
     for (const auto& [name, ns] : in_frame) per_pass[name].push_back(static_cast<double>(ns));
     frame_ns.push_back(static_cast<double>(f.duration_ns()));
     wall_ns.push_back(static_cast<double>(f.cpu_wall_ns));
@@ -115,6 +164,11 @@ TimingSummary FrameTimings::summarize(const SummaryOptions& options) const {
   }
   s.frame_ns = hp::summarize(frame_ns, options);
   s.cpu_wall_ns = hp::summarize(wall_ns, options);
+  if (!overlapped_.empty() && overlapped_.size() == measured_.size()) {
+    std::vector<double> spans;
+    for (const FrameSpan& o : overlapped_) spans.push_back(static_cast<double>(o.duration_ns()));
+    s.overlap = paired_overlap(pass_sum_ns, spans);
+  }
   return s;
 }
 
@@ -126,8 +180,11 @@ Counters FrameTimings::total_counters() const {
 
 FrameTimings FrameTimings::from_measured(std::uint32_t warmup, TimingSource source,
                                          std::vector<FrameSample> measured,
-                                         std::optional<QueryOverhead> overhead, Counters frame_invocations) {
+                                         std::optional<QueryOverhead> overhead, Counters frame_invocations,
+                                         std::vector<FrameSpan> overlapped, std::optional<PassIsolation> isolation) {
   FrameTimings t(warmup, static_cast<std::uint32_t>(measured.size()), source);
+  if (isolation) t.isolation_ = *isolation;
+  t.overlapped_ = std::move(overlapped);
   t.invocations_ = std::move(frame_invocations);
   t.warmup_seen_ = warmup;
   t.measured_ = std::move(measured);

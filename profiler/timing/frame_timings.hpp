@@ -52,6 +52,33 @@ enum class TimingSource {
   CpuWall,        // the queue has no timestamp support: CPU clock around submit/wait per pass
 };
 
+// What keeps one pass's interval free of another pass's work.
+enum class PassIsolation {
+  // An execution dependency (ALL_COMMANDS -> ALL_COMMANDS) before every pass boundary timestamp: a pass
+  // starts only when the previous one is done, so each interval holds one pass. A device that overlaps
+  // independent passes (Mesa 25 lavapipe, every GPU) loses that overlap in these frames; the frame as the
+  // application records it is timed beside them (FrameTimings::overlapped()).
+  Serialized,
+  // One submission per pass, waited for on the host (TimingSource::CpuWall).
+  HostSubmissions,
+  // Boundary timestamps with no added dependency (results written before isolation existed): on a device
+  // that overlaps passes a boundary can fall inside the next pass's work, and an interval may hold parts
+  // of two passes.
+  Unisolated,
+};
+// "serialized" / "host-submissions" / "unisolated".
+std::string_view to_string(PassIsolation isolation);
+// Inverse of to_string; throws std::invalid_argument on anything else.
+PassIsolation pass_isolation_from_string(std::string_view text);
+
+// The span of a frame on the timing source's clock.
+struct FrameSpan {
+  std::uint64_t begin_ns = 0;
+  std::uint64_t end_ns = 0;
+  std::uint64_t duration_ns() const { return end_ns >= begin_ns ? end_ns - begin_ns : 0; }
+  bool operator==(const FrameSpan&) const = default;
+};
+
 // "gpu-timestamps" / "cpu-wall".
 std::string_view to_string(TimingSource source);
 // Inverse of to_string; throws std::invalid_argument on anything else.
@@ -78,6 +105,25 @@ struct QueryOverhead {
 // The overhead of frames with queries over their paired frames without (same length, pairs by index).
 QueryOverhead paired_query_overhead(std::span<const double> with_queries, std::span<const double> without_queries);
 
+// The frame as the application records it (no dependency added between passes, timestamps only at the
+// frame's start and end) against the serialized frames' sum of pass times. Frame i of each kind ran next
+// to the other (alternating which went first), so the paired differences cancel the machine's drift.
+struct OverlapSummary {
+  std::uint32_t frames = 0;          // pairs
+  Summary overlapped_frame_ns;       // the overlapped frames' spans
+  Summary serialized_sum_ns;         // per serialized frame: the sum of its pass times
+  // Median of the pairs' (serialized sum - overlapped span), in ns and as a fraction of the serialized
+  // sum, with their order-statistic CIs (valid from 6 pairs). Positive: overlap saves time.
+  std::optional<double> saving_ns;
+  MedianCi saving_ns_ci;
+  std::optional<double> saving_fraction;
+  MedianCi saving_fraction_ci;
+  bool operator==(const OverlapSummary&) const = default;
+};
+
+// Pairs serialized frame sums with the overlapped spans (same length, pairs by index).
+OverlapSummary paired_overlap(std::span<const double> serialized_sum_ns, std::span<const double> overlapped_ns);
+
 struct PassSummary {
   std::string pass;
   Summary duration_ns;
@@ -86,6 +132,7 @@ struct PassSummary {
 
 struct TimingSummary {
   TimingSource source = TimingSource::GpuTimestamps;
+  PassIsolation pass_isolation = PassIsolation::Serialized;
   std::uint32_t warmup_frames = 0;
   std::uint32_t measured_frames = 0;
   // One per pass name in order of first appearance. A pass recorded several times in one frame
@@ -95,6 +142,7 @@ struct TimingSummary {
   Summary frame_ns;        // frame span on the timing source's clock
   Summary cpu_wall_ns;     // CPU wall time per frame
   std::optional<QueryOverhead> query_overhead;
+  std::optional<OverlapSummary> overlap;  // when overlapped frames were timed beside the measured ones
   bool operator==(const TimingSummary&) const = default;
 };
 
@@ -119,6 +167,16 @@ class FrameTimings {
   void set_query_overhead(const QueryOverhead& overhead) { overhead_ = overhead; }
   const std::optional<QueryOverhead>& query_overhead() const { return overhead_; }
 
+  // How the passes of the measured frames were kept apart. Default: Serialized for GPU timestamps,
+  // HostSubmissions for CPU wall clocks.
+  PassIsolation pass_isolation() const { return isolation_; }
+  void set_pass_isolation(PassIsolation isolation) { isolation_ = isolation; }
+
+  // The frames as the application records them, one per measured frame and run next to it (empty when
+  // not measured). Summarized as TimingSummary::overlap once there is one per measured frame.
+  void add_overlapped(FrameSpan span) { overlapped_.push_back(span); }
+  const std::vector<FrameSpan>& overlapped() const { return overlapped_; }
+
   // Per-pass and whole-frame statistics over the measured frames (at least one needed, else
   // std::logic_error).
   TimingSummary summarize(const SummaryOptions& options = {}) const;
@@ -136,7 +194,9 @@ class FrameTimings {
   // Rebuilds a finished collector from stored frames (reading a result back).
   static FrameTimings from_measured(std::uint32_t warmup, TimingSource source,
                                     std::vector<FrameSample> measured,
-                                    std::optional<QueryOverhead> overhead, Counters frame_invocations = {});
+                                    std::optional<QueryOverhead> overhead, Counters frame_invocations = {},
+                                    std::vector<FrameSpan> overlapped = {},
+                                    std::optional<PassIsolation> isolation = std::nullopt);
 
   bool operator==(const FrameTimings&) const = default;
 
@@ -148,6 +208,8 @@ class FrameTimings {
   std::vector<FrameSample> measured_;
   std::optional<QueryOverhead> overhead_;
   Counters invocations_;
+  PassIsolation isolation_ = PassIsolation::Serialized;
+  std::vector<FrameSpan> overlapped_;
 };
 
 }  // namespace hp

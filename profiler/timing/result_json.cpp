@@ -153,6 +153,7 @@ void to_json(json& j, const DeviceDescription& d) {
        {"type", d.type},
        {"driver_name", d.driver_name},
        {"driver_info", d.driver_info},
+       {"driver_version", d.driver_version},
        {"api_version", d.api_version}};
 }
 
@@ -161,6 +162,8 @@ void from_json(const json& j, DeviceDescription& d) {
   d.type = get<std::string>(j, "type");
   d.driver_name = get<std::string>(j, "driver_name");
   d.driver_info = get<std::string>(j, "driver_info");
+  // Results written before the field existed carry the version only inside driver_info.
+  if (j.contains("driver_version")) d.driver_version = get<std::string>(j, "driver_version");
   d.api_version = get<std::string>(j, "api_version");
 }
 
@@ -211,6 +214,27 @@ void from_json(const json& j, QueryOverhead& q) {
   }
 }
 
+void to_json(json& j, const OverlapSummary& o) {
+  j = {{"frames", o.frames},
+       {"overlapped_frame_ns", o.overlapped_frame_ns},
+       {"serialized_sum_ns", o.serialized_sum_ns},
+       {"saving_ns", optional_json(o.saving_ns)},
+       {"saving_ns_ci", o.saving_ns ? json(o.saving_ns_ci) : json(nullptr)},
+       {"saving_fraction", optional_json(o.saving_fraction)},
+       {"saving_fraction_ci", o.saving_fraction ? json(o.saving_fraction_ci) : json(nullptr)}};
+}
+
+void from_json(const json& j, OverlapSummary& o) {
+  o.frames = get<std::uint32_t>(j, "frames");
+  o.overlapped_frame_ns = within("overlapped_frame_ns", [&] { return field(j, "overlapped_frame_ns").get<Summary>(); });
+  o.serialized_sum_ns = within("serialized_sum_ns", [&] { return field(j, "serialized_sum_ns").get<Summary>(); });
+  o.saving_ns = get_optional<double>(j, "saving_ns");
+  if (o.saving_ns) o.saving_ns_ci = within("saving_ns_ci", [&] { return field(j, "saving_ns_ci").get<MedianCi>(); });
+  o.saving_fraction = get_optional<double>(j, "saving_fraction");
+  if (o.saving_fraction)
+    o.saving_fraction_ci = within("saving_fraction_ci", [&] { return field(j, "saving_fraction_ci").get<MedianCi>(); });
+}
+
 json timing_result_json(const Environment& env, const FrameTimings& timings,
                         const SummaryOptions& options) {
   const TimingSummary s = timings.summarize(options);
@@ -228,11 +252,15 @@ json timing_result_json(const Environment& env, const FrameTimings& timings,
                       {"passes", std::move(fp)},
                       {"counters", f.counters}});
   }
+  json overlapped = json::array();
+  for (const FrameSpan& o : timings.overlapped()) overlapped.push_back({{"begin_ns", o.begin_ns}, {"end_ns", o.end_ns}});
   return {{"schema", "hybridprof.timings"},
           {"version", 1},
           {"environment", env},
           {"timing",
            {{"source", std::string(to_string(s.source))},
+            {"pass_isolation", std::string(to_string(s.pass_isolation))},
+            {"overlap", s.overlap ? json(*s.overlap) : json(nullptr)},
             {"warmup_frames", s.warmup_frames},
             {"measured_frames", s.measured_frames},
             {"query_overhead", s.query_overhead ? json(*s.query_overhead) : json(nullptr)},
@@ -240,6 +268,7 @@ json timing_result_json(const Environment& env, const FrameTimings& timings,
             {"cpu_wall_ns", s.cpu_wall_ns},
             {"passes", std::move(passes)}}},
           {"frames", std::move(frames)},
+          {"overlapped_frames", std::move(overlapped)},
           {"counters", timings.total_counters()},
           {"invocations_per_frame", timings.frame_invocations()}};
 }
@@ -260,6 +289,18 @@ TimingResult parse_timing_result(const json& doc) {
     } catch (const std::invalid_argument& e) {
       throw InputError(std::string("field 'source': ") + e.what());
     }
+    // Results written before pass isolation existed have no field: their boundary timestamps had no
+    // dependency added between passes.
+    s.pass_isolation = s.source == TimingSource::CpuWall ? PassIsolation::HostSubmissions : PassIsolation::Unisolated;
+    if (t.contains("pass_isolation")) {
+      try {
+        s.pass_isolation = pass_isolation_from_string(get<std::string>(t, "pass_isolation"));
+      } catch (const std::invalid_argument& e) {
+        throw InputError(std::string("field 'pass_isolation': ") + e.what());
+      }
+    }
+    if (t.contains("overlap") && !t["overlap"].is_null())
+      s.overlap = within("overlap", [&] { return t["overlap"].get<OverlapSummary>(); });
     s.warmup_frames = get<std::uint32_t>(t, "warmup_frames");
     s.measured_frames = get<std::uint32_t>(t, "measured_frames");
     const json& q = field(t, "query_overhead");
@@ -307,11 +348,28 @@ TimingResult parse_timing_result(const json& doc) {
   }
   Counters counters = within("counters", [&] { return field(doc, "counters").get<Counters>(); });
 
+  std::vector<FrameSpan> overlapped;
+  if (doc.contains("overlapped_frames")) {
+    const json& oj = doc["overlapped_frames"];
+    if (!oj.is_array()) throw InputError("field 'overlapped_frames' must be an array");
+    for (std::size_t i = 0; i < oj.size(); ++i) {
+      overlapped.push_back(within("overlapped_frames[" + std::to_string(i) + "]", [&] {
+        FrameSpan o{get<std::uint64_t>(oj[i], "begin_ns"), get<std::uint64_t>(oj[i], "end_ns")};
+        if (o.end_ns < o.begin_ns) throw InputError("end_ns is before begin_ns");
+        return o;
+      }));
+    }
+    if (!overlapped.empty() && overlapped.size() != frames.size()) {
+      throw InputError("field 'overlapped_frames' holds " + std::to_string(overlapped.size()) +
+                       " frames but 'frames' holds " + std::to_string(frames.size()) + " (one per measured frame)");
+    }
+  }
   Counters invocations;
   if (doc.contains("invocations_per_frame"))
     invocations = within("invocations_per_frame", [&] { return doc["invocations_per_frame"].get<Counters>(); });
   FrameTimings timings = FrameTimings::from_measured(summary.warmup_frames, summary.source, std::move(frames),
-                                                     summary.query_overhead, std::move(invocations));
+                                                     summary.query_overhead, std::move(invocations),
+                                                     std::move(overlapped), summary.pass_isolation);
   return TimingResult{std::move(env), std::move(timings), std::move(summary), std::move(counters)};
 }
 

@@ -3,8 +3,13 @@
 //
 // Schema ("schema": "hybridprof.timings", "version": 1); nanoseconds and raw counts throughout:
 //   environment: {cpu_model, core_count, lp_num_threads, build_type, compiler, git_commit, date_utc,
-//                 hostname, os, device: {name, type, driver_name, driver_info, api_version}}
-//   timing: {source: "gpu-timestamps"|"cpu-wall", warmup_frames, measured_frames,
+//                 hostname, os, device: {name, type, driver_name, driver_info, driver_version, api_version}}
+//   timing: {source: "gpu-timestamps"|"cpu-wall",
+//            pass_isolation: "serialized"|"host-submissions"|"unisolated" (absent when read: unisolated
+//                            for GPU timestamps, written before isolation existed),
+//            overlap: null | {frames, overlapped_frame_ns: Summary, serialized_sum_ns: Summary,
+//                             saving_ns, saving_ns_ci, saving_fraction, saving_fraction_ci},
+//            warmup_frames, measured_frames,
 //            query_overhead: null | {frame_ns_with_queries, frame_ns_without_queries, frames,
 //                                    overhead_ns, overhead_fraction, paired_fraction,
 //                                    paired_fraction_ci},
@@ -15,6 +20,8 @@
 //   CI: {method, level, low, high, coverage, lower_rank, upper_rank, valid}
 //   frames: [{index, begin_ns, end_ns (null when derived from the passes), cpu_wall_ns,
 //             passes: [{pass, queue, begin_ns, end_ns}], counters: {pass: {name: value}}}]
+//   overlapped_frames: [{begin_ns, end_ns}]  (the frames as the application records them, one beside
+//             each measured frame; [] when not measured; optional when read)
 //   counters: {pass: {name: value}}  (sum over the measured frames)
 //   invocations_per_frame: {pass: {compute_invocations: value}}  (pipeline statistics of one frame
 //             rendered outside the timed ones; {} when not counted; optional when read)
@@ -44,6 +51,8 @@ void to_json(nlohmann::json& j, const Environment& e);
 void from_json(const nlohmann::json& j, Environment& e);
 void to_json(nlohmann::json& j, const QueryOverhead& q);
 void from_json(const nlohmann::json& j, QueryOverhead& q);
+void to_json(nlohmann::json& j, const OverlapSummary& o);
+void from_json(const nlohmann::json& j, OverlapSummary& o);
 
 // A result read back.
 struct TimingResult {

@@ -42,7 +42,12 @@ json build_timeline(const FrameTimings& timings, TimelineFixes* fixes_out, const
     t0 = std::min(t0, f.span_begin_ns());
     for (const PassSample& p : f.passes) t0 = std::min(t0, p.begin_ns);
   }
-  if (frames.empty()) t0 = 0;
+  // The overlapped frames share the clock only when they come from the device's timestamps (host-timed
+  // frames start at 0 each).
+  const bool overlapped_track = timings.source() == TimingSource::GpuTimestamps && !timings.overlapped().empty();
+  if (overlapped_track)
+    for (const FrameSpan& o : timings.overlapped()) t0 = std::min(t0, o.begin_ns);
+  if (frames.empty() && !overlapped_track) t0 = 0;
   const auto us = [t0](std::uint64_t ns) { return ns_to_trace_us(ns - t0); };
 
   // Tracks: one per queue, numbered in order of first appearance, so the file is deterministic.
@@ -137,11 +142,35 @@ json build_timeline(const FrameTimings& timings, TimelineFixes* fixes_out, const
     }
   }
 
+  // The frames as the application records them: one span each on a track of their own (no pass inside:
+  // with the passes free to overlap, no boundary between them can be timed).
+  if (overlapped_track) {
+    const int tid = static_cast<int>(queues.size()) + 1;
+    events.push_back({{"ph", "M"}, {"name", "thread_name"}, {"pid", kPid}, {"tid", tid},
+                      {"args", {{"name", "frame as recorded (passes free to overlap)"}}}});
+    events.push_back({{"ph", "M"}, {"name", "thread_sort_index"}, {"pid", kPid}, {"tid", tid},
+                      {"args", {{"sort_index", tid}}}});
+    std::uint64_t prev_end = 0;
+    for (std::size_t i = 0; i < timings.overlapped().size(); ++i) {
+      Span o{timings.overlapped()[i].begin_ns, timings.overlapped()[i].end_ns};
+      if (i > 0 && o.begin < prev_end) {
+        o.begin = prev_end;
+        o.end = std::max(o.end, o.begin);
+        ++fixes.frames_trimmed;
+      }
+      prev_end = o.end;
+      events.push_back({{"ph", "X"}, {"name", "frame (overlapped)"}, {"cat", "frame"}, {"pid", kPid}, {"tid", tid},
+                        {"ts", us(o.begin)}, {"dur", ns_to_trace_us(o.end - o.begin)},
+                        {"args", {{"paired_with_frame", i}, {"frame_ns", timings.overlapped()[i].duration_ns()}}}});
+    }
+  }
+
   if (fixes_out != nullptr) *fixes_out = fixes;
   return {{"traceEvents", std::move(events)},
           {"displayTimeUnit", "ns"},
           {"otherData",
            {{"timing_source", std::string(to_string(timings.source()))},
+            {"pass_isolation", std::string(to_string(timings.pass_isolation()))},
             {"time_base_ns", t0},
             {"frames_trimmed", fixes.frames_trimmed},
             {"passes_clamped", fixes.passes_clamped},

@@ -6,8 +6,12 @@
 // pass in it: one "X" complete event "frame N" (cat "frame") spanning the frame, and one "X" event per
 // pass (cat "pass") nested inside it. Counter tracks ("C" events, one per frame at the frame's start,
 // plus a closing sample at the end of the last frame) carry rays cast and nodes visited summed over
-// the frame's passes, when the frames have counters. ts/dur are microseconds as floats; the time
-// base is the earliest timestamp of the measured frames (it becomes 0).
+// the frame's passes, when the frames have counters. The measured frames' passes are serialized
+// (PassIsolation), so no pass interval holds another pass's work. The frames timed as the application
+// records them (FrameTimings::overlapped(), GPU timestamps only) get a track of their own after the
+// queues: one "frame (overlapped)" X event each and no pass inside, since with the passes free to overlap
+// no boundary between them can be timed. ts/dur are microseconds as floats; the time base is the
+// earliest timestamp of the measured and overlapped frames (it becomes 0).
 //
 // Perfetto drops X events on one track that overlap without nesting, so the builder enforces strict
 // nesting, deterministically, and counts what it changed:

@@ -121,7 +121,8 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
                             dump_usage, false);
   reflection_dump_ = vk::Buffer(ctx, options.dump_rays ? uint64_t(grid_w_) * grid_h_ * sizeof(gpu::RayDump) : 4,
                                 dump_usage, false);
-  const VkImageUsageFlags img_usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+  const VkImageUsageFlags img_usage =
+      VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
   // A disabled pass's output is a 1x1 stand-in (the composite reads it only when the pass is on): a frame
   // without reflections does not hold two 16-byte-per-cell images for them (29 MiB at 1280x720).
   const bool sh = options.shadows, refl = options.reflections;
@@ -293,6 +294,47 @@ void RayTracingPasses::record_prepare(VkCommandBuffer cmd) {
   vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                      VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+}
+
+namespace {
+// Both images are in GENERAL before and after; the copy runs in the transfer layouts.
+void copy_whole(VkCommandBuffer cmd, const vk::Image& from, const vk::Image& to) {
+  VkImageCopy region{};
+  region.srcSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  region.dstSubresource = region.srcSubresource;
+  region.extent = {from.width(), from.height(), 1};
+  const VkPipelineStageFlags2 all = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, copy = VK_PIPELINE_STAGE_2_COPY_BIT;
+  const VkAccessFlags2 rw = VK_ACCESS_2_MEMORY_READ_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT;
+  vk::transition(cmd, from, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, all,
+                 VK_ACCESS_2_MEMORY_WRITE_BIT, copy, VK_ACCESS_2_TRANSFER_READ_BIT);
+  vk::transition(cmd, to, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, all, rw, copy,
+                 VK_ACCESS_2_TRANSFER_WRITE_BIT);
+  vkCmdCopyImage(cmd, from.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, to.handle(),
+                 VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &region);
+  vk::transition(cmd, from, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL, copy,
+                 VK_ACCESS_2_TRANSFER_READ_BIT, all, rw);
+  vk::transition(cmd, to, VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_IMAGE_LAYOUT_GENERAL, copy,
+                 VK_ACCESS_2_TRANSFER_WRITE_BIT, all, rw);
+}
+}  // namespace
+
+void RayTracingPasses::save_accumulation(vk::Context& ctx) {
+  if (!images_initialised_) return;  // nothing accumulated yet: the next frame starts from UNDEFINED anyway
+  ctx.submit_and_wait([&](VkCommandBuffer cmd) {
+    if (accum_saved_.handle() == VK_NULL_HANDLE) {
+      accum_saved_ = vk::Image(ctx, accum_.width(), accum_.height(), accum_.format(),
+                               VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
+                                   VK_IMAGE_USAGE_TRANSFER_DST_BIT);
+      vk::transition(cmd, accum_saved_, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_NONE, 0,
+                     VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
+    }
+    copy_whole(cmd, accum_, accum_saved_);
+  });
+}
+
+void RayTracingPasses::restore_accumulation(vk::Context& ctx) {
+  if (accum_saved_.handle() == VK_NULL_HANDLE || !images_initialised_) return;
+  ctx.submit_and_wait([&](VkCommandBuffer cmd) { copy_whole(cmd, accum_saved_, accum_); });
 }
 
 void RayTracingPasses::bind(VkCommandBuffer cmd, const vk::Pipeline& p) const {

@@ -95,6 +95,12 @@ class RayTracingPasses {
   /// Rays appended by the last compaction (a readback, for tests and reports; the frame never waits on it).
   uint32_t read_compacted_count(vk::Context& ctx) const;
 
+  /// The running mean of the reflections copied aside and back (one submission each, outside any timed
+  /// frame): a frame that repeats a measured frame's sample for timing (Frame::render with
+  /// FrameQueries::frame_span) leaves the accumulation as it found it.
+  void save_accumulation(vk::Context& ctx);
+  void restore_accumulation(vk::Context& ctx);
+
   const vk::Image& shadow_mask() const { return shadow_mask_; }
   const vk::Image& reflection() const { return reflection_; }
   const vk::Image& reflection_accum() const { return accum_; }
@@ -135,6 +141,7 @@ class RayTracingPasses {
   vk::Buffer counters_;
   vk::Buffer shadow_dump_, reflection_dump_;
   vk::Image shadow_mask_, reflection_, accum_;
+  vk::Image accum_saved_;  // save_accumulation's copy, made on first use
   vk::DescriptorSet descriptors_;
   vk::Pipeline shadow_pipeline_, reflection_pipeline_, accumulate_pipeline_;
   vk::Pipeline shadow_traced_, reflection_traced_;

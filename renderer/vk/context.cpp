@@ -75,6 +75,19 @@ std::string lower(std::string s) {
   return s;
 }
 
+}  // namespace
+
+std::string driver_version_string(uint32_t vendor_id, uint32_t v) {
+  if (vendor_id == 0x10DE) {  // NVIDIA packs major.minor.secondary.tertiary as 10.8.8.6 bits
+    return std::to_string(v >> 22) + "." + std::to_string((v >> 14) & 0xFF) + "." + std::to_string((v >> 6) & 0xFF) +
+           "." + std::to_string(v & 0x3F);
+  }
+  return std::to_string(VK_API_VERSION_MAJOR(v)) + "." + std::to_string(VK_API_VERSION_MINOR(v)) + "." +
+         std::to_string(VK_API_VERSION_PATCH(v));
+}
+
+namespace {
+
 DeviceInfo describe(VkPhysicalDevice pd, const std::vector<VkQueueFamilyProperties>& families, uint32_t family) {
   VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
   VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
@@ -88,6 +101,7 @@ DeviceInfo describe(VkPhysicalDevice pd, const std::vector<VkQueueFamilyProperti
   info.type = device_type_name(p.deviceType);
   info.driver_name = driver.driverName;
   info.driver_info = driver.driverInfo;
+  info.driver_version = driver_version_string(p.vendorID, p.driverVersion);
   info.api_version = version_string(p.apiVersion);
   info.vendor_id = p.vendorID;
   info.device_id = p.deviceID;

@@ -31,18 +31,19 @@ void TimestampQueries::reset(VkCommandBuffer cmd) {
   if (pool_) vkCmdResetQueryPool(cmd, pool_, 0, capacity_);
 }
 
-void TimestampQueries::begin(VkCommandBuffer cmd, const std::string& pass) {
-  if (!pool_) return;
+bool TimestampQueries::begin(VkCommandBuffer cmd, const std::string& pass) {
+  if (!pool_) return false;
   if (open_) throw std::logic_error("TimestampQueries: begin() inside an open pass");
   names_.push_back(pass);
   open_ = true;
   if (boundary_) {  // the previous pass's end timestamp is this pass's begin
     slots_.push_back({used_ - 1, 0});
-    return;
+    return false;
   }
   if (used_ + 2 > capacity_) throw std::logic_error("TimestampQueries: more passes than the pool holds");
   slots_.push_back({used_, 0});
   vkCmdWriteTimestamp2(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, pool_, used_++);
+  return true;
 }
 
 void TimestampQueries::end(VkCommandBuffer cmd) {

@@ -1,9 +1,10 @@
 // GPU timestamps around the passes of a frame, written at VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT: each one
-// waits for all earlier work, so a pass's interval holds that pass alone (on lavapipe every timestamp not
-// at top-of-pipe waits for all earlier work anyway). Passes recorded back to back share the boundary
-// timestamp (the end of one is the begin of the next: N + 1 queries for N passes, not 2N), which halves
-// the queries' own cost; the barrier between two passes then counts toward the later one. Ticks are
-// masked with timestampValidBits and converted with timestampPeriod.
+// waits for all earlier work, but holds back no later work, so an interval holds one pass only where the
+// caller adds an execution dependency after each timestamp (Frame does: PassIsolation::Serialized).
+// Passes recorded back to back share the boundary timestamp (the end of one is the begin of the next:
+// N + 1 queries for N passes, not 2N), which halves the queries' own cost; the barriers between two passes
+// then count toward the later one. Ticks are masked with timestampValidBits and converted with
+// timestampPeriod.
 #pragma once
 
 #include "vk/context.hpp"
@@ -33,7 +34,9 @@ class TimestampQueries {
   bool supported() const { return pool_ != VK_NULL_HANDLE; }
 
   void reset(VkCommandBuffer cmd);
-  void begin(VkCommandBuffer cmd, const std::string& pass);
+  /// Returns whether it wrote a timestamp (false when the previous pass's end is this pass's begin, or
+  /// without a pool).
+  bool begin(VkCommandBuffer cmd, const std::string& pass);
   void end(VkCommandBuffer cmd);
 
   struct Interval {

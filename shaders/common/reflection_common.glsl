@@ -13,10 +13,10 @@ const float HP_FLT_MAX = 3.402823466e+38;
 
 // The shading data seen as texels (RtScene::geometry_texels), like the positions: normals as R32G32B32_UINT,
 // material ids and materials.
-layout(set = 0, binding = 32) uniform usamplerBuffer normal_texels;
-layout(set = 0, binding = 33) uniform usamplerBuffer soup_normal_texels;
-layout(set = 0, binding = 35) uniform usamplerBuffer slot_material_texels;  // R32_UINT
-layout(set = 0, binding = 36) uniform usamplerBuffer material_texels;       // RGBA32_UINT, two per material
+layout(set = 0, binding = 32) uniform utextureBuffer normal_texels;
+layout(set = 0, binding = 33) uniform utextureBuffer soup_normal_texels;
+layout(set = 0, binding = 35) uniform utextureBuffer slot_material_texels;  // R32_UINT
+layout(set = 0, binding = 36) uniform utextureBuffer material_texels;       // RGBA32_UINT, two per material
 
 vec3 hit_normal(uint slot, float u, float v) {
   vec3 n0, n1, n2;

@@ -7,6 +7,11 @@
 #define HP_TRAVERSAL_GLSL
 
 #extension GL_EXT_shader_explicit_arithmetic_types_float64 : require
+// Texel buffers are read as utextureBuffer with texelFetch, no sampler: glslang then fetches from the
+// image itself. A usamplerBuffer wraps the image in an OpTypeSampledImage of Dim Buffer, which SPIR-V 1.6
+// deprecates and the validation layer flags on Mesa 25 ("should not have a Dim of Buffer"). The descriptor
+// type (UNIFORM_TEXEL_BUFFER) and the generated fetch are the same.
+#extension GL_EXT_samplerless_texture_functions : require
 
 #include "common/rt_bindings.glsl"
 #include "common/trace_capture.glsl"
@@ -16,14 +21,14 @@
 // check, scalar load), and a texel fetch into a branch-free gather. Measured against four 64-bit storage
 // loads on pica 1280x720: shadows 1.3-1.6x, reflections 1.2-1.4x faster, the same rays and hits; the other
 // glTF scenes within noise (README).
-layout(set = 0, binding = 26) uniform usamplerBuffer node_texels;
+layout(set = 0, binding = 26) uniform utextureBuffer node_texels;
 // The geometry buffers (bindings 3, 4, 5) seen as R32G32B32_UINT texels (bindings 29, 30, 31): a vertex, or
 // a slot's three indices, per texel; read where HP_GEOMETRY_TEXELS is set (2-8% faster passes on lavapipe,
 // README). 12-byte texels need no padding, and UINT moves the float bits unchanged.
-layout(set = 0, binding = 29) uniform usamplerBuffer position_texels;
-layout(set = 0, binding = 30) uniform usamplerBuffer index_texels;
-layout(set = 0, binding = 31) uniform usamplerBuffer soup_texels;
-layout(set = 0, binding = 34) uniform usamplerBuffer slot_scene_texels;  // R32_UINT: slot -> scene triangle
+layout(set = 0, binding = 29) uniform utextureBuffer position_texels;
+layout(set = 0, binding = 30) uniform utextureBuffer index_texels;
+layout(set = 0, binding = 31) uniform utextureBuffer soup_texels;
+layout(set = 0, binding = 34) uniform utextureBuffer slot_scene_texels;  // R32_UINT: slot -> scene triangle
 // Otherwise the geometry (bindings 3, 4, 5) seen as 64-bit words: a 32-bit triple at index b is one 64-bit
 // word and one 32-bit load (which one depends on the parity of b), nine floats are four words and one
 // float; a word is never read past the triple, so it never straddles the end of a buffer. Only bits move

@@ -41,6 +41,14 @@ TEST(Profile, RealRunGivesNestedTimelineAndStableCounters) {
   }
   ASSERT_TRUE(sum.query_overhead.has_value());
   EXPECT_EQ(sum.query_overhead->frames, 6u);
+  EXPECT_EQ(sum.pass_isolation, PassIsolation::Serialized);
+  // The frame as the application records it, one beside each measured frame, summed against its passes.
+  ASSERT_EQ(t.overlapped().size(), 6u);
+  ASSERT_TRUE(sum.overlap.has_value());
+  EXPECT_EQ(sum.overlap->frames, 6u);
+  EXPECT_GT(sum.overlap->overlapped_frame_ns.min, 0.0);
+  ASSERT_TRUE(sum.overlap->saving_ns.has_value());
+  EXPECT_TRUE(sum.overlap->saving_ns_ci.valid);
   // Shadow work does not depend on the frame (no jitter): identical counters in every measured frame.
   // Reflection work varies with the per-frame jitter offset, so only its presence is checked.
   const auto& frames = t.measured();
@@ -71,6 +79,9 @@ TEST(Profile, RealRunGivesNestedTimelineAndStableCounters) {
   EXPECT_TRUE(problems.empty()) << problems.front();
   EXPECT_EQ(fixes.passes_trimmed + fixes.passes_clamped + fixes.frames_trimmed, 0u)
       << "GPU timestamps of one queue must already nest";
+  size_t overlapped_events = 0;
+  for (const auto& e : timeline["traceEvents"]) overlapped_events += e.value("name", "") == "frame (overlapped)";
+  EXPECT_EQ(overlapped_events, 6u) << "one span per overlapped frame, on a track of its own";
 
   const auto path = std::filesystem::temp_directory_path() / ("hp_profile_" + std::to_string(::getpid()) + ".json");
   write_timing_result(path, capture_environment(describe_device(*ctx)), t);
@@ -78,7 +89,45 @@ TEST(Profile, RealRunGivesNestedTimelineAndStableCounters) {
   EXPECT_EQ(back.environment.device.name, ctx->info().name);
   EXPECT_EQ(back.summary, sum);
   EXPECT_EQ(back.timings.frame_invocations(), t.frame_invocations());
+  EXPECT_EQ(back.timings.overlapped(), t.overlapped());
+  EXPECT_EQ(back.timings.summarize(), sum) << "the stored raw samples give the stored summary";
+  EXPECT_FALSE(back.environment.device.driver_version.empty());
+  EXPECT_EQ(back.environment.device.driver_version, ctx->info().driver_version);
   std::filesystem::remove(path);
+}
+
+// The overlapped frames repeat a measured frame's sample and leave the accumulation as it was: the final
+// image and every counter are those of a run without them, bit for bit.
+TEST(Profile, OverlappedFramesChangeNeitherImageNorCounters) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s;
+  s.width = 64;
+  s.height = 40;
+  s.rt.shadows = true;
+  s.rt.reflections = true;
+  s.rt.counters = true;
+  s.rt.jitter = JitterMode::per_thread;
+  auto run = [&](bool overlap) {
+    Frame frame(*ctx, scene, scene.camera, s);
+    ProfileOptions o;
+    o.warmup = 1;
+    o.frames = 5;
+    o.measure_query_overhead = false;
+    o.measure_overlap = overlap;
+    const FrameTimings t = profile_frames(frame, o);
+    EXPECT_EQ(t.overlapped().size(), overlap ? 5u : 0u);
+    EXPECT_EQ(frame.samples_accumulated(), 1u + 5u + (frame.pipeline_statistics_available() ? 1u : 0u));
+    return std::pair{frame.read_color().rgba, t.total_counters()};
+  };
+  const auto [with_image, with_counters] = run(true);
+  const auto [without_image, without_counters] = run(false);
+  EXPECT_EQ(with_counters, without_counters);
+  EXPECT_GT(with_counters.get("reflections", counter::rays_cast), 0u);
+  ASSERT_EQ(with_image.size(), without_image.size());
+  size_t differing = 0;
+  for (size_t i = 0; i < with_image.size(); ++i) differing += with_image[i] != without_image[i];
+  EXPECT_EQ(differing, 0u) << "of " << with_image.size() << " channel values";
 }
 
 // The fallback for a queue without timestamps, run on purpose: each pass is its own submission timed on the

@@ -11,7 +11,7 @@ namespace {
 
 TEST(Environment, CapturedFieldsAreFilled) {
   const DeviceDescription dev{"llvmpipe (LLVM 15.0.6, 256 bits)", "cpu", "llvmpipe",
-                              "Mesa 22.3.6 (LLVM 15.0.6)", "1.3.230"};
+                              "Mesa 22.3.6 (LLVM 15.0.6)", "22.3.6", "1.3.230"};
   const Environment env = capture_environment(dev);
   EXPECT_FALSE(env.cpu_model.empty());
   EXPECT_GT(env.core_count, 0u);

@@ -139,6 +139,45 @@ TEST(FrameTimings, PairingCancelsTheDriftBetweenPairs) {
   EXPECT_GT(misaligned.paired_fraction_ci.high - misaligned.paired_fraction_ci.low, 0.05);
 }
 
+TEST(FrameTimings, PairedOverlapIsTheMedianSavingWithItsCi) {
+  // Serialized sums 100..106, overlapped spans with savings 10, 2, -1, 5, 1, 3, 0 (sorted: -1 0 1 2 3 5 10):
+  // median 2, 95% CI [-1, 10] over 7 pairs.
+  const std::vector<double> serialized = {100, 101, 102, 103, 104, 105, 106};
+  const std::vector<double> overlapped = {90, 99, 103, 98, 103, 102, 106};
+  const OverlapSummary o = paired_overlap(serialized, overlapped);
+  EXPECT_EQ(o.frames, 7u);
+  ASSERT_TRUE(o.saving_ns.has_value());
+  EXPECT_DOUBLE_EQ(*o.saving_ns, 2.0);
+  EXPECT_TRUE(o.saving_ns_ci.valid);
+  EXPECT_DOUBLE_EQ(o.saving_ns_ci.low, -1.0);
+  EXPECT_DOUBLE_EQ(o.saving_ns_ci.high, 10.0);
+  // Fractions -1/102, 0/106, 1/104, 2/101, 3/105, 5/103, 10/100: the median is frame 2's own, 2/101.
+  EXPECT_NEAR(*o.saving_fraction, 2.0 / 101.0, 1e-12);
+  EXPECT_DOUBLE_EQ(o.serialized_sum_ns.median, 103.0);
+  EXPECT_DOUBLE_EQ(o.overlapped_frame_ns.median, 102.0);
+  EXPECT_THROW(paired_overlap(serialized, std::vector<double>(6, 1.0)), std::invalid_argument);
+}
+
+TEST(FrameTimings, OverlapIsSummarizedOnlyWithOneFramePerMeasuredFrame) {
+  FrameTimings t(0, 3, TimingSource::GpuTimestamps);
+  for (std::uint64_t i = 0; t.add(test::synthetic_frame(i)); ++i) {
+  }
+  EXPECT_EQ(t.pass_isolation(), PassIsolation::Serialized);
+  EXPECT_EQ(FrameTimings(0, 1, TimingSource::CpuWall).pass_isolation(), PassIsolation::HostSubmissions);
+  t.add_overlapped({0, 500'000});
+  t.add_overlapped({0, 500'001});
+  EXPECT_FALSE(t.summarize().overlap.has_value()) << "2 overlapped frames for 3 measured ones";
+  t.add_overlapped({0, 500'002});
+  const TimingSummary s = t.summarize();
+  ASSERT_TRUE(s.overlap.has_value());
+  // Frame i's passes sum to 600,000 + i ns (synthetic_frame), the overlapped frames span 500,000 + i.
+  EXPECT_DOUBLE_EQ(*s.overlap->saving_ns, 100'000.0);
+  EXPECT_FALSE(s.overlap->saving_ns_ci.valid) << "3 pairs are too few for a 95% CI";
+  for (PassIsolation p : {PassIsolation::Serialized, PassIsolation::HostSubmissions, PassIsolation::Unisolated})
+    EXPECT_EQ(pass_isolation_from_string(to_string(p)), p);
+  EXPECT_THROW(pass_isolation_from_string("overlapped"), std::invalid_argument);
+}
+
 TEST(FrameTimings, TotalCountersSumFrames) {
   FrameTimings t(1, 3, TimingSource::GpuTimestamps);
   for (std::uint64_t i = 0; t.add(test::synthetic_frame(i)); ++i) {

@@ -38,11 +38,16 @@ FrameTimings finished_run() {
   invocations.set("shadows", counter::compute_invocations, 3600);
   invocations.set("composite", counter::compute_invocations, 3600);
   t.set_frame_invocations(invocations);
+  // Overlapped frames 50 us shorter than the serialized frames' 600 us of passes, 40 us after frame i.
+  for (std::uint64_t i = 2; i < 10; ++i) {
+    const std::uint64_t b = 5'000'000'000ull + i * 1'000'000 + 640'000;
+    t.add_overlapped({b, b + 550'000 + i});
+  }
   return t;
 }
 
 Environment fixed_environment() {
-  Environment e = capture_environment({"llvmpipe", "cpu", "llvmpipe", "Mesa 22.3.6", "1.3.230"});
+  Environment e = capture_environment({"llvmpipe", "cpu", "llvmpipe", "Mesa 22.3.6", "22.3.6", "1.3.230"});
   return e;
 }
 
@@ -87,6 +92,46 @@ TEST(ResultJson, SchemaFieldsAreWhereTheReportLooks) {
   EXPECT_EQ(doc["counters"]["shadows"].count("compute_invocations"), 0u) << "not summed over frames";
   EXPECT_FALSE(doc["environment"]["cpu_model"].get<std::string>().empty());
   EXPECT_EQ(doc["environment"]["device"]["driver_name"], "llvmpipe");
+  EXPECT_EQ(doc["environment"]["device"]["driver_version"], "22.3.6");
+  EXPECT_EQ(doc["timing"]["pass_isolation"], "serialized");
+  ASSERT_EQ(doc["overlapped_frames"].size(), 8u);
+  EXPECT_EQ(doc["overlapped_frames"][0]["end_ns"].get<std::uint64_t>() -
+                doc["overlapped_frames"][0]["begin_ns"].get<std::uint64_t>(),
+            550'002u);
+  // Serialized sum of frame i: 600,000 + i ns; overlapped span 550,000 + i ns: a saving of 50 us each.
+  EXPECT_DOUBLE_EQ(doc["timing"]["overlap"]["saving_ns"].get<double>(), 50'000.0);
+  EXPECT_EQ(doc["timing"]["overlap"]["frames"], 8);
+  EXPECT_TRUE(doc["timing"]["overlap"]["saving_ns_ci"]["valid"].get<bool>());
+}
+
+TEST(ResultJson, ResultsFromBeforeIsolationReadAsUnisolated) {
+  nlohmann::json doc = timing_result_json(fixed_environment(), finished_run());
+  doc["timing"].erase("pass_isolation");
+  doc["timing"].erase("overlap");
+  doc.erase("overlapped_frames");
+  doc["environment"]["device"].erase("driver_version");
+  const TimingResult old = parse_timing_result(doc);
+  EXPECT_EQ(old.summary.pass_isolation, PassIsolation::Unisolated);
+  EXPECT_EQ(old.timings.pass_isolation(), PassIsolation::Unisolated);
+  EXPECT_FALSE(old.summary.overlap.has_value());
+  EXPECT_TRUE(old.timings.overlapped().empty());
+  EXPECT_EQ(old.environment.device.driver_version, "");
+  nlohmann::json bad = timing_result_json(fixed_environment(), finished_run());
+  bad["timing"]["pass_isolation"] = "sometimes";
+  try {
+    parse_timing_result(bad);
+    FAIL() << "accepted an unknown isolation";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "timing: field 'pass_isolation': unknown pass isolation 'sometimes'");
+  }
+  bad = timing_result_json(fixed_environment(), finished_run());
+  bad["overlapped_frames"].erase(0);
+  try {
+    parse_timing_result(bad);
+    FAIL() << "accepted 7 overlapped frames for 8 measured ones";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "field 'overlapped_frames' holds 7 frames but 'frames' holds 8 (one per measured frame)");
+  }
 }
 
 TEST(ResultJson, BadDocumentsNameTheField) {

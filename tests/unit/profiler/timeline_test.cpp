@@ -55,6 +55,41 @@ TEST(TimelineChecker, AcceptsNestingAndRejectsOverlap) {
   EXPECT_FALSE(check_timeline(json{{"traceEvents", {{{"ph", "X"}, {"ts", 1.0}}}}}).empty());
 }
 
+TEST(Timeline, OverlappedFramesGetATrackOfTheirOwnWithNoPassInside) {
+  std::vector<FrameSample> frames;
+  for (std::uint64_t i = 0; i < 3; ++i) frames.push_back(test::synthetic_frame(i));
+  // Each overlapped frame runs 650 us after its measured frame's start (the measured frame takes 600 us).
+  std::vector<FrameSpan> overlapped;
+  for (std::uint64_t i = 0; i < 3; ++i) {
+    const std::uint64_t b = 5'000'000'000ull + i * 1'000'000 + 650'000;
+    overlapped.push_back({b, b + 300'000});
+  }
+  const FrameTimings t = FrameTimings::from_measured(0, TimingSource::GpuTimestamps, frames, std::nullopt, {},
+                                                     overlapped);
+  TimelineFixes fixes;
+  const json trace = build_timeline(t, &fixes);
+  EXPECT_TRUE(check_timeline(trace).empty());
+  EXPECT_EQ(fixes.total(), 0u);
+  std::vector<json> spans;
+  for (const json& e : events_of(trace, "X", "frame"))
+    if (e["name"] == "frame (overlapped)") spans.push_back(e);
+  ASSERT_EQ(spans.size(), 3u);
+  const int tid = spans[0]["tid"];
+  for (const json& e : events_of(trace, "X", "pass")) EXPECT_NE(e["tid"], tid) << "no pass on the overlapped track";
+  for (const json& e : events_of(trace, "X", "frame"))
+    if (e["name"] == "frame") EXPECT_NE(e["tid"], tid);
+  EXPECT_DOUBLE_EQ(spans[1]["ts"].get<double>(), 1650.0);  // time base: the first measured frame's start
+  EXPECT_DOUBLE_EQ(spans[1]["dur"].get<double>(), 300.0);
+  bool named = false;
+  for (const json& e : events_of(trace, "M"))
+    named = named || (e["tid"] == tid && e["args"].value("name", "") == "frame as recorded (passes free to overlap)");
+  EXPECT_TRUE(named);
+  EXPECT_EQ(trace["otherData"]["pass_isolation"], "serialized");
+  // Host-timed overlapped frames all start at 0 on their own clock: no track for them.
+  const FrameTimings host = FrameTimings::from_measured(0, TimingSource::CpuWall, frames, std::nullopt, {}, overlapped);
+  for (const json& e : events_of(build_timeline(host), "X")) EXPECT_NE(e["name"], "frame (overlapped)");
+}
+
 TEST(Timeline, MicrosecondsComeBackAsExactNanoseconds) {
   // Both importer conversions (truncate, round) and a text round trip must give the nanoseconds.
   std::size_t adjusted = 0;

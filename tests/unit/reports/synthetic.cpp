@@ -47,7 +47,7 @@ json line(const SynthCell& c) {
   env.date_utc = "2026-11-23T11:14:36Z";
   env.hostname = "vm";
   env.os = "Linux";
-  env.device = {c.device, "cpu", "llvmpipe", c.driver_info, "1.3.230"};
+  env.device = {c.device, "cpu", "llvmpipe", c.driver_info, "22.3.6", "1.3.230"};
   const std::size_t n = c.passes.empty() ? 0 : c.passes.front().second.size();
   std::vector<FrameSample> frames;
   std::uint64_t t = 1'000'000;
