@@ -236,25 +236,27 @@ std::string overlap_text(const TimingSummary& t) {
   }
   if (!t.overlap) return s + "\n";
   const OverlapSummary& o = *t.overlap;
+  auto interval = [](const MedianCi& ci) {
+    return ci.valid ? " (95% CI " + ms(ci.low) + " to " + ms(ci.high) + " ms)" : std::string(" (no CI: n < 6)");
+  };
   s += " The frame as the application records it (passes free to overlap) took " + ms(o.overlapped_frame_ns.median) +
-       " ms " + ci_text(o.overlapped_frame_ns) + "; the serialized passes sum to " + ms(o.serialized_sum_ns.median) + " ms";
+       " ms" + interval(o.overlapped_frame_ns.median_ci) + "; the serialized passes sum to " +
+       ms(o.serialized_sum_ns.median) + " ms";
   if (!o.saving_ns) return s + ".\n";
-  const std::string saving = ms(*o.saving_ns) + " ms " +
-                             (o.saving_ns_ci.valid ? "[" + ms(o.saving_ns_ci.low) + ", " + ms(o.saving_ns_ci.high) + "]"
-                                                   : std::string("— (n < 6)"));
   const std::string frac = o.saving_fraction ? fmt("%.1f%%", *o.saving_fraction * 100.0) : std::string("—");
+  const std::string pairs = std::to_string(o.frames) + " frame pairs";
   if (!o.saving_ns_ci.valid) {
-    s += ". Overlap saves " + saving + " (" + frac + ", paired over " + std::to_string(o.frames) +
-         " frames): too few pairs to tell it from noise.\n";
+    s += ". The paired difference (serialized sum minus overlapped frame) is " + ms(*o.saving_ns) + " ms (" + frac +
+         ") over " + pairs + ": too few pairs for a 95% CI, so it cannot be told from noise.\n";
   } else if (o.saving_ns_ci.low > 0.0) {
-    s += ": overlapping the passes saves " + saving + " (" + frac + " of the serialized sum, paired over " +
-         std::to_string(o.frames) + " frames).\n";
+    s += ": overlapping the passes saves " + ms(*o.saving_ns) + " ms" + interval(o.saving_ns_ci) + ", " + frac +
+         " of the serialized sum (paired over " + pairs + ").\n";
   } else if (o.saving_ns_ci.high < 0.0) {
-    s += ": the overlapped frame is slower by " + ms(-*o.saving_ns) + " ms [" + ms(-o.saving_ns_ci.high) + ", " +
-         ms(-o.saving_ns_ci.low) + "] (paired over " + std::to_string(o.frames) + " frames).\n";
+    s += ": the overlapped frame is slower by " + ms(-*o.saving_ns) + " ms (95% CI " + ms(-o.saving_ns_ci.high) +
+         " to " + ms(-o.saving_ns_ci.low) + " ms, paired over " + pairs + ").\n";
   } else {
-    s += ": no measurable difference (paired 95% CI of the saving " + saving.substr(saving.find('[')) +
-         " ms includes 0).\n";
+    s += ": no measurable saving from overlap (paired over " + pairs + ", the 95% CI of the saving, " +
+         ms(o.saving_ns_ci.low) + " to " + ms(o.saving_ns_ci.high) + " ms, includes 0).\n";
   }
   return s;
 }

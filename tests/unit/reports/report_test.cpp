@@ -60,6 +60,37 @@ TEST(Report, HasEverySection) {
   EXPECT_NE(md.find("shadow mask"), std::string::npos);
 }
 
+// Under each pass table: how the passes were kept apart, and the overlapped frame against the serialized
+// sum, with the verdict its paired CI supports.
+TEST(Report, StatesIsolationAndWhatOverlapSaves) {
+  test::SynthCell c = cell("indexed", json{64, 36}, 1);
+  std::vector<double> sums(21, 0.0);
+  for (const auto& [pass, d] : c.passes)
+    for (size_t f = 0; f < d.size(); ++f) sums[f] += d[f];
+  auto with_saving = [&](double ns) {
+    test::SynthCell x = c;
+    for (double s : sums) x.overlapped_ns.push_back(s - ns);
+    return build_report({test::cell(x)}).markdown;
+  };
+  const std::string none = build_report({test::cell(c)}).markdown;
+  EXPECT_NE(none.find("Passes are serialized for these times"), std::string::npos);
+  EXPECT_EQ(none.find("frame as the application records it"), std::string::npos) << "not measured: not claimed";
+  const std::string saves = with_saving(2e6);
+  EXPECT_NE(saves.find(": overlapping the passes saves 2.000 ms (95% CI 2.000 to 2.000 ms)"), std::string::npos) << saves;
+  const std::string slower = with_saving(-1e6);
+  EXPECT_NE(slower.find("the overlapped frame is slower by 1.000 ms"), std::string::npos);
+  // Savings of -1, 0 and +1 ms spread over the pairs: the CI holds 0.
+  test::SynthCell mixed = c;
+  for (size_t f = 0; f < sums.size(); ++f) mixed.overlapped_ns.push_back(sums[f] - double(int(f % 3) - 1) * 1e6);
+  const std::string noise = build_report({test::cell(mixed)}).markdown;
+  EXPECT_NE(noise.find(": no measurable saving from overlap (paired over 21 frame pairs"), std::string::npos) << noise;
+  test::SynthCell few = c;
+  for (auto& [pass, d] : few.passes) d.resize(3);
+  for (size_t f = 0; f < 3; ++f) few.overlapped_ns.push_back(sums[f]);
+  const std::string short_run = build_report({test::cell(few)}).markdown;
+  EXPECT_NE(short_run.find("too few pairs for a 95% CI, so it cannot be told from noise"), std::string::npos);
+}
+
 TEST(Report, ComparisonsStateWhatChangedAndByHowMuch) {
   const std::string md = build_report(matrix()).markdown;
   // indexed -> soup, per resolution: the shadow pass ~30% slower with a tiny p, nodes +10%.

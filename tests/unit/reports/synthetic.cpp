@@ -61,7 +61,13 @@ json line(const SynthCell& c) {
     fs.counters = c.counters_per_frame;
     frames.push_back(fs);
   }
-  const FrameTimings timings = FrameTimings::from_measured(2, TimingSource::GpuTimestamps, frames, std::nullopt);
+  std::vector<FrameSpan> overlapped;
+  for (double d : c.overlapped_ns) {
+    overlapped.push_back({t, t + std::uint64_t(d)});
+    t += std::uint64_t(d) + 1000;
+  }
+  const FrameTimings timings =
+      FrameTimings::from_measured(2, TimingSource::GpuTimestamps, frames, std::nullopt, {}, overlapped);
   json config = {{"scene", "builtin:pica"}, {"frames", n}, {"inject", {{"pass", "shadows"}, {"fraction", c.inject_fraction}}}};
   for (const auto& [k, v] : c.axes.items()) config[k] = v;
   if (!c.config_patch.is_null()) config.merge_patch(c.config_patch);

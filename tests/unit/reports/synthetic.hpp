@@ -34,6 +34,8 @@ struct SynthCell {
   nlohmann::json config_patch;  ///< merged into the canonical config (RFC 7386), e.g. {"trace": {"sample_every": 4}}
   nlohmann::json report;        ///< the matrix's "report" spec copied into the line; null: none
   nlohmann::json error;         ///< the "error" object; null: none
+  /// Spans of the frames timed as the application records them, one per frame (empty: not measured).
+  std::vector<double> overlapped_ns;
 };
 
 /// An "error" object as the runner writes it: image metrics with this relMSE and PSNR (nullopt:
