@@ -200,9 +200,10 @@ void run_din(const CachesimArgs& a) {
   check_outputs(a);
   const CacheConfig l1 = parse_cache_spec(a.l1, "--l1");
   const CacheConfig l2 = parse_cache_spec(a.l2, "--l2");
-  const auto accesses = trace::read_din(a.din_path);
-  const DinResult r = replay_din(accesses, l1, l2, !a.mrc_path.empty());
-  std::printf("%zu references from %s\nL1: %s, write-allocate, write-back\nL2: %s\n", accesses.size(),
+  // Streamed: a fixed read buffer and one batch of parsed accesses, however large the file.
+  uint64_t references = 0;
+  const DinResult r = replay_din_file(a.din_path, l1, l2, !a.mrc_path.empty(), references);
+  std::printf("%llu references from %s\nL1: %s, write-allocate, write-back\nL2: %s\n", (unsigned long long)references,
               a.din_path.c_str(), describe(l1).c_str(), describe(l2).c_str());
   print_din_level("l1 (data)", r.l1);
   std::printf("  copies back    %14llu\n", (unsigned long long)r.l1_copies_back);

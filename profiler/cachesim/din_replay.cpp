@@ -2,6 +2,11 @@
 
 #include <bit>
 #include <charconv>
+#include <condition_variable>
+#include <exception>
+#include <mutex>
+#include <thread>
+#include <vector>
 
 #include "error.hpp"
 
@@ -47,11 +52,14 @@ CacheConfig parse_cache_spec(const std::string& spec, const std::string& option)
   return c;
 }
 
-DinResult replay_din(std::span<const trace::DinAccess> accesses, const CacheConfig& l1c, const CacheConfig& l2c,
-                     bool curves) {
-  Cache l1(l1c), l2(l2c);
-  DinResult r;
-  StackDistance sd1(l1c.line_bytes), sd2(l2c.line_bytes);
+DinReplay::DinReplay(const CacheConfig& l1, const CacheConfig& l2, bool curves)
+    : l1_(l1), l2_(l2), curves_(curves), sd1_(l1.line_bytes), sd2_(l2.line_bytes) {}
+
+void DinReplay::access(std::span<const trace::DinAccess> accesses) {
+  Cache& l1 = l1_;
+  Cache& l2 = l2_;
+  DinResult& r = r_;
+  const bool curves = curves_;
   const uint32_t s1 = l1.line_shift(), s2 = l2.line_shift();
   const uint32_t m1 = l1.full_mask(), m2 = l2.full_mask();
   for (const trace::DinAccess& a : accesses) {
@@ -59,7 +67,7 @@ DinResult replay_din(std::span<const trace::DinAccess> accesses, const CacheConf
     for (uint64_t block = first; block <= last; ++block) {
       ++r.l1.fetches;
       a.write ? ++r.l1.write_fetches : ++r.l1.read_fetches;
-      if (curves) sd1.access(block);
+      if (curves) sd1_.access(block);
       const Outcome o = a.write ? l1.update(block, m1) : l1.load(block, m1);
       r.l1_copies_back += o.written_back_sectors ? 1 : 0;
       if (!o.missing) continue;
@@ -70,7 +78,7 @@ DinResult replay_din(std::span<const trace::DinAccess> accesses, const CacheConf
       for (uint64_t b2 = lo; b2 <= hi; ++b2) {
         ++r.l2.fetches;
         a.write ? ++r.l2.write_fetches : ++r.l2.read_fetches;
-        if (curves) sd2.access(b2);
+        if (curves) sd2_.access(b2);
         if (l2.load(b2, m2).missing) {
           ++r.l2.misses;
           a.write ? ++r.l2.write_misses : ++r.l2.read_misses;
@@ -78,11 +86,88 @@ DinResult replay_din(std::span<const trace::DinAccess> accesses, const CacheConf
       }
     }
   }
-  if (curves) {
-    r.l1_curve = sd1.curve();
-    r.l2_curve = sd2.curve();
+}
+
+DinResult DinReplay::result() const {
+  DinResult r = r_;
+  if (curves_) {
+    r.l1_curve = sd1_.curve();
+    r.l2_curve = sd2_.curve();
   }
   return r;
+}
+
+DinResult replay_din(std::span<const trace::DinAccess> accesses, const CacheConfig& l1c, const CacheConfig& l2c,
+                     bool curves) {
+  DinReplay replay(l1c, l2c, curves);
+  replay.access(accesses);
+  return replay.result();
+}
+
+DinResult replay_din_file(const std::filesystem::path& path, const CacheConfig& l1, const CacheConfig& l2,
+                          bool curves, uint64_t& references) {
+  trace::DinReader reader(path);
+  DinReplay replay(l1, l2, curves);
+  references = 0;
+  constexpr size_t kSlots = 4;  // batches in flight between the parsing thread and the replay
+  std::vector<trace::DinAccess> slots[kSlots];
+  size_t count[kSlots] = {};
+  for (auto& s : slots) s.resize(kDinBatch);
+  if (std::thread::hardware_concurrency() < 2) {
+    while (const size_t n = reader.read(slots[0])) {
+      replay.access(std::span<const trace::DinAccess>(slots[0].data(), n));
+      references += n;
+    }
+    return replay.result();
+  }
+  // One thread parses into the slots while this one replays them, in file order.
+  std::mutex m;
+  std::condition_variable cv;
+  uint64_t produced = 0, consumed = 0;
+  bool end = false;
+  std::exception_ptr error;
+  std::thread parser([&] {
+    try {
+      while (true) {
+        {
+          std::unique_lock lk(m);
+          cv.wait(lk, [&] { return produced - consumed < kSlots; });
+        }
+        const size_t s = produced % kSlots;
+        const size_t n = reader.read(slots[s]);
+        std::lock_guard lk(m);
+        if (n == 0) {
+          end = true;
+          cv.notify_all();
+          return;
+        }
+        count[s] = n;
+        ++produced;
+        cv.notify_all();
+      }
+    } catch (...) {
+      std::lock_guard lk(m);
+      error = std::current_exception();
+      end = true;
+      cv.notify_all();
+    }
+  });
+  std::unique_lock lk(m);
+  while (true) {
+    cv.wait(lk, [&] { return consumed < produced || end; });
+    if (consumed == produced) break;  // the end, or the parser's error
+    const size_t s = consumed % kSlots;
+    lk.unlock();
+    replay.access(std::span<const trace::DinAccess>(slots[s].data(), count[s]));
+    references += count[s];
+    lk.lock();
+    ++consumed;
+    cv.notify_all();
+  }
+  lk.unlock();
+  parser.join();
+  if (error) std::rethrow_exception(error);
+  return replay.result();
 }
 
 }  // namespace hp::cachesim

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <span>
 #include <string>
 
@@ -35,7 +36,30 @@ struct DinResult {
 // naming `option` when malformed or impossible.
 CacheConfig parse_cache_spec(const std::string& spec, const std::string& option);
 
+// The replay as a stream: access() batches in file order, result() at any point. replay_din is one
+// call of access() on the whole span.
+class DinReplay {
+ public:
+  DinReplay(const CacheConfig& l1, const CacheConfig& l2, bool curves = false);
+  void access(std::span<const trace::DinAccess> accesses);
+  DinResult result() const;
+
+ private:
+  Cache l1_, l2_;
+  bool curves_;
+  StackDistance sd1_, sd2_;
+  DinResult r_;
+};
+
 DinResult replay_din(std::span<const trace::DinAccess> accesses, const CacheConfig& l1, const CacheConfig& l2,
                      bool curves = false);
+
+// Streams a Dinero file through the replay: one thread parses (trace::DinReader: a fixed 1 MiB read
+// buffer) into four batches of kDinBatch accesses that this thread replays in file order, so memory is
+// fixed (about 2 MiB besides the caches' state) whatever the file's size. `references` receives the
+// accesses replayed. Errors are the parser's "FILE:LINE: reason" InputError.
+inline constexpr size_t kDinBatch = 16384;
+DinResult replay_din_file(const std::filesystem::path& path, const CacheConfig& l1, const CacheConfig& l2,
+                          bool curves, uint64_t& references);
 
 }  // namespace hp::cachesim
