@@ -3,7 +3,12 @@
 #include <algorithm>
 #include <bit>
 #include <ostream>
+#include <condition_variable>
+#include <deque>
+#include <exception>
+#include <mutex>
 #include <stdexcept>
+#include <thread>
 
 #include "error.hpp"
 #include "trace/din.hpp"
@@ -12,105 +17,6 @@ namespace hp::cachesim {
 
 namespace {
 
-// Working memory of group(), kept from slice to slice.
-struct GroupScratch {
-  std::vector<uint64_t> begin, cursor;
-  std::vector<uint32_t> order, lane_cursor, lane_end;
-  std::vector<trace::TraceRecord> group;
-};
-
-// One workgroup's accesses in the order its wavefronts will issue them: per wavefront, its lockstep steps
-// (each step: the lanes whose next access has the lowest pending sequence number, in lane order), with
-// addresses resolved. Lanes stay in lockstep by seq, and a capture can realign lanes after divergence by
-// giving the accesses after a reconvergence point a common seq. A wavefront's steps depend on its own
-// lanes' records only, so they are fixed here, once, while the workgroup's records are hot in the host's
-// caches; the scheduler then streams through them. Freed when the workgroup retires.
-struct GroupAccesses {
-  uint64_t first_invocation = 0;  // global index of the workgroup's first invocation
-  std::vector<uint64_t> address;  // byte address, in issue order
-  std::vector<uint32_t> info;     // the record's info word (size, kind, buffer)
-  std::vector<uint16_t> lane;     // the issuing lane within its wavefront
-  std::vector<uint32_t> step_end; // per step (all wavefronts' steps in order): end of its entries
-  std::vector<uint32_t> wave_steps_end;  // per wavefront: end of its steps in step_end
-};
-
-// Splits one slice's records (already checked to lie in its workgroups) into per-workgroup issue orders;
-// workgroups without records get none. `scratch` is reused from slice to slice (no fresh pages each time).
-std::vector<std::unique_ptr<GroupAccesses>> group(std::span<const trace::TraceRecord> records,
-                                                  uint64_t first_group, uint64_t end_group, uint64_t per_group,
-                                                  uint32_t wave_width, const trace::BufferInfo* const* buffers,
-                                                  GroupScratch& scratch) {
-  const uint64_t first_invocation = first_group * per_group;
-  const uint64_t invocations = (end_group - first_group) * per_group;
-  // Counting sort of record indices by invocation, stable, so one invocation's records keep their buffer
-  // order; each workgroup's records are then gathered, small enough to stay in the host's caches.
-  std::vector<uint64_t>& begin = scratch.begin;
-  begin.assign(invocations + 1, 0);
-  for (const auto& r : records) ++begin[r.invocation - first_invocation + 1];
-  for (uint64_t i = 0; i < invocations; ++i) begin[i + 1] += begin[i];
-  std::vector<uint64_t>& cur = scratch.cursor;
-  cur.assign(begin.begin(), begin.end() - 1);
-  std::vector<uint32_t>& order = scratch.order;
-  order.resize(records.size());
-  for (size_t k = 0; k < records.size(); ++k) order[cur[records[k].invocation - first_invocation]++] = uint32_t(k);
-
-  std::vector<std::unique_ptr<GroupAccesses>> out(end_group - first_group);
-  std::vector<trace::TraceRecord>& recs = scratch.group;
-  std::vector<uint32_t>& at = scratch.lane_cursor;
-  const uint32_t waves = uint32_t((per_group + wave_width - 1) / wave_width);
-  auto by_seq = [](const trace::TraceRecord& x, const trace::TraceRecord& y) { return x.seq < y.seq; };
-  for (uint64_t g = 0; g < out.size(); ++g) {
-    const uint64_t i0 = g * per_group, r0 = begin[i0], r1 = begin[i0 + per_group];
-    if (r0 == r1) continue;
-    // This workgroup's records by invocation, each invocation's sorted by seq where needed (GPU atomics
-    // usually hand out indices in program order).
-    recs.resize(r1 - r0);
-    for (uint64_t k = r0; k < r1; ++k) recs[k - r0] = records[order[k]];
-    at.resize(per_group + 1);
-    for (uint64_t i = 0; i <= per_group; ++i) at[i] = uint32_t(begin[i0 + i] - r0);
-    for (uint64_t i = 0; i < per_group; ++i) {
-      auto first = recs.begin() + at[i], last = recs.begin() + at[i + 1];
-      if (!std::is_sorted(first, last, by_seq)) std::stable_sort(first, last, by_seq);
-    }
-    auto ga = std::make_unique<GroupAccesses>();
-    ga->first_invocation = first_invocation + i0;
-    ga->address.reserve(r1 - r0);
-    ga->info.reserve(r1 - r0);
-    ga->lane.reserve(r1 - r0);
-    for (uint32_t w = 0; w < waves; ++w) {
-      const uint32_t l0 = w * wave_width;
-      const uint32_t lanes = uint32_t(std::min<uint64_t>(wave_width, per_group - l0));
-      uint32_t* c = at.data() + l0;  // at[] becomes each lane's cursor; at[l0 + l + 1] is still its end
-      std::vector<uint32_t>& end = scratch.lane_end;
-      end.assign(at.begin() + l0 + 1, at.begin() + l0 + lanes + 1);
-      while (true) {
-        uint32_t step_seq = ~0u;
-        bool any = false;
-        for (uint32_t l = 0; l < lanes; ++l)
-          if (c[l] < end[l]) {
-            step_seq = std::min(step_seq, recs[c[l]].seq);
-            any = true;
-          }
-        if (!any) break;
-        for (uint32_t l = 0; l < lanes; ++l) {
-          if (c[l] < end[l] && recs[c[l]].seq == step_seq) {
-            const trace::TraceRecord& r = recs[c[l]];
-            const trace::BufferInfo& b = *buffers[gpu::trace_buffer(r.info)];
-            // Plain buffers inline (most records); images apply their declared layout.
-            ga->address.push_back(b.kind == trace::BufferKind::buffer ? b.base_address + r.offset : b.address(r.offset));
-            ga->info.push_back(r.info);
-            ga->lane.push_back(uint16_t(l));
-            ++c[l];
-          }
-        }
-        ga->step_end.push_back(uint32_t(ga->address.size()));
-      }
-      ga->wave_steps_end.push_back(uint32_t(ga->step_end.size()));
-    }
-    out[g] = std::move(ga);
-  }
-  return out;
-}
 
 // Merges one wavefront step's lane accesses into requests. A small open-addressed table keyed by
 // (line, kind) with generation stamps: no clearing, no allocation per step.
@@ -135,7 +41,7 @@ class Coalescer {
   }
 
   // Adds one lane access; remembers (invocation, request) pairs when per_invocation.
-  void add(uint64_t address, uint32_t info, uint32_t invocation, bool per_invocation) {
+  [[gnu::always_inline]] void add(uint64_t address, uint32_t info, uint32_t invocation, bool per_invocation) {
     const uint32_t size = gpu::trace_size(info);
     const auto kind = AccessKind(gpu::trace_kind(info));
     const uint64_t last_byte = address + size - 1;
@@ -195,30 +101,282 @@ class Coalescer {
   bool sectors_;
 };
 
-// A fed slice: its workgroups' accesses until each is dispatched (the resident workgroup then owns them).
-struct Slice {
-  uint64_t first_group = 0, end_group = 0;
-  std::vector<std::unique_ptr<GroupAccesses>> groups;  // by workgroup - first_group; null: none or dispatched
+// One workgroup's wave steps, coalesced: per wavefront its lockstep steps (each step: the lanes whose
+// next access has the lowest pending sequence number, in lane order), each step already merged into its
+// requests. A step's requests depend on its own lanes' records only, never on the caches or on the
+// scheduling, so they are computed once, while the workgroup's records are hot in the host's caches and
+// on the feeding thread; the scheduler then only interleaves steps. Freed when the workgroup retires.
+struct GroupRequests {
+  uint64_t records = 0;                  // lane accesses (resident-record accounting)
+  std::vector<Request> requests;         // in issue order
+  std::vector<uint32_t> step_end;        // per step (all wavefronts' steps in order): end of its requests
+  std::vector<uint32_t> wave_steps_end;  // per wavefront: end of its steps in step_end
+  // per_invocation only: (invocation, index in requests) for each lane access's request, and per step
+  // the end of its entries.
+  std::vector<std::pair<uint32_t, uint32_t>> lanes;
+  std::vector<uint32_t> step_lanes_end;
 };
 
-// A resident wavefront. It reads its workgroup's arrays (GroupAccesses, laid out in issue order and
-// not changed once fed; owned by the resident workgroup until it retires) through its own copies of
-// their data pointers and the start of its next step, so that issuing a step, or prefetching the one
-// a few compute units ahead, does not first chase the workgroup's object and step table.
+// Part of a fed slice, handed from the feeding thread to the scheduler: its workgroups become known.
+struct Piece {
+  uint64_t first_group = 0, end_group = 0;
+  std::vector<std::unique_ptr<GroupRequests>> groups;  // by workgroup - first_group; null: no accesses
+  bool first_of_feed = false;
+  uint64_t feed_records = 0;  // first piece of a feed: the feed's records
+};
+
+// A slice's records bucketed by workgroup, stably. Captures write a workgroup's records in a few runs
+// (the GPU runs it on one core), so the buckets are usually lists of runs in the caller's records, no
+// copy; records in workgroup order are one run per workgroup; records in no order at all (many short
+// runs) are copied into workgroup order. Filled by the feeding thread, then read by every builder until
+// the slice is built.
+class Buckets {
+ public:
+  explicit Buckets(const trace::BufferInfo* const* buffers) : buffers_(buffers) {}
+
+  // Checks each record lies in the slice and names a known buffer; false on a bad record.
+  bool fill(std::span<const trace::TraceRecord> records, uint64_t first_group, uint64_t end_group, uint64_t per_group) {
+    per_group_ = per_group;
+    first_group_ = first_group;
+    const uint64_t groups = end_group - first_group;
+    const uint64_t first_inv = first_group * per_group, span_inv = groups * per_group;
+    const bool pow2 = std::has_single_bit(per_group);
+    const uint32_t shift = uint32_t(std::countr_zero(per_group));
+    auto group_of = [&](uint32_t inv) { return pow2 ? (inv - first_inv) >> shift : (inv - first_inv) / per_group; };
+    begin_.assign(groups + 1, 0);
+    runs_.clear();
+    bool in_order = true;
+    uint64_t prev = ~uint64_t(0);
+    const trace::TraceRecord* data = records.data();
+    for (size_t i = 0; i < records.size(); ++i) {
+      const trace::TraceRecord& r = data[i];
+      if (!buffers_[gpu::trace_buffer(r.info)] || r.invocation < first_inv || r.invocation - first_inv >= span_inv)
+        return false;
+      const uint64_t g = group_of(r.invocation);
+      ++begin_[g + 1];
+      if (g != prev) {
+        in_order &= prev == ~uint64_t(0) || g > prev;
+        runs_.push_back(Run{i, 0, g});
+        prev = g;
+      }
+      ++runs_.back().count;
+    }
+    for (uint64_t g = 0; g < groups; ++g) begin_[g + 1] += begin_[g];
+    data_ = records.data();
+    if (in_order) {
+      mode_ = Mode::in_place;
+    } else if (runs_.size() <= records.size() / 8) {
+      // Runs by workgroup (stable): group g's runs are run_order_[run_begin_[g] .. run_begin_[g + 1]).
+      mode_ = Mode::runs;
+      run_begin_.assign(groups + 1, 0);
+      for (const Run& r : runs_) ++run_begin_[r.group + 1];
+      for (uint64_t g = 0; g < groups; ++g) run_begin_[g + 1] += run_begin_[g];
+      cursor_.assign(run_begin_.begin(), run_begin_.end() - 1);
+      run_order_.resize(runs_.size());
+      for (size_t k = 0; k < runs_.size(); ++k) run_order_[cursor_[runs_[k].group]++] = uint32_t(k);
+    } else {
+      mode_ = Mode::copied;
+      sorted_.resize(records.size());
+      cursor_.assign(begin_.begin(), begin_.end() - 1);
+      for (const trace::TraceRecord& r : records) sorted_[cursor_[group_of(r.invocation)]++] = r;
+      data_ = sorted_.data();
+    }
+    return true;
+  }
+  uint64_t records(uint64_t g) const { return begin_[g + 1] - begin_[g]; }
+  // Calls f(pointer, count) for each run of group g's records, in record order.
+  template <typename F>
+  void for_each_run(uint64_t g, F&& f) const {
+    if (mode_ != Mode::runs) {
+      f(data_ + begin_[g], begin_[g + 1] - begin_[g]);
+      return;
+    }
+    for (uint64_t k = run_begin_[g]; k < run_begin_[g + 1]; ++k) {
+      const Run& r = runs_[run_order_[k]];
+      f(data_ + r.first, r.count);
+    }
+  }
+  uint64_t first_group() const { return first_group_; }
+  uint64_t per_group() const { return per_group_; }
+
+ private:
+  struct Run {
+    uint64_t first, count, group;
+  };
+  enum class Mode : uint8_t { in_place, runs, copied };
+  const trace::BufferInfo* const* buffers_;
+  uint64_t per_group_ = 1, first_group_ = 0;
+  const trace::TraceRecord* data_ = nullptr;
+  Mode mode_ = Mode::in_place;
+  std::vector<uint64_t> begin_, cursor_, run_begin_;
+  std::vector<Run> runs_;
+  std::vector<uint32_t> run_order_;
+  std::vector<trace::TraceRecord> sorted_;
+};
+
+// Turns bucketed workgroups into GroupRequests; one per building thread (its scratch and coalescer).
+class Builder {
+ public:
+  Builder(const Preset& preset, const Cache& l1, const trace::BufferInfo* const* buffers, bool per_invocation)
+      : co_(preset.wave_width, l1.line_shift(), l1.sector_shift(), l1.full_mask(), preset.coalescing == Coalescing::sector),
+        buffers_(buffers), width_(preset.wave_width), per_inv_(per_invocation) {}
+
+  // Workgroup first_group + g's requests (null: no accesses).
+  std::unique_ptr<GroupRequests> build(const Buckets& buckets, uint64_t g) {
+    const uint64_t n = buckets.records(g);
+    if (n == 0) return nullptr;
+    const uint64_t per_group = buckets.per_group();
+    const uint64_t first_invocation = (buckets.first_group() + g) * per_group;
+    // This workgroup's records by invocation (stable: one invocation's keep their order), each
+    // invocation's sorted by seq where needed (GPU atomics usually hand out indices in program order).
+    at_.assign(per_group + 1, 0);
+    buckets.for_each_run(g, [&](const trace::TraceRecord* in, uint64_t count) {
+      for (uint64_t k = 0; k < count; ++k) ++at_[in[k].invocation - first_invocation + 1];
+    });
+    for (uint64_t i = 0; i < per_group; ++i) at_[i + 1] += at_[i];
+    // Addresses are resolved here, in record order: plain buffers inline (most records), images by
+    // their declared layout.
+    recs_.resize(n);
+    cursor32_.assign(at_.begin(), at_.end() - 1);
+    buckets.for_each_run(g, [&](const trace::TraceRecord* in, uint64_t count) {
+      for (uint64_t k = 0; k < count; ++k) {
+        const trace::TraceRecord& r = in[k];
+        const trace::BufferInfo& b = *buffers_[gpu::trace_buffer(r.info)];
+        recs_[cursor32_[r.invocation - first_invocation]++] =
+            LaneAccess{b.kind == trace::BufferKind::buffer ? b.base_address + r.offset : b.address(r.offset), r.seq, r.info};
+      }
+    });
+    auto by_seq = [](const LaneAccess& x, const LaneAccess& y) { return x.seq < y.seq; };
+    // Whether every lane's seqs strictly increase (dense 0, 1, 2, ... from a capture): then the steps are
+    // exactly the distinct seqs in ascending order, each the lanes holding it in lane order.
+    strict_.assign(per_group, 1);
+    for (uint64_t i = 0; i < per_group; ++i) {
+      auto first = recs_.begin() + at_[i], last = recs_.begin() + at_[i + 1];
+      if (!std::is_sorted(first, last, by_seq)) std::stable_sort(first, last, by_seq);
+      for (auto it = first; it != last && it + 1 != last; ++it)
+        if (it->seq == (it + 1)->seq) {
+          strict_[i] = 0;
+          break;
+        }
+    }
+    auto ga = std::make_unique<GroupRequests>();
+    ga->records = n;
+    ga->requests.reserve(n / 4 + 8);
+    const uint32_t waves = uint32_t((per_group + width_ - 1) / width_);
+    const LaneAccess* recs = recs_.data();
+    auto end_step = [&] {
+      const uint32_t base = uint32_t(ga->requests.size());
+      ga->requests.insert(ga->requests.end(), co_.requests.begin(), co_.requests.end());
+      ga->step_end.push_back(uint32_t(ga->requests.size()));
+      if (per_inv_) {
+        for (const auto& [inv, req] : co_.lane_request) ga->lanes.emplace_back(inv, base + req);
+        ga->step_lanes_end.push_back(uint32_t(ga->lanes.size()));
+      }
+    };
+    for (uint32_t w = 0; w < waves; ++w) {
+      const uint32_t l0 = w * width_;
+      const uint32_t lanes = uint32_t(std::min<uint64_t>(width_, per_group - l0));
+      const uint32_t lane_base = uint32_t(first_invocation + l0);
+      const uint32_t e0 = at_[l0], e1 = at_[l0 + lanes];
+      if (e0 == e1) {
+        ga->wave_steps_end.push_back(uint32_t(ga->step_end.size()));
+        continue;
+      }
+      bool strict = true;
+      uint32_t lo = ~0u, hi = 0;
+      for (uint32_t l = 0; l < lanes; ++l) {
+        strict &= strict_[l0 + l] != 0;
+        if (at_[l0 + l] < at_[l0 + l + 1]) {
+          lo = std::min(lo, recs[at_[l0 + l]].seq);
+          hi = std::max(hi, recs[at_[l0 + l + 1] - 1].seq);
+        }
+      }
+      const uint64_t range = uint64_t(hi) - lo + 1;
+      if (strict && range <= 4 * uint64_t(e1 - e0) + 64) {
+        // Counting sort of the wavefront's accesses by seq, lanes in order within each seq.
+        seq_count_.assign(range + 1, 0);
+        for (uint32_t k = e0; k < e1; ++k) ++seq_count_[recs[k].seq - lo + 1];
+        for (uint64_t q = 0; q < range; ++q) seq_count_[q + 1] += seq_count_[q];
+        step_recs_.resize(e1 - e0);
+        seq_cursor_.assign(seq_count_.begin(), seq_count_.end() - 1);
+        for (uint32_t l = 0; l < lanes; ++l)
+          for (uint32_t k = at_[l0 + l]; k < at_[l0 + l + 1]; ++k) {
+            // The seq field is not needed past this point: it carries the lane.
+            step_recs_[seq_cursor_[recs[k].seq - lo]++] = LaneAccess{recs[k].address, l, recs[k].info};
+          }
+        const LaneAccess* steps = step_recs_.data();
+        for (uint64_t q = 0; q < range; ++q) {
+          const uint32_t s0 = seq_count_[q], s1 = seq_count_[q + 1];
+          if (s0 == s1) continue;
+          co_.begin();
+          for (uint32_t j = s0; j < s1; ++j) co_.add(steps[j].address, steps[j].info, lane_base + steps[j].seq, per_inv_);
+          end_step();
+        }
+        ga->wave_steps_end.push_back(uint32_t(ga->step_end.size()));
+        continue;
+      }
+      // General case (repeated seqs, sparse seqs): each step takes the lanes whose next access has the
+      // lowest pending seq.
+      uint32_t* c = at_.data() + l0;  // at_[] becomes each lane's cursor; at_[l0 + l + 1] is still its end
+      end_.assign(at_.begin() + l0 + 1, at_.begin() + l0 + lanes + 1);
+      const uint32_t* end = end_.data();
+      // The lowest pending seq; 2^32: no access left. Each step finds the next one as it goes.
+      uint64_t step_seq = uint64_t(1) << 32;
+      for (uint32_t l = 0; l < lanes; ++l)
+        if (c[l] < end[l]) step_seq = std::min<uint64_t>(step_seq, recs[c[l]].seq);
+      while (step_seq >> 32 == 0) {
+        uint64_t next = uint64_t(1) << 32;
+        co_.begin();
+        for (uint32_t l = 0; l < lanes; ++l) {
+          if (c[l] == end[l]) continue;
+          const LaneAccess& a = recs[c[l]];
+          if (a.seq != step_seq) {
+            next = std::min<uint64_t>(next, a.seq);
+            continue;
+          }
+          co_.add(a.address, a.info, lane_base + l, per_inv_);
+          if (++c[l] < end[l]) next = std::min<uint64_t>(next, recs[c[l]].seq);
+        }
+        end_step();
+        step_seq = next;
+      }
+      ga->wave_steps_end.push_back(uint32_t(ga->step_end.size()));
+    }
+    return ga;
+  }
+
+ private:
+  Coalescer co_;
+  const trace::BufferInfo* const* buffers_;
+  uint32_t width_;
+  bool per_inv_;
+  struct LaneAccess {
+    uint64_t address;
+    uint32_t seq, info;
+  };
+  std::vector<LaneAccess> recs_, step_recs_;
+  std::vector<uint32_t> at_, cursor32_, end_, seq_count_, seq_cursor_;
+  std::vector<uint8_t> strict_;
+};
+
+// A resident wavefront. It reads its workgroup's arrays (laid out in issue order and not changed once
+// built; owned by the resident workgroup until it retires) through its own copies of their data
+// pointers and where its next step starts, so that issuing a step does not first chase the workgroup's
+// object and step table.
 struct Wave {
-  const uint64_t* address;
-  const uint32_t* info;
-  const uint16_t* lane;
+  const Request* requests;
   const uint32_t* step_end;
-  uint64_t lane_base;  // global index of its first lane's invocation
+  const std::pair<uint32_t, uint32_t>* lanes;
+  const uint32_t* step_lanes_end;
   uint64_t workgroup;
   uint32_t next_step, end_step;  // its steps in step_end
-  uint32_t next_entry;           // where its next step's entries start (step_end[next_step - 1], or 0)
+  uint32_t next_request;         // where its next step's requests start
+  uint32_t next_lane;            // where its next step's lane entries start (per_invocation)
 };
 
 struct ResidentGroup {
   uint64_t workgroup;
-  std::unique_ptr<GroupAccesses> data;
+  std::unique_ptr<GroupRequests> data;
   uint32_t waves_left;
 };
 
@@ -229,50 +387,151 @@ struct ComputeUnit {
   size_t next = 0;  // round-robin position in waves
 };
 
+// Thrown inside the scheduler thread when the simulator is destroyed mid-pass.
+struct Abandoned {};
+
+constexpr size_t kPieceRecords = 1 << 16;  // records per piece handed to the scheduler (about)
+constexpr size_t kQueuedPieces = 8;        // pieces built ahead of the scheduler at most
+constexpr size_t kIssueBatch = 4096;       // requests queued before the hierarchy takes them
+
 }  // namespace
 
-// The scheduler's state between feeds: the replay stops where it would dispatch a workgroup no slice has
-// brought yet, and resumes there, so a sliced replay makes exactly the decisions of a whole one.
+// One pass in flight. The calling thread (feed) checks and buckets each slice; it and a helper thread
+// then build its pieces (workgroups grouped into wave steps and coalesced), which a scheduler thread
+// takes in workgroup order to run the SIMT schedule and the caches. The scheduler waits where it would
+// dispatch a workgroup no piece has brought yet, so every decision is the one a single-threaded replay
+// makes, whatever the threads' timing; the resident-record count is kept in the scheduler's logical
+// time (a feed's records count from the moment the scheduler needs its first workgroup), so it does not
+// depend on the timing either.
 struct Simulator::PassState {
   trace::PassInfo info;
   PassResult res;
   uint64_t per_group = 0, groups = 0, invocations = 0;
   uint32_t waves_per_group = 0;
+  // Caller side.
+  uint64_t fed_end = 0;  // workgroups below this were fed or are empty
+  bool ended = false;
+  uint64_t lane_accesses = 0;
+  uint32_t slices = 0;
+  Buckets buckets;
+  Builder builder, helper_builder;
+  // The slice being built: pieces [g0, g1) of workgroups (relative to the slice), claimed in order.
+  std::vector<std::pair<uint64_t, uint64_t>> jobs;
+  std::vector<std::unique_ptr<Piece>> built;
+  size_t next_job = 0, published = 0, jobs_done = 0;
+  uint64_t feed_records = 0;
+  uint64_t job_generation = 0;  // bumped per slice: wakes the helper
+  bool stop_helper = false;
+  std::condition_variable cv_jobs, cv_built;
+  std::thread helper;
+  // Shared, under m.
+  std::mutex m;
+  std::condition_variable cv_fed, cv_space;
+  std::deque<std::unique_ptr<Piece>> queue;
+  bool final = false, abandon = false, sched_done = false;
+  std::exception_ptr error;
+  // Scheduler side.
   std::vector<ComputeUnit> cu;
-  std::vector<std::unique_ptr<Slice>> slices;  // fed and not yet fully dispatched, in workgroup order
-  uint64_t fed_end = 0;                        // workgroups below this are known (fed or empty)
-  bool final = false;                          // end_pass: every workgroup is known
+  std::deque<std::unique_ptr<Piece>> pieces;  // taken from the queue, not yet fully dispatched
+  uint64_t known_end = 0;                     // workgroups below this are known to the scheduler
+  bool all_known = false;
   uint64_t next_group = 0;
-  uint64_t resident_records = 0;               // records held: fed, not yet retired
-  // Refill position, kept when a refill stops for data: sweep index and whether this sweep placed work.
-  uint32_t refill_cu = 0;
-  bool refill_progress = false;
-  bool refilling = true;  // the replay stopped inside a refill (or has not started)
-  bool done = false;
-  Coalescer co;
-  // Coalesced requests not yet issued to the hierarchy, their compute units, and (per-invocation
-  // counts) which invocation's lane each served; outcomes of the batch when it is issued.
+  uint64_t resident_records = 0;
   std::vector<Request> batch;
   std::vector<uint32_t> batch_cu;
   std::vector<std::pair<uint32_t, uint32_t>> batch_lanes;
   std::vector<IssueResult> outcome;
-  GroupScratch scratch;
+  std::thread thread;
 
-  PassState(uint32_t width, const Cache& l1, bool sectors)
-      : co(width, l1.line_shift(), l1.sector_shift(), l1.full_mask(), sectors) {}
+  PassState(const Preset& preset, const Cache& l1, const trace::BufferInfo* const* buffers, bool per_invocation)
+      : buckets(buffers), builder(preset, l1, buffers, per_invocation), helper_builder(preset, l1, buffers, per_invocation) {}
 
-  // Takes workgroup g's accesses out of its slice (null: none); drops slices fully handed out.
-  std::unique_ptr<GroupAccesses> take(uint64_t g) {
-    std::unique_ptr<GroupAccesses> out;
-    for (auto& sp : slices)
-      if (g >= sp->first_group && g < sp->end_group) {
-        out = std::move(sp->groups[g - sp->first_group]);
+  // Hands a piece to the scheduler (under m).
+  void publish_locked(std::unique_ptr<Piece> p) {
+    queue.push_back(std::move(p));
+    cv_fed.notify_one();
+  }
+
+  // Builds pieces of the current slice until none is left unclaimed. Both builders run it.
+  void run_jobs(Builder& b) {
+    std::unique_lock lk(m);
+    while (next_job < jobs.size()) {
+      const size_t k = next_job++;
+      const auto [g0, g1] = jobs[k];
+      lk.unlock();
+      auto p = std::make_unique<Piece>();
+      const uint64_t first = buckets.first_group();
+      p->first_group = first + g0;
+      p->end_group = first + g1;
+      p->first_of_feed = k == 0;
+      p->feed_records = k == 0 ? feed_records : 0;
+      p->groups.reserve(g1 - g0);
+      for (uint64_t g = g0; g < g1; ++g) p->groups.push_back(b.build(buckets, g));
+      lk.lock();
+      built[k] = std::move(p);
+      while (published < built.size() && built[published]) publish_locked(std::move(built[published++]));
+      if (++jobs_done == jobs.size()) cv_built.notify_all();
+    }
+  }
+
+  void helper_loop() {
+    uint64_t seen = 0;
+    std::unique_lock lk(m);
+    while (true) {
+      cv_jobs.wait(lk, [&] { return stop_helper || job_generation != seen; });
+      if (stop_helper) return;
+      seen = job_generation;
+      lk.unlock();
+      run_jobs(helper_builder);
+      lk.lock();
+    }
+  }
+
+  void stop_helper_thread() {
+    if (!helper.joinable()) return;
+    {
+      std::lock_guard lk(m);
+      stop_helper = true;
+    }
+    cv_jobs.notify_all();
+    helper.join();
+  }
+
+  // Scheduler: takes pieces until workgroup g is known or no more will come.
+  void await(uint64_t g) {
+    while (g >= known_end && !all_known) {
+      std::unique_lock lk(m);
+      cv_fed.wait(lk, [&] { return !queue.empty() || final || abandon; });
+      if (abandon) throw Abandoned{};
+      if (queue.empty()) {
+        all_known = true;
         break;
       }
-    while (!slices.empty() && slices.front()->end_group <= g + 1) slices.erase(slices.begin());
+      std::unique_ptr<Piece> p = std::move(queue.front());
+      queue.pop_front();
+      lk.unlock();
+      cv_space.notify_one();
+      if (p->first_of_feed) {
+        resident_records += p->feed_records;
+        res.peak_resident_records = std::max(res.peak_resident_records, resident_records);
+      }
+      known_end = p->end_group;
+      pieces.push_back(std::move(p));
+    }
+  }
+
+  // Takes workgroup g's requests out of its piece (null: none); drops pieces fully handed out.
+  std::unique_ptr<GroupRequests> take(uint64_t g) {
+    await(g);
+    std::unique_ptr<GroupRequests> out;
+    for (auto& p : pieces)
+      if (g >= p->first_group && g < p->end_group) {
+        out = std::move(p->groups[g - p->first_group]);
+        break;
+      }
+    while (!pieces.empty() && pieces.front()->end_group <= g + 1) pieces.pop_front();
     return out;
   }
-  void retire(const GroupAccesses& ga) { resident_records -= ga.address.size(); }
 };
 
 Simulator::Simulator(const Preset& preset, const trace::TraceHeader& header, SimOptions options)
@@ -282,7 +541,19 @@ Simulator::Simulator(const Preset& preset, const trace::TraceHeader& header, Sim
   if (options_.l1_mrc || options_.l2_mrc) hierarchy_.enable_mrc(options_.l1_mrc, options_.l2_mrc, options_.mrc_sampling_rate);
 }
 
-Simulator::~Simulator() = default;
+Simulator::~Simulator() { stop(); }
+
+void Simulator::stop() {
+  if (!pass_) return;
+  pass_->stop_helper_thread();
+  if (!pass_->thread.joinable()) return;
+  {
+    std::lock_guard lk(pass_->m);
+    pass_->abandon = true;
+  }
+  pass_->cv_fed.notify_all();
+  pass_->thread.join();
+}
 
 PassResult Simulator::run_pass(const trace::PassInfo& pass, std::span<const trace::TraceRecord> records) {
   begin_pass(pass);
@@ -293,8 +564,9 @@ PassResult Simulator::run_pass(const trace::PassInfo& pass, std::span<const trac
 void Simulator::begin_pass(const trace::PassInfo& pass) {
   const auto& d = pass.dispatch;
   if (d.invocations() > 0xFFFFFFFFull) throw InputError("pass '" + pass.name + "': 2^32 invocations or more");
-  const Cache& l1 = hierarchy_.l1(0);
-  pass_ = std::make_unique<PassState>(preset_.wave_width, l1, preset_.coalescing == Coalescing::sector);
+  stop();
+  pass_.reset();
+  pass_ = std::make_unique<PassState>(preset_, hierarchy_.l1(0), buffers_, options_.per_invocation);
   PassState& ps = *pass_;
   ps.info = pass;
   ps.per_group = d.invocations_per_workgroup();
@@ -309,10 +581,26 @@ void Simulator::begin_pass(const trace::PassInfo& pass) {
     ps.res.l2_misses.assign(ps.invocations, 0);
   }
   hierarchy_.begin_pass();
+  if (std::thread::hardware_concurrency() > 1) ps.helper = std::thread([&ps] { ps.helper_loop(); });
+  ps.thread = std::thread([this] {
+    PassState& s = *pass_;
+    try {
+      schedule();
+      issue_batch();
+    } catch (const Abandoned&) {
+    } catch (...) {
+      s.error = std::current_exception();
+    }
+    {
+      std::lock_guard lk(s.m);
+      s.sched_done = true;
+    }
+    s.cv_space.notify_all();
+  });
 }
 
 void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup) {
-  if (!pass_ || pass_->final) throw std::logic_error("Simulator::feed outside begin_pass / end_pass");
+  if (!pass_ || pass_->ended) throw std::logic_error("Simulator::feed outside begin_pass / end_pass");
   PassState& ps = *pass_;
   const std::string& name = ps.info.name;
   if (first_workgroup > end_workgroup || end_workgroup > ps.groups)
@@ -322,46 +610,72 @@ void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first
     throw InputError("pass '" + name + "': slice [" + std::to_string(first_workgroup) + ", " +
                      std::to_string(end_workgroup) + ") overlaps or precedes workgroup " +
                      std::to_string(ps.fed_end) + " (slices must come in dispatch order)");
-  const uint64_t first_inv = first_workgroup * ps.per_group, end_inv = end_workgroup * ps.per_group;
-  for (const auto& r : records)
-    if (!buffers_[gpu::trace_buffer(r.info)] || r.invocation < first_inv || r.invocation >= end_inv)
-      throw InputError("pass '" + name + "': record outside its slice's workgroups or the buffer table");
-  ps.fed_end = end_workgroup;
-  if (end_workgroup > first_workgroup) {
-    auto s = std::make_unique<Slice>();
-    s->first_group = first_workgroup;
-    s->end_group = end_workgroup;
-    s->groups = group(records, first_workgroup, end_workgroup, ps.per_group, preset_.wave_width, buffers_, ps.scratch);
-    ps.resident_records += records.size();
-    ps.res.peak_resident_records = std::max(ps.res.peak_resident_records, ps.resident_records);
-    ps.res.lane_accesses += records.size();
-    ps.res.slices += !records.empty();
-    ps.slices.push_back(std::move(s));
+  if (end_workgroup == first_workgroup) {
+    if (!records.empty()) throw InputError("pass '" + name + "': record outside its slice's workgroups or the buffer table");
+    // Nothing fed, but the workgroups before it are known to be empty now.
+    ps.fed_end = end_workgroup;
+    auto p = std::make_unique<Piece>();
+    p->first_group = p->end_group = end_workgroup;
+    std::lock_guard lk(ps.m);
+    ps.publish_locked(std::move(p));
+    return;
   }
-  advance();
+  if (!ps.buckets.fill(records, first_workgroup, end_workgroup, ps.per_group))
+    throw InputError("pass '" + name + "': record outside its slice's workgroups or the buffer table");
+  ps.fed_end = end_workgroup;
+  ps.lane_accesses += records.size();
+  ps.slices += !records.empty();
+  // Pieces of about kPieceRecords records (and at least one workgroup); the last ends at the slice's end
+  // so that the workgroups after its records become known too.
+  const uint64_t groups = end_workgroup - first_workgroup;
+  std::unique_lock lk(ps.m);
+  // At most kQueuedPieces pieces wait for the scheduler before a new slice is built: bounded memory.
+  ps.cv_space.wait(lk, [&] { return ps.queue.size() < kQueuedPieces || ps.sched_done; });
+  ps.jobs.clear();
+  for (uint64_t g = 0; g < groups;) {
+    const uint64_t g0 = g;
+    uint64_t taken = 0;
+    while (g < groups && (taken < kPieceRecords || g == g0)) taken += ps.buckets.records(g++);
+    ps.jobs.emplace_back(g0, g);
+  }
+  ps.built.clear();
+  ps.built.resize(ps.jobs.size());
+  ps.next_job = ps.published = ps.jobs_done = 0;
+  ps.feed_records = records.size();
+  ++ps.job_generation;
+  lk.unlock();
+  ps.cv_jobs.notify_all();
+  ps.run_jobs(ps.builder);
+  // The records and buckets must outlive every build of this slice: wait for the helper's last one.
+  lk.lock();
+  ps.cv_built.wait(lk, [&] { return ps.jobs_done == ps.jobs.size(); });
 }
 
 PassResult Simulator::end_pass() {
-  if (!pass_) throw std::logic_error("Simulator::end_pass without begin_pass");
-  pass_->final = true;
-  advance();
-  PassResult res = std::move(pass_->res);
+  if (!pass_ || pass_->ended) throw std::logic_error("Simulator::end_pass without begin_pass");
+  PassState& ps = *pass_;
+  ps.ended = true;
+  {
+    std::lock_guard lk(ps.m);
+    ps.final = true;
+  }
+  ps.cv_fed.notify_all();
+  ps.thread.join();
+  ps.stop_helper_thread();
+  if (ps.error) {
+    std::exception_ptr e = ps.error;
+    pass_.reset();
+    std::rethrow_exception(e);
+  }
+  PassResult res = std::move(ps.res);
+  res.lane_accesses = ps.lane_accesses;
+  res.slices = ps.slices;
   pass_.reset();
   res.stats = hierarchy_.stats();
   res.buffers = hierarchy_.buffers();
   if (options_.l1_mrc) res.l1_curve = hierarchy_.l1_curve();
   if (options_.l2_mrc) res.l2_curve = hierarchy_.l2_curve();
   return res;
-}
-
-namespace {
-constexpr uint32_t kPrefetchAhead = 4;
-constexpr size_t kIssueBatch = 4096;  // requests queued before the hierarchy takes them
-}  // namespace
-
-void Simulator::advance() {
-  schedule();
-  issue_batch();
 }
 
 void Simulator::issue_batch() {
@@ -384,28 +698,27 @@ void Simulator::issue_batch() {
   ps.batch_lanes.clear();
 }
 
+// Runs the whole pass on the scheduler thread, waiting for pieces as it needs them.
 void Simulator::schedule() {
   PassState& ps = *pass_;
-  if (ps.done) return;
   PassResult& res = ps.res;
   const bool per_inv = options_.per_invocation;
-  const uint32_t width = preset_.wave_width;
   const uint32_t cus = preset_.compute_units;
-  Coalescer& co = ps.co;
 
   // Places workgroup next_group's wavefronts on a CU; wavefronts without accesses never become
   // resident, and a workgroup without any never does.
   auto dispatch = [&](ComputeUnit& c) {
     const uint64_t g = ps.next_group++;
     res.waves += ps.waves_per_group;
-    std::unique_ptr<GroupAccesses> ga = ps.take(g);
+    std::unique_ptr<GroupRequests> ga = ps.take(g);
     if (!ga) return;  // a workgroup without accesses
     uint32_t placed = 0;
     for (uint32_t w = 0; w < ps.waves_per_group; ++w) {
       const uint32_t s0 = w ? ga->wave_steps_end[w - 1] : 0, s1 = ga->wave_steps_end[w];
       if (s0 == s1) continue;  // a wavefront without accesses
-      c.waves.push_back(Wave{ga->address.data(), ga->info.data(), ga->lane.data(), ga->step_end.data(),
-                             ga->first_invocation + uint64_t(w) * width, g, s0, s1, s0 ? ga->step_end[s0 - 1] : 0});
+      c.waves.push_back(Wave{ga->requests.data(), ga->step_end.data(), ga->lanes.data(), ga->step_lanes_end.data(), g,
+                             s0, s1, s0 ? ga->step_end[s0 - 1] : 0,
+                             per_inv && s0 ? ga->step_lanes_end[s0 - 1] : 0});
       ++placed;
     }
     c.groups.push_back(ResidentGroup{g, std::move(ga), placed});
@@ -415,66 +728,43 @@ void Simulator::schedule() {
     return c.resident_waves == 0 || c.resident_waves + ps.waves_per_group <= preset_.max_waves_per_cu;
   };
   // Sweeps the CUs round-robin, one workgroup to each with room, until a sweep places nothing or no
-  // workgroup is left. Returns false, keeping its position, where the next workgroup has not been fed.
+  // workgroup is left.
   auto refill = [&] {
-    while (ps.next_group < ps.groups) {
-      if (ps.refill_cu == cus) {
-        if (!ps.refill_progress) break;
-        ps.refill_cu = 0;
-        ps.refill_progress = false;
-      }
-      if (has_room(ps.cu[ps.refill_cu])) {
-        if (!ps.final && ps.next_group >= ps.fed_end) return false;
-        dispatch(ps.cu[ps.refill_cu]);
-        ps.refill_progress = true;
-      }
-      ++ps.refill_cu;
+    bool progress = true;
+    while (progress && ps.next_group < ps.groups) {
+      progress = false;
+      for (uint32_t i = 0; i < cus && ps.next_group < ps.groups; ++i)
+        if (has_room(ps.cu[i])) {
+          dispatch(ps.cu[i]);
+          progress = true;
+        }
     }
-    ps.refill_cu = 0;
-    ps.refill_progress = false;
-    return true;
   };
 
-  if (ps.refilling) {
-    if (!refill()) return;
-    ps.refilling = false;
-  }
+  refill();
   while (true) {
     bool any = false, freed = false;
     for (uint32_t i = 0; i < cus; ++i) {
       ComputeUnit& c = ps.cu[i];
-      // Host prefetch of the wave step a few compute units ahead: its accesses were laid out when its
-      // workgroup was fed and have usually left the host's caches since (no simulated effect).
-      if (const uint32_t a = i + kPrefetchAhead; a < cus) {
-        const ComputeUnit& ca = ps.cu[a];
-        if (!ca.waves.empty()) {
-          const Wave& wa = ca.waves[ca.next < ca.waves.size() ? ca.next : 0];
-          const uint32_t e = wa.next_entry;
-          __builtin_prefetch(wa.address + e);
-          __builtin_prefetch(wa.info + e);
-          __builtin_prefetch(wa.lane + e);
-          __builtin_prefetch(wa.step_end + wa.next_step);
-        }
-      }
       if (c.waves.empty()) continue;
       any = true;
       if (c.next >= c.waves.size()) c.next = 0;
       Wave& w = c.waves[c.next];
-      const uint32_t e0 = w.next_entry, e1 = w.step_end[w.next_step];
-      w.next_entry = e1;
-      const uint64_t lane_base = w.lane_base;
-      co.begin();
-      for (uint32_t k = e0; k < e1; ++k) co.add(w.address[k], w.info[k], uint32_t(lane_base + w.lane[k]), per_inv);
+      const uint32_t r0 = w.next_request, r1 = w.step_end[w.next_step];
+      w.next_request = r1;
       ++res.wave_steps;
       if (options_.observer)
-        for (const Request& r : co.requests) options_.observer(i, r);
+        for (uint32_t k = r0; k < r1; ++k) options_.observer(i, w.requests[k]);
       // Queued for the hierarchy, which takes them in batches (the same results: nothing the
       // scheduler does depends on them).
       const uint32_t base = uint32_t(ps.batch.size());
-      ps.batch.insert(ps.batch.end(), co.requests.begin(), co.requests.end());
-      ps.batch_cu.insert(ps.batch_cu.end(), co.requests.size(), i);
-      if (per_inv)
-        for (const auto& [inv, r] : co.lane_request) ps.batch_lanes.emplace_back(inv, base + r);
+      ps.batch.insert(ps.batch.end(), w.requests + r0, w.requests + r1);
+      ps.batch_cu.insert(ps.batch_cu.end(), r1 - r0, i);
+      if (per_inv) {
+        const uint32_t l1 = w.step_lanes_end[w.next_step];
+        for (uint32_t k = w.next_lane; k < l1; ++k) ps.batch_lanes.emplace_back(w.lanes[k].first, base + (w.lanes[k].second - r0));
+        w.next_lane = l1;
+      }
       if (ps.batch.size() >= kIssueBatch) issue_batch();
       if (++w.next_step == w.end_step) {
         const uint64_t g = w.workgroup;
@@ -482,7 +772,7 @@ void Simulator::schedule() {
         --c.resident_waves;
         for (size_t k = 0; k < c.groups.size(); ++k)
           if (c.groups[k].workgroup == g && --c.groups[k].waves_left == 0) {
-            ps.retire(*c.groups[k].data);
+            ps.resident_records -= c.groups[k].data->records;
             c.groups.erase(c.groups.begin() + int64_t(k));
             freed = true;
             break;
@@ -491,17 +781,9 @@ void Simulator::schedule() {
         ++c.next;
       }
     }
-    if (!any && ps.next_group >= ps.groups) {
-      ps.done = true;
-      return;
-    }
+    if (!any && ps.next_group >= ps.groups) return;
     ++res.cycles;
-    if (freed || !any) {
-      if (!refill()) {
-        ps.refilling = true;
-        return;
-      }
-    }
+    if (freed || !any) refill();
   }
 }
 

@@ -65,8 +65,10 @@ class Simulator {
   // feed() takes the records of workgroups [first_workgroup, end_workgroup) (any order inside; every
   // record's invocation must lie in that range) and simulates as far as those workgroups allow; slices
   // come in increasing, non-overlapping workgroup order, and workgroups no slice covers have no accesses.
-  // A slice's records are freed once all its workgroups have retired. The counts equal run_pass's
-  // whatever the slicing. Throws InputError on a record outside its slice or buffer table, or on slices
+  // feed() groups and coalesces the slice on the calling thread and returns while a scheduler thread
+  // replays it (it may block while that thread is a few pieces behind): the slice's records are not
+  // used after feed() returns, and what is kept of them (the coalesced requests) is freed as their
+  // workgroups retire. The counts equal run_pass's whatever the slicing and the threads' timing. Throws InputError on a record outside its slice or buffer table, or on slices
   // out of order.
   void begin_pass(const trace::PassInfo& pass);
   void feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup);
@@ -75,16 +77,17 @@ class Simulator {
   // End of the frame: dirty L2 sectors written back, in bytes.
   uint64_t finish();
 
-  // Replaces SimOptions::observer from the next wave step on (empty: none).
+  // Replaces SimOptions::observer from the next pass on (empty: none); call it between passes.
   void set_observer(std::function<void(uint32_t cu, const Request&)> observer) { options_.observer = std::move(observer); }
 
   const Preset& preset() const { return preset_; }
 
  private:
   struct PassState;
-  // Schedules as far as the fed workgroups allow, then issues the queued requests.
-  void advance();
+  // The scheduler thread's body: the whole pass, waiting for fed workgroups as it needs them.
   void schedule();
+  // Ends a pass in flight without finishing it (destructor, a new begin_pass).
+  void stop();
   // Issues the queued requests to the hierarchy and adds their misses to per-invocation counts.
   void issue_batch();
   Preset preset_;

@@ -4,7 +4,9 @@
 #include <bit>
 #include <stdexcept>
 #include <cstring>
+#include <exception>
 #include <system_error>
+#include <thread>
 
 #include "error.hpp"
 #include "output_path.hpp"
@@ -397,10 +399,15 @@ uint64_t TraceReader::record_count(uint32_t pass) const {
 
 void TraceReader::read_chunk(const Chunk& c, TraceRecord* out) const {
   std::fseek(file_, long(c.file_offset), SEEK_SET);
-  if (c.count && std::fread(out, sizeof(TraceRecord), c.count, file_) != c.count)
-    fail("truncated records of pass " + std::to_string(c.pass));
-  validate_records(path_.string() + ": pass '" + passes_[c.pass].name + "'", header_, passes_[c.pass],
-                   std::span<const TraceRecord>(out, c.count), c.first_workgroup, c.end_workgroup);
+  // Block by block, each validated while it is still in the host's caches (one pass over memory, not two).
+  constexpr uint64_t kBlock = 1 << 15;  // records (512 KiB)
+  const std::string where = path_.string() + ": pass '" + passes_[c.pass].name + "'";
+  for (uint64_t at = 0; at < c.count; at += kBlock) {
+    const uint64_t n = std::min(kBlock, c.count - at);
+    if (std::fread(out + at, sizeof(TraceRecord), n, file_) != n) fail("truncated records of pass " + std::to_string(c.pass));
+    validate_records(where, header_, passes_[c.pass], std::span<const TraceRecord>(out + at, n), c.first_workgroup,
+                     c.end_workgroup, at);
+  }
 }
 
 std::vector<TraceRecord> TraceReader::read_pass(uint32_t pass) const {
@@ -424,18 +431,38 @@ uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
   std::stable_sort(order.begin(), order.end(),
                    [](const Chunk* a, const Chunk* b) { return a->first_workgroup < b->first_workgroup; });
   uint64_t largest = 0;
-  std::vector<TraceRecord> records;  // reused: one allocation for every slice
-  for (const Chunk* c : order) {
-    records.resize(c->count);
-    read_chunk(*c, records.data());
-    largest = std::max<uint64_t>(largest, c->count);
-    consume(records, c->first_workgroup, c->end_workgroup);
+  for (const Chunk* c : order) largest = std::max<uint64_t>(largest, c->count);
+  // Two buffers, reused for every slice: a thread reads and validates the next slice while `consume`
+  // works on the current one.
+  std::vector<TraceRecord> buffers[2];
+  std::exception_ptr read_error;
+  auto read_into = [&](size_t k, std::vector<TraceRecord>& into) {
+    try {
+      into.resize(order[k]->count);
+      read_chunk(*order[k], into.data());
+    } catch (...) {
+      read_error = std::current_exception();
+    }
+  };
+  if (!order.empty()) read_into(0, buffers[0]);
+  for (size_t k = 0; k < order.size(); ++k) {
+    if (read_error) std::rethrow_exception(read_error);
+    std::thread next;
+    if (k + 1 < order.size()) next = std::thread(read_into, k + 1, std::ref(buffers[(k + 1) % 2]));
+    try {
+      consume(buffers[k % 2], order[k]->first_workgroup, order[k]->end_workgroup);
+    } catch (...) {
+      if (next.joinable()) next.join();
+      throw;
+    }
+    if (next.joinable()) next.join();
   }
   return largest;
 }
 
 void validate_records(const std::string& where, const TraceHeader& header, const PassInfo& pass,
-                      std::span<const TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup) {
+                      std::span<const TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup,
+                      uint64_t first_index) {
   const BufferInfo* by_id[256] = {};
   for (const BufferInfo& b : header.buffers)
     if (b.id < 256) by_id[b.id] = &b;
@@ -447,7 +474,7 @@ void validate_records(const std::string& where, const TraceHeader& header, const
   for (size_t i = 0; i < records.size(); ++i) {
     const TraceRecord& r = records[i];
     auto bad = [&](const std::string& why) {
-      throw InputError(one_line(where + ": record " + std::to_string(i) + ": " + why));
+      throw InputError(one_line(where + ": record " + std::to_string(first_index + i) + ": " + why));
     };
     if (r.info & HP_TRACE_RESERVED_MASK) bad("reserved info bits set");
     if (gpu::trace_kind(r.info) > HP_TRACE_ATOMIC) bad("unknown access kind");

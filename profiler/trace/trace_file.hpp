@@ -148,8 +148,9 @@ class TraceReader {
   // All records of a pass, validated: reserved bits zero, known buffer id, invocation inside its
   // slice's workgroups, offset + size inside the buffer.
   std::vector<TraceRecord> read_pass(uint32_t pass) const;
-  // The same records one slice at a time, in workgroup order, each validated before `consume` sees it:
-  // memory bounded by the largest slice. Returns the largest slice's record count.
+  // The same records one slice at a time, in workgroup order, each validated before `consume` sees it;
+  // a second thread reads and validates the next slice while `consume` runs: memory bounded by two
+  // of the largest slice. Returns the largest slice's record count.
   using SliceFn = std::function<void(std::span<const TraceRecord> records, uint64_t first_workgroup,
                                      uint64_t end_workgroup)>;
   uint64_t read_slices(uint32_t pass, const SliceFn& consume) const;
@@ -174,9 +175,10 @@ void write_trace(const std::filesystem::path& path, const Trace& trace);
 Trace read_trace(const std::filesystem::path& path);
 
 // Checks one pass's records against the header and dispatch (and, when given, the slice of workgroups
-// [first_workgroup, end_workgroup) they came from); throws InputError naming `where`.
+// [first_workgroup, end_workgroup) they came from); throws InputError naming `where` and the record's
+// index (records[i] is record first_index + i of its chunk).
 void validate_records(const std::string& where, const TraceHeader& header, const PassInfo& pass,
                       std::span<const TraceRecord> records, uint64_t first_workgroup = 0,
-                      uint64_t end_workgroup = UINT64_MAX);
+                      uint64_t end_workgroup = UINT64_MAX, uint64_t first_index = 0);
 
 }  // namespace hp::trace

@@ -1,0 +1,285 @@
+// The Simulator (workgroups grouped and coalesced on the feeding thread, scheduled and cached on a
+// second one) against the former single-threaded replay kept in baseline_simulator.cpp: the same
+// request stream in the same order, the same counts per level and buffer, per invocation and in the
+// miss-ratio curves, the same wave steps, waves, cycles and resident-record peaks, on generated
+// traces and on awkward hand-made ones, whole and sliced.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+
+#include "baseline_simulator.hpp"
+#include "cachesim/preset.hpp"
+#include "cachesim/simulator.hpp"
+#include "cachesim/synthetic.hpp"
+
+namespace hp::cachesim {
+namespace {
+
+using trace::TraceRecord;
+
+struct Seen {
+  uint32_t cu;
+  uint64_t line;
+  uint32_t sectors;
+  AccessKind kind;
+  uint8_t buffer;
+  bool operator==(const Seen&) const = default;
+};
+
+struct Replay {
+  PassResult result;
+  std::vector<Seen> requests;
+  uint64_t flushed = 0;
+};
+
+// One feed per slice: slices[k] = [cuts[k], cuts[k+1]) with the records of those workgroups.
+template <typename Sim>
+std::vector<Replay> replay(const Preset& p, const trace::Trace& t, SimOptions so, const std::vector<std::vector<uint64_t>>& cuts,
+                           uint32_t shuffle_seed) {
+  std::vector<Replay> out(t.passes.size());
+  size_t pass = 0;
+  so.observer = [&](uint32_t cu, const Request& r) { out[pass].requests.push_back({cu, r.line, r.sectors, r.kind, r.buffer}); };
+  Sim sim(p, t.header, so);
+  std::mt19937 rng(shuffle_seed);
+  for (pass = 0; pass < t.passes.size(); ++pass) {
+    const trace::PassInfo& info = t.passes[pass];
+    const uint64_t per_group = info.dispatch.invocations_per_workgroup();
+    sim.begin_pass(info);
+    const std::vector<uint64_t>& c = cuts[pass];
+    for (size_t k = 0; k + 1 < c.size(); ++k) {
+      std::vector<TraceRecord> part;
+      for (const TraceRecord& r : t.records[pass])
+        if (r.invocation >= c[k] * per_group && r.invocation < c[k + 1] * per_group) part.push_back(r);
+      if (shuffle_seed) std::shuffle(part.begin(), part.end(), rng);
+      sim.feed(part, c[k], c[k + 1]);
+    }
+    out[pass].result = sim.end_pass();
+  }
+  out.back().flushed = sim.finish();
+  return out;
+}
+
+void expect_equal(const Replay& a, const Replay& b) {
+  const PassResult &x = a.result, &y = b.result;
+  ASSERT_EQ(a.requests.size(), b.requests.size());
+  EXPECT_TRUE(a.requests == b.requests);
+  for (auto [l, m] : {std::pair{&x.stats.l1, &y.stats.l1}, std::pair{&x.stats.l2, &y.stats.l2}}) {
+    EXPECT_EQ(l->requests, m->requests);
+    EXPECT_EQ(l->hits, m->hits);
+    EXPECT_EQ(l->misses, m->misses);
+    EXPECT_EQ(l->line_hits, m->line_hits);
+    EXPECT_EQ(l->line_misses, m->line_misses);
+    EXPECT_EQ(l->sectors, m->sectors);
+    EXPECT_EQ(l->sector_hits, m->sector_hits);
+    EXPECT_EQ(l->sector_misses, m->sector_misses);
+  }
+  EXPECT_EQ(x.stats.stores, y.stats.stores);
+  EXPECT_EQ(x.stats.atomics, y.stats.atomics);
+  EXPECT_EQ(x.stats.dram_read_bytes, y.stats.dram_read_bytes);
+  EXPECT_EQ(x.stats.dram_write_bytes, y.stats.dram_write_bytes);
+  for (size_t i = 0; i < x.buffers.size(); ++i) {
+    EXPECT_EQ(x.buffers[i].l1_requests, y.buffers[i].l1_requests) << i;
+    EXPECT_EQ(x.buffers[i].l1_misses, y.buffers[i].l1_misses) << i;
+    EXPECT_EQ(x.buffers[i].l2_requests, y.buffers[i].l2_requests) << i;
+    EXPECT_EQ(x.buffers[i].l2_misses, y.buffers[i].l2_misses) << i;
+    EXPECT_EQ(x.buffers[i].dram_read_bytes, y.buffers[i].dram_read_bytes) << i;
+  }
+  EXPECT_EQ(x.l1_misses, y.l1_misses);
+  EXPECT_EQ(x.l2_misses, y.l2_misses);
+  EXPECT_EQ(x.lane_accesses, y.lane_accesses);
+  EXPECT_EQ(x.wave_steps, y.wave_steps);
+  EXPECT_EQ(x.waves, y.waves);
+  EXPECT_EQ(x.workgroups, y.workgroups);
+  EXPECT_EQ(x.cycles, y.cycles);
+  EXPECT_EQ(x.slices, y.slices);
+  EXPECT_EQ(x.peak_resident_records, y.peak_resident_records);
+  EXPECT_EQ(x.l1_curve.accesses, y.l1_curve.accesses);
+  EXPECT_EQ(x.l2_curve.accesses, y.l2_curve.accesses);
+  for (uint64_t lines = 1; lines <= (1u << 20); lines *= 4) {
+    EXPECT_EQ(x.l1_curve.misses(lines), y.l1_curve.misses(lines));
+    EXPECT_EQ(x.l2_curve.misses(lines), y.l2_curve.misses(lines));
+  }
+  EXPECT_EQ(a.flushed, b.flushed);
+}
+
+void expect_same_replays(const Preset& p, const trace::Trace& t, const SimOptions& so,
+                         const std::vector<std::vector<uint64_t>>& cuts, uint32_t shuffle_seed) {
+  const auto fast = replay<Simulator>(p, t, so, cuts, shuffle_seed);
+  const auto base = replay<baseline::BaselineSimulator>(p, t, so, cuts, shuffle_seed);
+  ASSERT_EQ(fast.size(), base.size());
+  for (size_t i = 0; i < fast.size(); ++i) {
+    SCOPED_TRACE("pass " + t.passes[i].name);
+    expect_equal(fast[i], base[i]);
+    EXPECT_GT(base[i].requests.size(), 0u);
+  }
+}
+
+std::vector<std::vector<uint64_t>> whole(const trace::Trace& t) {
+  std::vector<std::vector<uint64_t>> c;
+  for (const auto& p : t.passes) c.push_back({0, p.dispatch.workgroups()});
+  return c;
+}
+
+// Random cut points (repeated ones give empty slices) and, with `gaps`, slices that leave workgroups out.
+std::vector<std::vector<uint64_t>> random_cuts(const trace::Trace& t, uint32_t seed, int cuts) {
+  std::mt19937 rng(seed);
+  std::vector<std::vector<uint64_t>> out;
+  for (const auto& p : t.passes) {
+    const uint64_t groups = p.dispatch.workgroups();
+    std::vector<uint64_t> c = {0, groups};
+    for (int k = 0; k < cuts; ++k) c.push_back(rng() % (groups + 1));
+    std::sort(c.begin(), c.end());
+    out.push_back(c);
+  }
+  return out;
+}
+
+Preset preset_named(const std::string& name) { return find_preset(name); }
+
+TEST(SimulatorEquivalence, GeneratedBvhTraceOnTheShippedPresets) {
+  SyntheticBvhOptions o;
+  o.width = 96;
+  o.height = 80;
+  o.tree_depth = 12;
+  o.incoherent_fraction = 0.3;
+  const trace::Trace t = make_bvh_like_trace(o);
+  ASSERT_GT(t.records[0].size(), 100000u);
+  for (const std::string name : {"vega56", "ga102", "h100"}) {
+    SCOPED_TRACE(name);
+    SimOptions so;
+    so.per_invocation = true;
+    so.l1_mrc = so.l2_mrc = true;
+    expect_same_replays(preset_named(name), t, so, whole(t), 0);
+    so.l1_mrc = so.l2_mrc = false;
+    so.per_invocation = false;
+    expect_same_replays(preset_named(name), t, so, random_cuts(t, 5, 12), 9);
+  }
+}
+
+// Hand-made: several passes (the L2 stays warm between them), workgroups that are not a multiple of the
+// wave width, lanes that diverge and realign by seq, seq 0xFFFFFFFF, duplicate seqs, accesses that span
+// two lines, all three kinds, plain buffers and both image layouts, empty workgroups and wavefronts.
+trace::Trace awkward_trace(uint32_t seed) {
+  trace::Trace t;
+  auto buffer = [&](uint32_t id, trace::BufferKind kind, uint64_t base, uint64_t size) {
+    trace::BufferInfo b;
+    b.id = id;
+    b.name = "b" + std::to_string(id);
+    b.kind = kind;
+    b.base_address = base;
+    b.size_bytes = size;
+    if (kind != trace::BufferKind::buffer) {
+      b.texel_bytes = 8;
+      b.width = 100;
+      b.height = 64;
+      b.size_bytes = uint64_t(b.width) * b.height * b.texel_bytes;
+      b.row_pitch_bytes = 1024;
+      b.tile_width = b.tile_height = 8;
+    }
+    t.header.buffers.push_back(b);
+  };
+  buffer(0, trace::BufferKind::buffer, 0x100000, 1 << 20);
+  buffer(7, trace::BufferKind::image_linear, 0x400000, 0);
+  buffer(200, trace::BufferKind::image_tiled, 0x800000, 0);
+  buffer(3, trace::BufferKind::buffer, 0x1000003, 1 << 16);  // unaligned base: accesses straddle lines
+  std::mt19937 rng(seed);
+  for (uint32_t pass = 0; pass < 3; ++pass) {
+    trace::PassInfo info;
+    info.name = "pass" + std::to_string(pass);
+    const uint32_t sizes[3][3] = {{80, 1, 1}, {7, 5, 3}, {64, 2, 1}};
+    const uint32_t counts[3][3] = {{23, 1, 1}, {4, 3, 2}, {5, 1, 3}};
+    for (int k = 0; k < 3; ++k) {
+      info.dispatch.workgroup_size[k] = sizes[pass][k];
+      info.dispatch.workgroup_count[k] = counts[pass][k];
+    }
+    std::vector<TraceRecord> recs;
+    const uint64_t per_group = info.dispatch.invocations_per_workgroup();
+    for (uint32_t inv = 0; inv < info.dispatch.invocations(); ++inv) {
+      const uint64_t g = inv / per_group;
+      if (g % 5 == 3) continue;                          // an empty workgroup
+      if (pass == 2 && inv % per_group >= 64) continue;  // its second wavefront (wave64) empty
+      const uint32_t n = rng() % 9;                      // some lanes without accesses
+      uint32_t seq = rng() % 3;
+      for (uint32_t k = 0; k < n; ++k) {
+        const uint32_t which = rng() % 4;
+        const uint32_t ids[4] = {0, 7, 200, 3};
+        const uint32_t kind = rng() % 10 == 0 ? HP_TRACE_STORE : rng() % 20 == 0 ? HP_TRACE_ATOMIC : HP_TRACE_LOAD;
+        const uint32_t size = 1 + rng() % 16;
+        uint32_t offset;
+        if (which == 0) offset = (rng() % 2 ? (inv * 16) : uint32_t(rng() % 4096) * 64 + 60) % ((1 << 20) - 16);
+        else if (which == 3) offset = uint32_t(rng() % 1000) * 61;
+        else offset = uint32_t(rng() % (100 * 64)) * 8 + uint32_t(rng() % (9 - std::min<uint32_t>(size, 8)));
+        const uint32_t sz = which == 1 || which == 2 ? std::min<uint32_t>(size, 8) : size;
+        recs.push_back(TraceRecord{inv, seq, HP_TRACE_INFO(ids[which], kind, sz), offset});
+        const uint32_t step = rng() % 6;
+        seq += step == 0 ? 0 : step == 5 ? 3 : 1;  // duplicates, gaps (divergence), realignment
+      }
+      if (inv % 97 == 5) recs.push_back(TraceRecord{inv, 0xFFFFFFFFu, HP_TRACE_INFO(0u, HP_TRACE_LOAD, 4u), 64});
+    }
+    std::shuffle(recs.begin(), recs.end(), rng);  // records in no particular order, as GPU atomics give them
+    t.passes.push_back(info);
+    t.records.push_back(std::move(recs));
+  }
+  return t;
+}
+
+TEST(SimulatorEquivalence, AwkwardTracesWholeAndSliced) {
+  for (uint32_t seed : {1u, 2u, 3u}) {
+    const trace::Trace t = awkward_trace(seed);
+    Preset small = preset_named("vega56");
+    small.compute_units = 3;
+    small.max_waves_per_cu = 2;  // occupancy limits dispatch
+    Preset sectors = preset_named("ga102");
+    sectors.compute_units = 5;
+    sectors.wave_width = 16;
+    for (const Preset& p : {small, sectors, preset_named("h100")}) {
+      SCOPED_TRACE(p.name + " seed " + std::to_string(seed));
+      SimOptions so;
+      so.per_invocation = true;
+      so.l2_mrc = true;
+      expect_same_replays(p, t, so, whole(t), 0);
+      expect_same_replays(p, t, so, random_cuts(t, seed, 6), seed);
+    }
+  }
+}
+
+TEST(SimulatorEquivalence, RecordsAlreadyInWorkgroupOrderAndOneRecordSlices) {
+  // In workgroup order the grouping uses the records in place: the same results as shuffled.
+  trace::Trace t = awkward_trace(4);
+  for (auto& recs : t.records)
+    std::stable_sort(recs.begin(), recs.end(), [](const TraceRecord& a, const TraceRecord& b) { return a.invocation / 80 < b.invocation / 80; });
+  SimOptions so;
+  so.per_invocation = true;
+  expect_same_replays(preset_named("vega56"), t, so, whole(t), 0);
+  // One slice per workgroup.
+  std::vector<std::vector<uint64_t>> cuts;
+  for (const auto& p : t.passes) {
+    std::vector<uint64_t> c;
+    for (uint64_t g = 0; g <= p.dispatch.workgroups(); ++g) c.push_back(g);
+    cuts.push_back(c);
+  }
+  expect_same_replays(preset_named("ga102"), t, so, cuts, 0);
+}
+
+TEST(SimulatorEquivalence, DestroyedMidPassAndRestartedPassesAreClean) {
+  const trace::Trace t = awkward_trace(5);
+  Simulator sim(preset_named("vega56"), t.header);
+  sim.begin_pass(t.passes[0]);
+  sim.feed(t.records[0], 0, t.passes[0].dispatch.workgroups());
+  // A new pass without end_pass abandons the one in flight; the pass after it replays normally.
+  sim.begin_pass(t.passes[1]);
+  sim.feed(t.records[1], 0, t.passes[1].dispatch.workgroups());
+  const PassResult r = sim.end_pass();
+  EXPECT_EQ(r.lane_accesses, t.records[1].size());
+  EXPECT_GT(r.stats.l1.requests + r.stats.stores + r.stats.atomics, 0u);
+  {
+    Simulator abandoned(preset_named("vega56"), t.header);
+    abandoned.begin_pass(t.passes[0]);
+    abandoned.feed(t.records[0], 0, t.passes[0].dispatch.workgroups());
+  }  // destroyed mid-pass: joins its scheduler thread
+  EXPECT_THROW(sim.end_pass(), std::logic_error);
+}
+
+}  // namespace
+}  // namespace hp::cachesim
