@@ -21,21 +21,42 @@
 //   EndToEnd         Simulator::run_pass: grouping, SIMT scheduling, coalescing and caches
 //                    (items = lane accesses); /1 adds per-invocation counts, /2 the exact L1 and L2
 //                    miss-ratio curves (what `hybridprof cachesim --mrc` and the run matrix compute).
+// End-to-end paths of the CLI, from files (wall time: they use several threads; items per second are
+// per wall second here):
+//   TraceFileRead    reading and validating a trace file slice by slice (TraceReader::read_slices),
+//                    nothing else: the floor of a replay from the page cache.
+//   TraceFileReplay  `cachesim TRACE`: the same file replayed (read_slices feeding the Simulator).
+//                    TraceFileReplay / TraceFileRead is the replay's cost relative to reading the file.
+//   DinFileRead      read(2) of a Dinero text file into a 1 MiB buffer: the memory-speed floor.
+//   DinFileReplay    `cachesim --din FILE`: the file streamed through the parser and a 16k:64:4 L1 +
+//                    4m:64:16 L2 (/0), or read whole into memory first and then replayed (/1: the
+//                    former path). items = Dinero records.
+// The files: HP_BENCH_TRACE as above (else the generated trace written, in 64-workgroup slices as a
+// capture writes them, to a temporary file) and HP_BENCH_DIN=FILE (else the generated trace's L1
+// request stream, written as Dinero text to a temporary file). Temporary files are removed at exit.
 // Rates are per CPU second (Google Benchmark's default): on a shared VM they are less disturbed by
 // other processes than wall time, not undisturbed. Note the load average printed in the header.
 #include <benchmark/benchmark.h>
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
 #include <span>
 #include <string>
 
+#include "cachesim/din_replay.hpp"
 #include "cachesim/hierarchy.hpp"
 #include "cachesim/preset.hpp"
 #include "cachesim/simulator.hpp"
 #include "cachesim/stack_distance.hpp"
 #include "cachesim/synthetic.hpp"
+#include "trace/din.hpp"
 
 namespace {
 
@@ -218,6 +239,127 @@ void EndToEnd(benchmark::State& state) {
   state.SetLabel(so.per_invocation ? "with per-invocation counts" : so.l2_mrc ? "totals + exact L1 and L2 curves" : "totals only");
 }
 BENCHMARK(EndToEnd)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
+
+// The files the end-to-end benchmarks read, made once (see the header comment).
+struct Files {
+  std::string trace_path, din_path;
+  std::vector<std::string> remove;
+  uint64_t din_records = 0;
+  Files() {
+    const Fixture& f = fixture();
+    const std::string tmp = std::filesystem::temp_directory_path().string() + "/hp_bench_cachesim_" + std::to_string(::getpid());
+    if (const char* t = std::getenv("HP_BENCH_TRACE")) {
+      trace_path = t;
+    } else {
+      trace_path = tmp + ".trace";
+      remove.push_back(trace_path);
+      hp::trace::TraceWriter w(trace_path, f.trace.header);
+      const hp::trace::PassInfo& pass = f.trace.passes[0];
+      const uint32_t p = w.begin_pass(pass);
+      const uint64_t per_group = pass.dispatch.invocations_per_workgroup(), groups = pass.dispatch.workgroups();
+      std::vector<hp::trace::TraceRecord> part;
+      for (uint64_t g0 = 0; g0 < groups; g0 += 64) {
+        const uint64_t g1 = std::min(groups, g0 + 64);
+        part.clear();
+        for (const auto& r : f.trace.records[0])
+          if (r.invocation >= g0 * per_group && r.invocation < g1 * per_group) part.push_back(r);
+        w.write_records(p, part, g0, g1);
+      }
+      w.finish();
+    }
+    if (const char* d = std::getenv("HP_BENCH_DIN")) {
+      din_path = d;
+    } else {
+      din_path = tmp + ".din";
+      remove.push_back(din_path);
+      std::ofstream out(din_path);
+      for (const auto& [cu, r] : f.requests)
+        hp::trace::write_din_line(out, hp::trace::DinAccess{r.kind == AccessKind::store, r.line << 6, 64});
+    }
+    hp::trace::DinReader reader(din_path);
+    std::vector<hp::trace::DinAccess> batch(16384);
+    while (size_t n = reader.read(batch)) din_records += n;
+  }
+  ~Files() {
+    for (const std::string& p : remove) std::filesystem::remove(p);
+  }
+};
+
+Files& files() {
+  static Files f;
+  return f;
+}
+
+void TraceFileRead(benchmark::State& state) {
+  const Files& fs = files();
+  uint64_t records = 0;
+  for (auto _ : state) {
+    hp::trace::TraceReader reader(fs.trace_path);
+    records = 0;
+    for (uint32_t p = 0; p < reader.passes().size(); ++p)
+      reader.read_slices(p, [&](std::span<const hp::trace::TraceRecord> r, uint64_t, uint64_t) { records += r.size(); });
+    benchmark::DoNotOptimize(records);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * records));
+  state.counters["bytes"] = double(std::filesystem::file_size(fs.trace_path));
+}
+BENCHMARK(TraceFileRead)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void TraceFileReplay(benchmark::State& state) {
+  const Files& fs = files();
+  const Fixture& f = fixture();
+  uint64_t records = 0;
+  for (auto _ : state) {
+    hp::trace::TraceReader reader(fs.trace_path);
+    SimOptions so;
+    so.per_invocation = false;
+    Simulator sim(f.preset, reader.header(), so);
+    records = 0;
+    for (uint32_t p = 0; p < reader.passes().size(); ++p) {
+      sim.begin_pass(reader.passes()[p]);
+      feed_slices(sim, reader, p);
+      records += sim.end_pass().lane_accesses;
+    }
+    benchmark::DoNotOptimize(sim.finish());
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * records));
+  state.counters["lane_accesses"] = double(records);
+}
+BENCHMARK(TraceFileReplay)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void DinFileRead(benchmark::State& state) {
+  const Files& fs = files();
+  std::unique_ptr<char[]> buf(new char[1 << 20]);
+  uint64_t bytes = 0;
+  for (auto _ : state) {
+    const int fd = ::open(fs.din_path.c_str(), O_RDONLY);
+    bytes = 0;
+    for (ssize_t n; (n = ::read(fd, buf.get(), 1 << 20)) > 0;) bytes += uint64_t(n);
+    ::close(fd);
+    benchmark::DoNotOptimize(bytes);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * fs.din_records));
+  state.SetBytesProcessed(int64_t(state.iterations() * bytes));
+}
+BENCHMARK(DinFileRead)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void DinFileReplay(benchmark::State& state) {
+  const Files& fs = files();
+  const CacheConfig l1 = parse_cache_spec("16k:64:4", "--l1"), l2 = parse_cache_spec("4m:64:16", "--l2");
+  for (auto _ : state) {
+    DinResult r;
+    if (state.range(0) == 0) {
+      uint64_t refs = 0;
+      r = replay_din_file(fs.din_path, l1, l2, false, refs);
+    } else {
+      r = replay_din(hp::trace::read_din(fs.din_path), l1, l2, false);
+    }
+    benchmark::DoNotOptimize(r.l2.misses);
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * fs.din_records));
+  state.SetLabel(state.range(0) == 0 ? "streamed (cachesim --din)" : "whole file in memory, then replayed");
+}
+BENCHMARK(DinFileReplay)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 
