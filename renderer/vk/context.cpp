@@ -77,7 +77,12 @@ std::string lower(std::string s) {
 
 }  // namespace
 
-std::string driver_version_string(uint32_t vendor_id, uint32_t v) {
+std::string driver_version_string(const std::string& driver_info, uint32_t vendor_id, uint32_t v) {
+  if (driver_info.rfind("Mesa ", 0) == 0) {  // "Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"
+    const std::string rest = driver_info.substr(5);
+    const std::string release = rest.substr(0, rest.find(' '));
+    if (!release.empty()) return release;
+  }
   if (vendor_id == 0x10DE) {  // NVIDIA packs major.minor.secondary.tertiary as 10.8.8.6 bits
     return std::to_string(v >> 22) + "." + std::to_string((v >> 14) & 0xFF) + "." + std::to_string((v >> 6) & 0xFF) +
            "." + std::to_string(v & 0x3F);
@@ -101,7 +106,7 @@ DeviceInfo describe(VkPhysicalDevice pd, const std::vector<VkQueueFamilyProperti
   info.type = device_type_name(p.deviceType);
   info.driver_name = driver.driverName;
   info.driver_info = driver.driverInfo;
-  info.driver_version = driver_version_string(p.vendorID, p.driverVersion);
+  info.driver_version = driver_version_string(info.driver_info, p.vendorID, p.driverVersion);
   info.api_version = version_string(p.apiVersion);
   info.vendor_id = p.vendorID;
   info.device_id = p.deviceID;

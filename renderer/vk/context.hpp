@@ -29,8 +29,9 @@ struct DeviceInfo {
   std::string type;  ///< "discrete", "integrated", "cpu", "virtual", "other"
   std::string driver_name;
   std::string driver_info;
-  /// VkPhysicalDeviceProperties::driverVersion decoded: NVIDIA's 10.8.8.6-bit layout ("580.95.5.0"),
-  /// VK_MAKE_API_VERSION's layout for every other vendor (Mesa: "25.0.7").
+  /// The driver's version: for Mesa's drivers the release their driverInfo names ("25.0.7-2~bpo12+1"; their
+  /// driverVersion field is a constant, 0.0.1 for lavapipe), else driverVersion decoded, NVIDIA's
+  /// 10.8.8.6-bit layout ("580.95.5.0") or VK_MAKE_API_VERSION's for every other vendor.
   std::string driver_version;
   std::string api_version;
   uint32_t vendor_id = 0;
@@ -41,8 +42,8 @@ struct DeviceInfo {
   uint64_t max_storage_buffer_range = 0;
 };
 
-/// driverVersion as DeviceInfo::driver_version spells it.
-std::string driver_version_string(uint32_t vendor_id, uint32_t driver_version);
+/// DeviceInfo::driver_version from driverInfo, vendorID and driverVersion.
+std::string driver_version_string(const std::string& driver_info, uint32_t vendor_id, uint32_t driver_version);
 
 /// All physical devices the loader sees, in enumeration order (for `--device` and `hybridprof devices`).
 std::vector<DeviceInfo> list_devices();

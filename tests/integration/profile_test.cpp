@@ -130,6 +130,16 @@ TEST(Profile, OverlappedFramesChangeNeitherImageNorCounters) {
   EXPECT_EQ(differing, 0u) << "of " << with_image.size() << " channel values";
 }
 
+// The driver version every result records: Mesa's release from driverInfo (lavapipe's driverVersion field
+// reads 0.0.1 whatever the release), NVIDIA's own bit layout, the API layout for other vendors.
+TEST(DeviceInfo, DriverVersionNamesTheRelease) {
+  EXPECT_EQ(vk::driver_version_string("Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)", 0x10005, VK_MAKE_API_VERSION(0, 0, 0, 1)),
+            "25.0.7-2~bpo12+1");
+  EXPECT_EQ(vk::driver_version_string("Mesa 22.3.6", 0x10005, 1), "22.3.6");
+  EXPECT_EQ(vk::driver_version_string("580.95.05", 0x10DE, (580u << 22) | (95u << 14) | (5u << 6)), "580.95.5.0");
+  EXPECT_EQ(vk::driver_version_string("", 0x1002, VK_MAKE_API_VERSION(0, 2, 0, 301)), "2.0.301");
+}
+
 // The fallback for a queue without timestamps, run on purpose: each pass is its own submission timed on the
 // host, in order and without overlap, labelled cpu-wall; no query overhead is measured (there are no
 // queries), the counters are still read, and the timeline still nests.
