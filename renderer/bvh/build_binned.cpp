@@ -6,6 +6,12 @@
 // largest centroid extent is binned (the study's and pbrt's rule). Each node costs one binning pass and one
 // partition pass; the partition pass also collects the children's centroid bounds and the bins give their
 // boxes, so no third pass is needed. Bounds are kept in 4-wide SSE registers (x, y, z, unused).
+//
+// The tree is a pure function of the input and the options (tests/unit/bvh/build_identity_test.cpp pins
+// it): every speed-up computes the same floats in the same order per value, and regrouping min/max folds
+// (which can only change the sign of a zero) is limited to inputs without -0.0 bounds (signed_zeros_).
+// Nodes are written in the final depth-first layout, by one thread or by several in windows (see the
+// constructor).
 #include "bvh/build_common.hpp"
 
 #include <algorithm>
@@ -13,6 +19,8 @@
 #include <limits>
 #include <cstring>
 #include <memory>
+#include <mutex>
+#include <thread>
 
 #include <emmintrin.h>
 
@@ -91,6 +99,9 @@ struct Scratch {
   // The three-axis sweep: N_B * S_B per bin (lane = axis), and the bins transposed to lane = axis
   // (lo x, y, z, hi x, y, z, count per bin).
   std::vector<Lanes> soa;
+  /// Next free node slot of this worker's part of the tree, and the deepest leaf it wrote.
+  uint32_t cursor = 1;
+  int max_depth = 0;
 };
 
 /// Bin index per axis for doubled centroid c: floor((c - cmin) * scale), clamped to the last bin. The same
@@ -106,16 +117,19 @@ class BinnedBuilder {
 public:
   BinnedBuilder(std::span<PrimRef> prims, const BuildParams& p)
       : prims_(prims), p_(p), forker_(p.threads), dfs_(p.threads == 1) {
+    // Nodes are written depth first, in the final layout (a node's first child right after it, the second
+    // after the first's subtree). A tree over N primitives has at most 2N - 1 nodes.
     capacity_ = std::max<std::size_t>(1, 2 * prims.size());
     if (dfs_) {
-      // One thread builds depth first, so it can write the final layout directly (a node's first child
-      // right after it, the second after the first's subtree). A tree over N primitives has at most 2N - 1
-      // nodes: the reserve never reallocates, and its pages are touched only as nodes are written.
+      // One thread appends: the reserve never reallocates, and its pages are touched only as nodes are
+      // written.
       flat_.reserve(capacity_);
       flat_.emplace_back();
     } else {
-      // Uninitialised on purpose: every node slot handed out is written before it is read.
-      nodes_.reset(new gpu::BvhNode[capacity_]);
+      // Threads: a forked first child gets a window of 2n - 1 slots for its n primitives and the second
+      // child starts after it; the unused ends of the windows are squeezed out at the end (finish_windows).
+      // Uninitialised on purpose: every slot handed out is written before it is read.
+      win_.reset(new gpu::BvhNode[capacity_]);
     }
   }
 
@@ -150,13 +164,14 @@ public:
     PairTree tree;
     if (dfs_) {
       tree.flat = std::move(flat_);
-      tree.flat_max_depth = max_depth_;
     } else {
-      tree.nodes = std::move(nodes_);
-      tree.node_count = next_node_.load();
+      tree.flat = finish_windows(scratch.cursor);
     }
+    tree.flat_max_depth = scratch.max_depth;
     tree.order.resize(prims_.size());
-    for (std::size_t i = 0; i < prims_.size(); ++i) tree.order[i] = prims_[i].id;
+    Forker::parallel_chunks(prims_.size(), p_.threads, [&](std::size_t b, std::size_t e, std::size_t) {
+      for (std::size_t i = b; i < e; ++i) tree.order[i] = prims_[i].id;
+    });
     tree.depth_limited_splits = depth_limited_.load();
     return tree;
   }
@@ -167,14 +182,42 @@ private:
     _mm_store_ps(f, v);
     return glm::vec3(f[0], f[1], f[2]);
   }
-  void leaf(uint32_t index, const Range& r, int depth) {
-    const gpu::BvhNode node = make_leaf(to_vec3(r.box.lo), to_vec3(r.box.hi), r.begin, r.end - r.begin);
-    if (dfs_) {
-      flat_[index] = node;
-      max_depth_ = std::max(max_depth_, depth);
-    } else {
-      nodes_[index] = node;
+  void leaf(uint32_t index, const Range& r, int depth, Scratch& s) {
+    node_at(index) = make_leaf(to_vec3(r.box.lo), to_vec3(r.box.hi), r.begin, r.end - r.begin);
+    s.max_depth = std::max(s.max_depth, depth);
+  }
+  gpu::BvhNode& node_at(uint32_t index) { return dfs_ ? flat_[index] : win_[index]; }
+
+  /// The threaded build's windows, gaps removed, as the final node array: every slot keeps its order, and
+  /// a second-child offset moves down by the gap slots before it.
+  std::vector<gpu::BvhNode> finish_windows(uint32_t end) {
+    std::sort(gaps_.begin(), gaps_.end());
+    std::vector<uint32_t> gap_end, shift{0};  // shift[k]: the slots of the first k gaps
+    for (const auto& [b, e] : gaps_) {
+      gap_end.push_back(e);
+      shift.push_back(shift.back() + (e - b));
     }
+    const auto shift_of = [&](uint32_t slot) {
+      return shift[std::upper_bound(gap_end.begin(), gap_end.end(), slot) - gap_end.begin()];
+    };
+    std::vector<gpu::BvhNode> out;
+    out.reserve(end - shift.back());
+    uint32_t at = 0;
+    for (const auto& [b, e] : gaps_) {
+      out.insert(out.end(), win_.get() + at, win_.get() + b);
+      at = e;
+    }
+    out.insert(out.end(), win_.get() + at, win_.get() + end);
+    if (!gaps_.empty()) {
+      Forker::parallel_chunks(out.size(), p_.threads, [&](std::size_t b, std::size_t e, std::size_t) {
+        for (std::size_t i = b; i < e; ++i) {
+          gpu::BvhNode& n = out[i];
+          if ((n.prim_axis >> HP_BVH_AXIS_BITS) == 0) n.offset -= static_cast<int>(shift_of(static_cast<uint32_t>(n.offset)));
+        }
+      });
+    }
+    win_.reset();
+    return out;
   }
 
   Range range_of(uint32_t begin, uint32_t end) const {
@@ -204,9 +247,9 @@ private:
 
   void build(uint32_t index, const Range& r, int depth, Scratch& s) {
     const uint32_t n = r.end - r.begin;
-    if (n <= 1) return leaf(index, r, depth);
+    if (n <= 1) return leaf(index, r, depth, s);
     // A split puts its children at depth + 1; with n <= max_leaf a leaf is always allowed instead.
-    if (n <= p_.max_leaf && depth + 1 > p_.max_depth) return leaf(index, r, depth);
+    if (n <= p_.max_leaf && depth + 1 > p_.max_depth) return leaf(index, r, depth, s);
 
     alignas(16) float cmin[4], cext[4];
     _mm_store_ps(cmin, r.cbox.lo);
@@ -231,7 +274,7 @@ private:
     }
     Range left, right;
     if (first_axis < 0) {
-      if (n <= p_.max_leaf) return leaf(index, r, depth);
+      if (n <= p_.max_leaf) return leaf(index, r, depth, s);
       median_split(r, widest, left, right);
       return finish_interior(index, r, widest, left, right, depth, s);
     }
@@ -291,13 +334,13 @@ private:
     const float node_area = half_area4(r.box.lo, r.box.hi);
     const float split_cost = p_.traversal_cost * node_area + best_cost;
     const float leaf_cost = static_cast<float>(n) * node_area;
-    if (n <= p_.max_leaf && (best_axis < 0 || leaf_cost <= split_cost)) return leaf(index, r, depth);
+    if (n <= p_.max_leaf && (best_axis < 0 || leaf_cost <= split_cost)) return leaf(index, r, depth, s);
 
     const uint32_t larger_child = best_axis < 0 ? n : std::max(best_left_count, n - best_left_count);
     if (best_axis < 0 || depth + 1 + levels_needed(larger_child, p_.max_leaf) > p_.max_depth) {
       // The SAH split could not be finished within the depth left (or there is none): a median split
       // halves the count, which always fits because this node's own range did.
-      if (n <= p_.max_leaf) return leaf(index, r, depth);
+      if (n <= p_.max_leaf) return leaf(index, r, depth, s);
       if (best_axis >= 0) depth_limited_.fetch_add(1, std::memory_order_relaxed);
       median_split(r, widest, left, right);
       return finish_interior(index, r, widest, left, right, depth, s);
@@ -513,7 +556,7 @@ private:
     const float a_right = half_area4(swap ? lo0 : lo1, swap ? hi0 : hi1);
     const float node_area = half_area4(r.box.lo, r.box.hi);
     const float split_cost = p_.traversal_cost * node_area + (1.0f * a_left + 1.0f * a_right);
-    if (2 <= p_.max_leaf && 2.0f * node_area <= split_cost) return leaf(index, r, depth);
+    if (2 <= p_.max_leaf && 2.0f * node_area <= split_cost) return leaf(index, r, depth, s);
     // Splitting is within the depth bound: build() made a leaf when n <= max_leaf and depth + 1 exceeded
     // it, and with max_leaf = 1 the invariant depth + levels_needed(2) <= max_depth guarantees it.
     if (swap) std::swap(p[0], p[1]);
@@ -547,30 +590,57 @@ private:
       build(second, right, depth + 1, s);
       return;
     }
-    const uint32_t child = next_node_.fetch_add(2, std::memory_order_relaxed);
-    nodes_[index] = make_interior(to_vec3(r.box.lo), to_vec3(r.box.hi), child, static_cast<uint32_t>(axis));
-    forker_.fork_join(
-        left.end - left.begin,
-        [&, child](bool on_new_thread) {
-          if (on_new_thread) {
-            Scratch own(p_.buckets);
-            build(child, left, depth + 1, own);
-          } else {
-            build(child, left, depth + 1, s);
-          }
-        },
-        [&, child] { build(child + 1, right, depth + 1, s); });
+    win_[index] = make_interior(to_vec3(r.box.lo), to_vec3(r.box.hi), 0, static_cast<uint32_t>(axis));
+    const uint32_t first = s.cursor++;
+    const uint32_t nl = left.end - left.begin;
+    if (!forker_.try_fork(nl)) {
+      build(first, left, depth + 1, s);
+      const uint32_t second = s.cursor++;
+      win_[index].offset = static_cast<int>(second);
+      build(second, right, depth + 1, s);
+      return;
+    }
+    // The first child on a new thread, in the window [first, first + 2 nl - 1); the second child here.
+    const uint32_t second = first + 2 * nl - 1;
+    win_[index].offset = static_cast<int>(second);
+    std::exception_ptr error;
+    int left_depth = 0;
+    std::thread t([&] {
+      try {
+        Scratch own(p_.buckets);
+        own.cursor = first + 1;
+        build(first, left, depth + 1, own);
+        left_depth = own.max_depth;
+        if (own.cursor < second) {
+          std::lock_guard lock(gaps_mutex_);
+          gaps_.emplace_back(own.cursor, second);
+        }
+      } catch (...) {
+        error = std::current_exception();
+      }
+      forker_.release();
+    });
+    s.cursor = second + 1;
+    try {
+      build(second, right, depth + 1, s);
+    } catch (...) {
+      t.join();
+      throw;
+    }
+    t.join();
+    if (error) std::rethrow_exception(error);
+    s.max_depth = std::max(s.max_depth, left_depth);
   }
 
   std::span<PrimRef> prims_;
   BuildParams p_;
   Forker forker_;
-  std::unique_ptr<gpu::BvhNode[]> nodes_;
   std::size_t capacity_ = 0;
-  std::atomic<uint32_t> next_node_{1};
-  bool dfs_;  ///< one thread: nodes go straight into flat_, depth first
-  std::vector<gpu::BvhNode> flat_;
-  int max_depth_ = 0;
+  bool dfs_;                               ///< one thread: nodes go straight into flat_
+  std::vector<gpu::BvhNode> flat_;         ///< one thread
+  std::unique_ptr<gpu::BvhNode[]> win_;    ///< threads: the windowed layout
+  std::mutex gaps_mutex_;
+  std::vector<std::pair<uint32_t, uint32_t>> gaps_;  ///< threads: unused window ends [begin, end)
   std::atomic<std::size_t> depth_limited_{0};
   /// Some primitive bound is -0.0. Folding boxes with min/max in another order can then change a box's
   /// zero sign (min and max keep their second operand on ties), so the builder keeps the reference order:

@@ -94,6 +94,11 @@ public:
     }
   }
 
+  /// For a caller that runs its own thread: takes a worker slot when `size` is big enough to fork and one
+  /// is free (the same rule as fork_join); the caller gives it back with release() when its thread ends.
+  bool try_fork(std::size_t size) { return size >= kMinForkSize && try_acquire(); }
+  void release() { free_slots_.fetch_add(1, std::memory_order_release); }
+
   /// Splits [0, n) into one contiguous chunk per worker and runs f(begin, end, chunk) on each, in parallel.
   template <class F>
   static void parallel_chunks(std::size_t n, int threads, F&& f) {
