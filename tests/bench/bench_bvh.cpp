@@ -399,6 +399,14 @@ void generate_bench(benchmark::State& state, const char* spec) {
 }  // namespace
 
 int main(int argc, char** argv) {
+#if HP_BENCH_HAVE_EMBREE
+  // The ratio table rides on the console reporter; another --benchmark_format keeps its own reporter.
+  bool console = true;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a.rfind("--benchmark_format=", 0) == 0 && a != "--benchmark_format=console") console = false;
+  }
+#endif
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   const auto scenes = load_scenes();
@@ -445,8 +453,12 @@ int main(int argc, char** argv) {
   }
 #endif
 #if HP_BENCH_HAVE_EMBREE
-  RatioReporter reporter;
-  benchmark::RunSpecifiedBenchmarks(&reporter);
+  if (console) {
+    RatioReporter reporter;
+    benchmark::RunSpecifiedBenchmarks(&reporter);
+  } else {
+    benchmark::RunSpecifiedBenchmarks();
+  }
   for (const auto& sp : scenes) rtcReleaseScene(sp->embree);
   rtcReleaseDevice(embree_device());
 #else
