@@ -421,6 +421,7 @@ struct Simulator::PassState {
   size_t next_job = 0, published = 0, jobs_done = 0;
   uint64_t feed_records = 0;
   uint64_t job_generation = 0;  // bumped per slice: wakes the helper
+  std::exception_ptr build_error;
   bool stop_helper = false;
   std::condition_variable cv_jobs, cv_built;
   std::thread helper;
@@ -465,8 +466,15 @@ struct Simulator::PassState {
       p->end_group = first + g1;
       p->first_of_feed = k == 0;
       p->feed_records = k == 0 ? feed_records : 0;
-      p->groups.reserve(g1 - g0);
-      for (uint64_t g = g0; g < g1; ++g) p->groups.push_back(b.build(buckets, g));
+      try {
+        p->groups.reserve(g1 - g0);
+        for (uint64_t g = g0; g < g1; ++g) p->groups.push_back(b.build(buckets, g));
+      } catch (...) {  // out of memory: feed() rethrows it once every job of the slice has ended
+        lk.lock();
+        if (!build_error) build_error = std::current_exception();
+        if (++jobs_done == jobs.size()) cv_built.notify_all();
+        continue;
+      }
       lk.lock();
       built[k] = std::move(p);
       while (published < built.size() && built[published]) publish_locked(std::move(built[published++]));
@@ -649,6 +657,7 @@ void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first
   // The records and buckets must outlive every build of this slice: wait for the helper's last one.
   lk.lock();
   ps.cv_built.wait(lk, [&] { return ps.jobs_done == ps.jobs.size(); });
+  if (ps.build_error) std::rethrow_exception(ps.build_error);
 }
 
 PassResult Simulator::end_pass() {
@@ -662,8 +671,8 @@ PassResult Simulator::end_pass() {
   ps.cv_fed.notify_all();
   ps.thread.join();
   ps.stop_helper_thread();
-  if (ps.error) {
-    std::exception_ptr e = ps.error;
+  if (ps.error || ps.build_error) {  // a failed build leaves workgroups out: no result for this pass
+    std::exception_ptr e = ps.error ? ps.error : ps.build_error;
     pass_.reset();
     std::rethrow_exception(e);
   }
