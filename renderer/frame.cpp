@@ -157,7 +157,10 @@ void Frame::record_passes(VkCommandBuffer cmd, FrameQueries queries) {
   pass("gbuffer", [&] { gbuffer_pass_.record(cmd, gpu_scene_, gbuffer_, camera_.position); });
   if (rt_passes_) {
     rt_passes_->record_prepare(cmd);
-    if (settings_.rt.shadows) pass("shadows", [&] { rt_passes_->record_shadows(cmd); });
+    // The reflection passes end with a compute barrier that also covers the shadow mask's writes, and do
+    // not read it: no barrier between the two, so a device may overlap them (the frame as an application
+    // records it; timed frames serialize at the boundary anyway).
+    if (settings_.rt.shadows) pass("shadows", [&] { rt_passes_->record_shadows(cmd, !settings_.rt.reflections); });
     if (settings_.rt.reflections) {
       if (settings_.rt.reflection_path == ReflectionPath::compact) {
         pass("compact", [&] { rt_passes_->record_compact(cmd); });

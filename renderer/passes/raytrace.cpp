@@ -343,21 +343,24 @@ void RayTracingPasses::bind(VkCommandBuffer cmd, const vk::Pipeline& p) const {
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
 }
 
-void RayTracingPasses::dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h) const {
+void RayTracingPasses::dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h,
+                                bool then_barrier) const {
   bind(cmd, p);
   vkCmdDispatch(cmd, (w + 7) / 8, (h + 7) / 8, 1);
+  if (!then_barrier) return;
   vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
                      VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
                          VK_ACCESS_2_TRANSFER_READ_BIT);
 }
 
-void RayTracingPasses::record_shadows(VkCommandBuffer cmd) const {
-  dispatch(cmd, shadow_pipeline_, width_, height_);
-  if (options_.inject_shadow_fraction > 0.0f) {
-    const uint32_t rows = std::min(height_, uint32_t(std::ceil(height_ * options_.inject_shadow_fraction)));
-    if (rows > 0) dispatch(cmd, shadow_pipeline_, width_, rows);
-  }
+void RayTracingPasses::record_shadows(VkCommandBuffer cmd, bool then_barrier) const {
+  const uint32_t rows = options_.inject_shadow_fraction > 0.0f
+                            ? std::min(height_, uint32_t(std::ceil(height_ * options_.inject_shadow_fraction)))
+                            : 0u;
+  // The injected re-trace writes the same texels: a barrier between the two dispatches.
+  dispatch(cmd, shadow_pipeline_, width_, height_, then_barrier || rows > 0);
+  if (rows > 0) dispatch(cmd, shadow_pipeline_, width_, rows, then_barrier);
 }
 
 void RayTracingPasses::record_reflections(VkCommandBuffer cmd) const {

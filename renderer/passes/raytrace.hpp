@@ -84,7 +84,10 @@ class RayTracingPasses {
   void begin_frame(uint32_t sample_index);
   /// Each expects the G-buffer in SHADER_READ_ONLY_OPTIMAL and leaves its outputs readable by the next pass.
   void record_prepare(VkCommandBuffer cmd);  ///< layouts of the output images, counter reset
-  void record_shadows(VkCommandBuffer cmd) const;
+  /// `then_barrier` false: no barrier after the pass, for a caller that records a pass with a compute
+  /// barrier of its own next in the same command buffer (the reflections): the shadow and reflection passes
+  /// do not depend on each other, so a device may run them concurrently.
+  void record_shadows(VkCommandBuffer cmd, bool then_barrier = true) const;
   void record_reflections(VkCommandBuffer cmd) const;
   void record_accumulate(VkCommandBuffer cmd) const;
   /// The compaction path: append the valid rays and size the consume dispatch on the GPU; sort them
@@ -133,7 +136,7 @@ class RayTracingPasses {
 
  private:
   void bind(VkCommandBuffer cmd, const vk::Pipeline& p) const;
-  void dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h) const;
+  void dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h, bool then_barrier = true) const;
 
   RayTracingOptions options_;
   uint32_t width_, height_, grid_w_, grid_h_;
