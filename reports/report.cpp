@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -106,6 +107,10 @@ const EnvField kEnv[] = {
     {"build", [](const Environment& e) { return e.build_type + ", " + e.compiler; }, false},
     {"host", [](const Environment& e) { return e.hostname + " (" + e.os + ")"; }, false},
     {"date (UTC)", [](const Environment& e) { return e.date_utc; }, false},
+    {"load (1 min) at cell start",
+     [](const Environment& e) { return e.load_1min ? format_number("%.2f", *e.load_1min) : std::string("unknown"); },
+     false},
+    {"CPU governor", [](const Environment& e) { return e.cpu_governor; }, true},
 };
 
 std::string environment_section(const std::vector<CellResult>& cells) {
@@ -120,6 +125,12 @@ std::string environment_section(const std::vector<CellResult>& cells) {
     std::string joined;
     if (std::string(f.label) == "date (UTC)" && values.size() > 1) {
       std::sort(values.begin(), values.end());
+      joined = values.front() + " … " + values.back();
+    } else if (std::string(f.label).rfind("load", 0) == 0 && values.size() > 1) {
+      // A range over the cells, numerically ("unknown" sorts first).
+      std::sort(values.begin(), values.end(), [](const std::string& a, const std::string& b) {
+        return std::atof(a.c_str()) < std::atof(b.c_str());
+      });
       joined = values.front() + " … " + values.back();
     } else {
       for (const std::string& v : values) joined += (joined.empty() ? "" : "; ") + v;

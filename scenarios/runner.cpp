@@ -266,7 +266,11 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     po.frames = s.frames;
     po.measure_query_overhead = s.query_overhead;
     po.measure_overlap = s.overlap;
+    // The environment as the cell starts (its date and the machine's load), and the load once its timed
+    // frames are done: a cell timed while other work loads the cores says so.
+    const Environment cell_env = capture_environment(env.device);
     const FrameTimings timings = profile_frames(frame, po);
+    const std::optional<double> load_end = read_load_1min();
     const fs::path cell_dir = out / "cells" / id;
     fs::create_directories(cell_dir);
     json images = json::object();
@@ -287,7 +291,9 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     line["name"] = s.name;
     line["axes"] = m.cell_axis_values[i];
     line["config"] = s.canonical();
-    line["result"] = timing_result_json(env, timings);
+    line["result"] = timing_result_json(cell_env, timings);
+    line["load_1min"] = {{"start", cell_env.load_1min ? json(*cell_env.load_1min) : json(nullptr)},
+                         {"end", load_end ? json(*load_end) : json(nullptr)}};
     line["scene"] = {{"triangles", triangle_count(scene)}};
     if (const RtGeometry* g = frame.rt_geometry()) {
       const bvh::BvhStats st = bvh::bvh_stats(g->bvh);

@@ -9,6 +9,7 @@
 #include <ctime>
 #include <fstream>
 #include <sstream>
+#include <string>
 #include <thread>
 
 // Both come from profiler/CMakeLists.txt; the fallbacks keep a stray build of this file honest.
@@ -79,6 +80,22 @@ std::string iso8601_utc(std::int64_t unix_seconds) {
   return buf;
 }
 
+std::optional<double> parse_load_1min(std::string_view text) {
+  const std::string first(text.substr(0, text.find(' ')));
+  if (first.empty()) return std::nullopt;
+  char* end = nullptr;
+  const double v = std::strtod(first.c_str(), &end);
+  if (end != first.c_str() + first.size() || !(v >= 0.0) || v > 1e6) return std::nullopt;
+  return v;
+}
+
+std::optional<double> read_load_1min() {
+  std::ifstream in("/proc/loadavg");
+  std::string line;
+  if (!in || !std::getline(in, line)) return std::nullopt;
+  return parse_load_1min(line);
+}
+
 Environment capture_environment(const DeviceDescription& device) {
   Environment env;
   env.cpu_model = "unknown";
@@ -103,6 +120,12 @@ Environment capture_environment(const DeviceDescription& device) {
     env.os = std::string(u.sysname) + " " + u.release + " " + u.machine;
   } else {
     env.os = "unknown";
+  }
+  env.load_1min = read_load_1min();
+  env.cpu_governor = "unknown";
+  if (std::ifstream g("/sys/devices/system/cpu/cpu0/cpufreq/scaling_governor"); g) {
+    std::string v;
+    if (std::getline(g, v) && !v.empty()) env.cpu_governor = v;
   }
   env.device = device;
   return env;

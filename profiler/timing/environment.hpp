@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -30,6 +31,10 @@ struct Environment {
   std::string date_utc;        // ISO 8601, seconds, "2026-11-23T10:42:09Z"
   std::string hostname;
   std::string os;              // uname: "Linux 6.1.0-18-amd64 x86_64"
+  // The machine's 1-minute load average when captured (/proc/loadavg); absent where unreadable. A timing
+  // taken at a load near or above the core count shares the cores with other work.
+  std::optional<double> load_1min;
+  std::string cpu_governor;    // cpufreq scaling_governor of CPU 0, or "unknown" (most VMs have none)
   DeviceDescription device;
 
   bool operator==(const Environment&) const = default;
@@ -38,6 +43,11 @@ struct Environment {
 // Captures the process's environment now; `device` is copied in as given. Never throws for a field
 // it cannot read: that field becomes "unknown".
 Environment capture_environment(const DeviceDescription& device = {});
+
+// The 1-minute load average from /proc/loadavg text ("0.52 0.58 0.59 1/123 4567"); nullopt when malformed.
+std::optional<double> parse_load_1min(std::string_view loadavg);
+// /proc/loadavg now, parsed; nullopt where unreadable.
+std::optional<double> read_load_1min();
 
 // The CPU model from /proc/cpuinfo text: "model name" (x86), else "Model"/"Hardware"/"cpu model"/
 // "Processor" (Arm, MIPS, others), else "unknown".

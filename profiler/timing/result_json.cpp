@@ -177,6 +177,8 @@ void to_json(json& j, const Environment& e) {
        {"date_utc", e.date_utc},
        {"hostname", e.hostname},
        {"os", e.os},
+       {"load_1min", optional_json(e.load_1min)},
+       {"cpu_governor", e.cpu_governor},
        {"device", e.device}};
 }
 
@@ -190,6 +192,9 @@ void from_json(const json& j, Environment& e) {
   e.date_utc = get<std::string>(j, "date_utc");
   e.hostname = get<std::string>(j, "hostname");
   e.os = get<std::string>(j, "os");
+  // Results written before these fields existed have neither.
+  if (j.contains("load_1min")) e.load_1min = get_optional<double>(j, "load_1min");
+  e.cpu_governor = j.contains("cpu_governor") ? get<std::string>(j, "cpu_governor") : "unknown";
   e.device = within("device", [&] { return field(j, "device").get<DeviceDescription>(); });
 }
 

@@ -3,7 +3,8 @@
 //
 // Schema ("schema": "hybridprof.timings", "version": 1); nanoseconds and raw counts throughout:
 //   environment: {cpu_model, core_count, lp_num_threads, build_type, compiler, git_commit, date_utc,
-//                 hostname, os, device: {name, type, driver_name, driver_info, driver_version, api_version}}
+//                 hostname, os, load_1min (null: unreadable; absent when read: null), cpu_governor,
+//                 device: {name, type, driver_name, driver_info, driver_version, api_version}}
 //   timing: {source: "gpu-timestamps"|"cpu-wall",
 //            pass_isolation: "serialized"|"host-submissions"|"unisolated" (absent when read: unisolated
 //                            for GPU timestamps, written before isolation existed),

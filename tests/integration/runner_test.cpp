@@ -46,6 +46,10 @@ TEST(Runner, ResumesShardsAndMerges) {
     EXPECT_EQ(line["schema"], "hybridprof.cell");
     EXPECT_TRUE(fs::exists(root / "all" / line["images"]["color"].get<std::string>()));
     EXPECT_GT(line["result"]["timing"]["passes"].size(), 0u);
+    // The machine's load as the cell started and once its frames were timed.
+    EXPECT_TRUE(line["load_1min"]["start"].is_number()) << line["load_1min"];
+    EXPECT_TRUE(line["load_1min"]["end"].is_number()) << line["load_1min"];
+    EXPECT_EQ(line["result"]["environment"]["load_1min"], line["load_1min"]["start"]);
   }
   // Merging again adds nothing (de-duplicated by id).
   EXPECT_EQ(merge_results((root / "all").string(), {(root / "s1").string()}), 0u);

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <optional>
 #include <regex>
 #include <string>
 
@@ -25,6 +26,20 @@ TEST(Environment, CapturedFieldsAreFilled) {
   EXPECT_TRUE(std::regex_match(env.date_utc, std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)"))) << env.date_utc;
   EXPECT_EQ(env.os.rfind("Linux ", 0), 0u) << env.os;
   EXPECT_EQ(env.device, dev);
+}
+
+TEST(Environment, LoadAverageIsParsedOrAbsent) {
+  EXPECT_EQ(parse_load_1min("0.52 0.58 0.59 1/123 4567\n"), std::optional<double>(0.52));
+  EXPECT_EQ(parse_load_1min("12.00 3 4 1/1 1"), std::optional<double>(12.0));
+  EXPECT_FALSE(parse_load_1min("").has_value());
+  EXPECT_FALSE(parse_load_1min("x 1 2").has_value());
+  EXPECT_FALSE(parse_load_1min("-1 0 0").has_value());
+  EXPECT_FALSE(parse_load_1min("nan 0 0").has_value());
+  // Linux always has /proc/loadavg; the capture reads it.
+  const Environment env = capture_environment();
+  ASSERT_TRUE(env.load_1min.has_value());
+  EXPECT_GE(*env.load_1min, 0.0);
+  EXPECT_FALSE(env.cpu_governor.empty());
 }
 
 TEST(Environment, LpNumThreadsIsReadOrUnset) {
