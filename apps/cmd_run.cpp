@@ -39,8 +39,11 @@ void add_run_command(CLI::App& app) {
     o.device = a->device;
     o.validate = a->validate;
     const RunSummary s = run_matrix(m, o);
-    std::printf("%s: %zu cells, %zu in shard %u/%u, %zu already done, %zu run -> %s/results.jsonl\n", a->file.c_str(),
-                s.cells, s.in_shard, shard.index, shard.count, s.already_done, s.ran, a->out.c_str());
+    std::printf("%s: %zu cells, %zu in shard %u/%u, %zu already done, %zu run%s -> %s/results.jsonl\n", a->file.c_str(),
+                s.cells, s.in_shard, shard.index, shard.count, s.already_done, s.ran,
+                s.stale ? (" (" + std::to_string(s.stale) + " of them again: measured by another build or driver)").c_str()
+                        : "",
+                a->out.c_str());
     // Cells with expectations (a matrix's "expect", e.g. hard_cases.json): every unmet one is reported,
     // resumed cells included, and the exit code is 1, as the gate's for a regression.
     size_t unmet = 0;

@@ -7,6 +7,7 @@
 #include "frame_profiler.hpp"
 #include "reference/compare.hpp"
 #include "scene/load.hpp"
+#include "stable_id.hpp"
 #include "timing/result_json.hpp"
 
 #include <algorithm>
@@ -27,6 +28,63 @@ using json = nlohmann::json;
 namespace {
 
 constexpr const char* kResults = "results.jsonl";
+constexpr const char* kFolderFile = "matrix.json";
+
+// What a results folder belongs to: the matrix's name and a hash of its expanded cells' ids.
+json folder_identity(const Matrix& m) {
+  std::vector<std::string> ids;
+  for (const Scenario& c : m.cells) ids.push_back(c.id());
+  std::sort(ids.begin(), ids.end());
+  std::string all;
+  for (const std::string& id : ids) all += id + "\n";
+  return {{"schema", "hybridprof.results-folder"}, {"version", 1}, {"matrix", m.name}, {"cells", ids.size()},
+          {"cells_hash", stable_id(all)}};
+}
+
+// OUT/matrix.json, or null when the folder has none (new, or written before folders recorded their matrix).
+json read_folder_identity(const fs::path& dir) {
+  const fs::path path = dir / kFolderFile;
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return nullptr;
+  const std::string text = read_input_file(path, "results folder file");
+  check_json_depth(text, path.string());
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::exception& e) {
+    throw InputError(path.string() + ": not valid JSON (" + std::string(e.what()).substr(0, 120) + ")");
+  }
+  if (!j.is_object() || j.value("schema", json()) != "hybridprof.results-folder" || !j.contains("matrix") ||
+      !j["matrix"].is_string() || !j.contains("cells_hash") || !j["cells_hash"].is_string() || !j.contains("cells") ||
+      !j["cells"].is_number_unsigned())
+    throw InputError(path.string() + ": not a hybridprof results-folder file (schema, matrix, cells, cells_hash)");
+  return j;
+}
+
+std::string identity_text(const json& id) {
+  return "'" + id["matrix"].get<std::string>() + "' (" + std::to_string(id["cells"].get<std::uint64_t>()) + " cells, " +
+         id["cells_hash"].get<std::string>() + ")";
+}
+
+// Throws when `dir` records another matrix than `want`.
+void check_folder_matrix(const fs::path& dir, const json& have, const json& want, const std::string& hint) {
+  if (have.is_null()) return;
+  if (have["matrix"] != want["matrix"] || have["cells_hash"] != want["cells_hash"]) {
+    throw InputError(dir.string() + ": holds the results of matrix " + identity_text(have) + ", not of " +
+                     identity_text(want) + hint);
+  }
+}
+
+// The build and driver that measured a result line, for telling a stale cell.
+std::string measured_by(const json& line) {
+  const json* env = nullptr;
+  if (line.contains("result") && line["result"].is_object() && line["result"].contains("environment"))
+    env = &line["result"]["environment"];
+  if (!env || !env->is_object()) return "?";
+  const json& dev = env->value("device", json::object());
+  return "commit " + env->value("git_commit", std::string("?")) + ", " + dev.value("name", std::string("?")) + " / " +
+         dev.value("driver_info", std::string("?"));
+}
 
 Camera camera_for(const Scenario& s, const Scene& scene) {
   const float aspect = float(s.frame.width) / float(s.frame.height);
@@ -199,9 +257,28 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   const fs::path out(o.out_dir);
   const fs::path results = out / kResults;
 
+  // One matrix per folder: a folder that records another matrix is refused; one from before folders
+  // recorded their matrix must hold only this matrix's cells.
+  const json identity = folder_identity(m);
+  check_folder_matrix(out, read_folder_identity(out), identity, ": choose another --out");
+  std::set<std::string> ids;
+  for (const Scenario& c : m.cells) ids.insert(c.id());
+  std::vector<json> lines = read_results(o.out_dir);
+  for (const json& r : lines) {
+    if (!ids.count(r["id"].get<std::string>())) {
+      throw InputError(o.out_dir + ": holds cell " + r["id"].get<std::string>() + " of matrix '" +
+                       r.value("matrix", std::string("?")) + "', which is not a cell of " + identity_text(identity) +
+                       ": choose another --out");
+    }
+  }
+
   // Resume: cells already in the file are done. A partial last line is cut off so appends stay aligned.
-  std::set<std::string> done;
-  for (const json& r : read_results(o.out_dir)) done.insert(r["id"].get<std::string>());
+  std::map<std::string, json> done;
+  std::vector<std::string> file_order;
+  for (json& r : lines) {
+    file_order.push_back(r["id"].get<std::string>());
+    done[file_order.back()] = std::move(r);
+  }
   if (fs::exists(results)) {
     std::ifstream in(results, std::ios::binary);
     std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -210,25 +287,59 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     if (keep != content.size()) fs::resize_file(results, keep);
   }
 
-  std::vector<size_t> todo;
-  for (size_t i = 0; i < m.cells.size(); ++i) {
-    if (!o.shard.contains(i)) continue;
-    ++sum.in_shard;
-    if (done.count(m.cells[i].id())) {
-      ++sum.already_done;
-      continue;
-    }
-    todo.push_back(i);
-  }
-  if (todo.empty()) return sum;
+  std::vector<size_t> shard_cells;
+  for (size_t i = 0; i < m.cells.size(); ++i)
+    if (o.shard.contains(i)) shard_cells.push_back(i);
+  sum.in_shard = shard_cells.size();
+  if (shard_cells.empty()) return sum;
 
   vk::Context ctx({o.device, o.validate, true});
   if (ctx.info().timestamp_valid_bits == 0) std::fprintf(stderr, "hybridprof run: %s\n", host_timing_note(false).c_str());
+  const Environment env = capture_environment(describe_device(ctx));
+
+  // A cell measured by another build or on another driver is stale: its line and files go, and it runs
+  // again (its timings would not be comparable with the others').
+  json now_line = {{"result", {{"environment", env}}}};
+  const std::string now = measured_by(now_line);
+  std::vector<std::string> stale;
+  std::vector<size_t> todo;
+  for (size_t i : shard_cells) {
+    const auto it = done.find(m.cells[i].id());
+    if (it != done.end() && measured_by(it->second) == now) {
+      ++sum.already_done;
+      continue;
+    }
+    if (it != done.end()) stale.push_back(it->first);
+    todo.push_back(i);
+  }
+  if (!stale.empty()) {
+    std::fprintf(stderr, "hybridprof run: %zu cell(s) in %s were measured by %s, not %s: running them again\n",
+                 stale.size(), o.out_dir.c_str(), measured_by(done[stale.front()]).c_str(), now.c_str());
+    std::string kept;
+    for (const std::string& id : file_order)
+      if (std::find(stale.begin(), stale.end(), id) == stale.end()) kept += done[id].dump() + "\n";
+    const fs::path tmp = fs::path(results) += ".tmp." + std::to_string(::getpid());
+    {
+      std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+      f << kept;
+      f.flush();
+      if (!f) throw InputError(tmp.string() + ": cannot write");
+    }
+    std::error_code rename_ec;
+    fs::rename(tmp, results, rename_ec);
+    if (rename_ec) throw InputError(results.string() + ": cannot replace: " + rename_ec.message());
+    for (const std::string& id : stale) {
+      std::error_code ignore;
+      fs::remove_all(out / "cells" / id, ignore);
+    }
+    sum.stale = stale.size();
+  }
+  if (todo.empty()) return sum;
   // Created once there is work and a device for it: a failed start leaves no empty folder behind.
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) throw InputError(o.out_dir + ": cannot create the output folder: " + ec.message());
-  const Environment env = capture_environment(describe_device(ctx));
+  write_json_atomically(out / kFolderFile, identity);
   std::map<std::string, Scene> scenes;
   const bool tty = o.progress && ::isatty(::fileno(stderr));
   const auto t_start = std::chrono::steady_clock::now();
@@ -368,11 +479,20 @@ size_t merge_results(const std::string& out_dir, const std::vector<std::string>&
     if (!fs::exists(fs::path(d) / kResults)) throw InputError(d + ": no " + std::string(kResults) + " to merge");
     shards.emplace_back(d, read_results(d));
   }
+  // Every folder must record one and the same matrix (a folder without a record is taken as it is).
+  json identity = read_folder_identity(out);
+  for (const std::string& d : shard_dirs) {
+    const json id = read_folder_identity(d);
+    if (id.is_null()) continue;
+    if (identity.is_null()) identity = id;
+    else check_folder_matrix(d, id, identity, ": shards of different matrices cannot be merged");
+  }
   std::set<std::string> seen;
   for (const json& r : read_results(out_dir)) seen.insert(r["id"].get<std::string>());
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) throw InputError(out_dir + ": cannot create the output folder: " + ec.message());
+  if (!identity.is_null()) write_json_atomically(out / kFolderFile, identity);
   size_t added = 0;
   for (const auto& [d, lines] : shards) {
     for (const json& r : lines) {

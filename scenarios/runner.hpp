@@ -1,5 +1,8 @@
 // Runs every cell of a matrix and appends one JSON line per finished cell to OUT/results.jsonl (flushed
-// and synced), so an interrupted run loses no finished cell and a re-run resumes where it stopped.
+// and synced), so an interrupted run loses no finished cell and a re-run resumes where it stopped. OUT
+// belongs to one matrix (OUT/matrix.json: its name and a hash of its cells' ids): another matrix's run into
+// it, or a merge of different matrices, is an InputError; a finished cell measured by another build (git
+// commit) or device and driver is removed and run again.
 #pragma once
 
 #include "scenario.hpp"
@@ -23,6 +26,7 @@ struct RunSummary {
   size_t cells = 0;        ///< in the matrix
   size_t in_shard = 0;     ///< of them, this shard's
   size_t already_done = 0; ///< found in results.jsonl and skipped
+  size_t stale = 0;        ///< found, but measured by another build or driver: removed and run again
   size_t ran = 0;
 };
 

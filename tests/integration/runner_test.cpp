@@ -65,6 +65,48 @@ TEST(Runner, ResumesShardsAndMerges) {
   EXPECT_EQ(read_results(o.out_dir).size(), 4u);
   EXPECT_EQ(run_matrix(m, o).ran, 0u) << "a finished matrix runs nothing again";
 
+  // The folder records its matrix; another matrix's run into it, or a merge with it, is refused.
+  const nlohmann::json folder = nlohmann::json::parse(std::ifstream(root / "s1" / "matrix.json"));
+  EXPECT_EQ(folder["matrix"], "tiny");
+  EXPECT_EQ(folder["cells"], 4);
+  const Matrix other = parse_matrix(nlohmann::json::parse(R"({"name": "other",
+      "base": {"scene": "builtin:cornell", "resolution": [32, 24], "frames": 2, "warmup": 0},
+      "axes": {"seed": [7]}})"),
+                                    "other.json");
+  try {
+    run_matrix(other, o);
+    ADD_FAILURE() << "ran another matrix into tiny's folder";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("holds the results of matrix 'tiny' (4 cells"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("not of 'other' (1 cells"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(read_results(o.out_dir).size(), 4u) << "the refused run wrote nothing";
+  RunOptions oo = o;
+  oo.out_dir = (root / "other").string();
+  EXPECT_EQ(run_matrix(other, oo).ran, 1u);
+  EXPECT_THROW(merge_results((root / "mixed").string(), {(root / "s1").string(), oo.out_dir}), InputError);
+  EXPECT_FALSE(fs::exists(root / "mixed"));
+  // A folder from before folders recorded their matrix: foreign cells are refused too.
+  fs::remove(root / "other" / "matrix.json");
+  EXPECT_THROW(run_matrix(m, oo), InputError);
+
+  // A cell measured by another build is stale: removed and run again, the others kept, one line per cell.
+  {
+    std::vector<nlohmann::json> lines = read_results(o.out_dir);
+    lines[1]["result"]["environment"]["git_commit"] = "0123456789ab";
+    std::ofstream f(root / "s1" / "results.jsonl", std::ios::trunc);
+    for (const auto& l : lines) f << l.dump() << "\n";
+  }
+  const std::string stale_id = read_results(o.out_dir)[1]["id"];
+  const RunSummary again = run_matrix(m, o);
+  EXPECT_EQ(again.stale, 1u);
+  EXPECT_EQ(again.ran, 1u);
+  EXPECT_EQ(again.already_done, 3u);
+  const auto after = read_results(o.out_dir);
+  ASSERT_EQ(after.size(), 4u);
+  EXPECT_EQ(after.back()["id"], stale_id) << "the re-run cell is appended";
+  EXPECT_NE(after.back()["result"]["environment"]["git_commit"], "0123456789ab");
+
   // A shard whose results are not cells: the merge names the line and writes nothing (audit find: the good
   // shard's lines and images used to be merged before the bad one failed).
   fs::create_directories(root / "bad");
