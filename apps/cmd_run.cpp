@@ -13,6 +13,7 @@ void add_run_command(CLI::App& app) {
   struct Args {
     std::string file, out, shard = "1/1", device;
     bool validate = false, list = false;
+    std::vector<std::string> filters;
   };
   auto a = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand("run", "run every cell of a scenario matrix; resumable, shardable");
@@ -22,11 +23,16 @@ void add_run_command(CLI::App& app) {
   cmd->add_option("--device", a->device, "Vulkan device: index or name substring");
   cmd->add_flag("--validate", a->validate, "Khronos validation layer; any message fails");
   cmd->add_flag("--list", a->list, "print the expanded cells (id and axis values) and exit");
+  cmd->add_option("--filter", a->filters,
+                  "only the cells with this id, or with AXIS=VALUE (e.g. geometry=soup, resolution=128x72); "
+                  "repeat to narrow");
   cmd->callback([a] {
     const Matrix m = load_matrix(a->file);
     const Shard shard = parse_shard(a->shard);
+    const std::vector<bool> selected = select_cells(m, a->filters);
     if (a->list) {
       for (size_t i = 0; i < m.cells.size(); ++i) {
+        if (!selected[i]) continue;
         std::printf("%s%s %s\n", m.cells[i].id().c_str(), shard.contains(i) ? "" : " (other shard)",
                     m.cell_axis_values[i].dump().c_str());
       }
@@ -38,9 +44,11 @@ void add_run_command(CLI::App& app) {
     o.shard = shard;
     o.device = a->device;
     o.validate = a->validate;
+    o.filters = a->filters;
     const RunSummary s = run_matrix(m, o);
-    std::printf("%s: %zu cells, %zu in shard %u/%u, %zu already done, %zu run%s -> %s/results.jsonl\n", a->file.c_str(),
-                s.cells, s.in_shard, shard.index, shard.count, s.already_done, s.ran,
+    std::printf("%s: %zu cells, %zu in shard %u/%u%s, %zu already done, %zu run%s -> %s/results.jsonl\n", a->file.c_str(),
+                s.cells, s.in_shard, shard.index, shard.count, a->filters.empty() ? "" : " selected by --filter",
+                s.already_done, s.ran,
                 s.stale ? (" (" + std::to_string(s.stale) + " of them again: measured by another build or driver)").c_str()
                         : "",
                 a->out.c_str());

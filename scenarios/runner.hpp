@@ -20,11 +20,18 @@ struct RunOptions {
   std::string device;     ///< as `render --device`
   bool validate = false;  ///< Khronos validation layer; any message fails the cell
   bool progress = true;   ///< a progress line with ETA on stderr when it is a terminal
+  /// Only the cells every filter selects (`run --filter`): a cell id, or AXIS=VALUE with AXIS an axis key
+  /// path or its last component and VALUE as the axis value reads ("soup", "2", "128x72" or JSON).
+  std::vector<std::string> filters;
 };
+
+/// Which cells of the matrix the filters select (all with none). InputError naming the filter when one
+/// names no axis or the filters together select no cell.
+std::vector<bool> select_cells(const Matrix& matrix, const std::vector<std::string>& filters);
 
 struct RunSummary {
   size_t cells = 0;        ///< in the matrix
-  size_t in_shard = 0;     ///< of them, this shard's
+  size_t in_shard = 0;     ///< of them, this shard's (among those the filters select)
   size_t already_done = 0; ///< found in results.jsonl and skipped
   size_t stale = 0;        ///< found, but measured by another build or driver: removed and run again
   size_t ran = 0;

@@ -309,3 +309,43 @@ TEST(Shard, ParsesAndPartitions) {
 
 }  // namespace
 }  // namespace hp
+
+// `run --filter`: a cell id or AXIS=VALUE (the axis key path or its last component; values as the report
+// writes them), all filters at once; a filter naming no axis, or filters selecting nothing, name themselves.
+#include "runner.hpp"
+
+namespace hp {
+namespace {
+
+TEST(RunFilter, SelectsByIdAndAxisValue) {
+  const Matrix m = parse_matrix(nlohmann::json::parse(R"({"name": "f",
+      "base": {"scene": "builtin:cornell"},
+      "axes": {"geometry": ["indexed", "soup"], "resolution": [[64, 36], [128, 72]], "bvh.leaf_size": [2, 4]}})"),
+                                "f.json", {"geometry", "resolution", "bvh.leaf_size"});
+  ASSERT_EQ(m.cells.size(), 8u);
+  auto count = [](const std::vector<bool>& v) { return std::count(v.begin(), v.end(), true); };
+  EXPECT_EQ(count(select_cells(m, {})), 8);
+  EXPECT_EQ(count(select_cells(m, {"geometry=soup"})), 4);
+  EXPECT_EQ(count(select_cells(m, {"geometry=soup", "resolution=128x72"})), 2);
+  EXPECT_EQ(count(select_cells(m, {"leaf_size=4"})), 4) << "the last component of a key path";
+  EXPECT_EQ(count(select_cells(m, {"bvh.leaf_size=2", "resolution=[64,36]"})), 2) << "JSON values too";
+  const std::vector<bool> one = select_cells(m, {m.cells[5].id()});
+  EXPECT_EQ(count(one), 1);
+  EXPECT_TRUE(one[5]);
+  try {
+    select_cells(m, {"jitter=shared"});
+    FAIL() << "a filter on no axis was accepted";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "--filter jitter=shared: 'jitter' is not an axis of matrix 'f' (axes: geometry, resolution, "
+                           "bvh.leaf_size)");
+  }
+  try {
+    select_cells(m, {"geometry=soup", "leaf_size=3"});
+    FAIL() << "filters selecting nothing were accepted";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "--filter geometry=soup leaf_size=3: selects no cell of matrix 'f' (run --list shows them)");
+  }
+}
+
+}  // namespace
+}  // namespace hp
