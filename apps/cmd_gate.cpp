@@ -1,4 +1,4 @@
-// `hybridprof gate`: compare a candidate run with a baseline run; exit 0 pass, 1 regression, 2 cannot
+// `hybridprof gate`: compare a candidate run with a baseline run; exit 0 pass, 1 regression, 4 inconclusive, 2 cannot
 // compare. Either two run folders, or --ab: both binaries run alternately in fresh processes here.
 #include "apps/commands.hpp"
 #include "error.hpp"
@@ -18,7 +18,7 @@ void add_gate_command(CLI::App& app) {
     bool ab = false, keep = false, deterministic_only = false, verbose = false;
   };
   auto a = std::make_shared<Args>();
-  CLI::App* cmd = app.add_subcommand("gate", "regression gate: exit 0 pass, 1 regression, 2 cannot compare");
+  CLI::App* cmd = app.add_subcommand("gate", "regression gate: exit 0 pass, 1 regression, 2 cannot compare, 4 inconclusive (too few samples to fail)");
   cmd->add_option("--baseline", a->baseline, "baseline run folder (results.jsonl)");
   cmd->add_option("--candidate", a->candidate, "candidate run folder");
   cmd->add_option("--policy", a->policy, "policy JSON: threshold, warn, alpha, tolerances {metric: fraction}");

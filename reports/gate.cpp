@@ -273,18 +273,25 @@ GateOutcome run_gate(const GateSide& base, const GateSide& cand, const GateOptio
       // Holm tests the largest p at alpha itself: a comparison cannot fail when even its smallest possible
       // p exceeds alpha. That bound holds for the exact test; with ties the normal approximation can go
       // lower, so nothing is claimed then.
-      if (t.exact && min_p(t.nb, t.nc) > o.policy.alpha) undetectable = true;
+      if (t.exact && min_p(t.nb, t.nc) > o.policy.alpha) {
+        undetectable = true;
+        ++out.cannot_fail;
+        if (row.verdict == "pass") row.verdict = "cannot fail";
+      }
       out.rows.push_back(row);
     }
     if (undetectable)
-      out.notes.push_back("some comparisons have too few samples for any Holm-adjusted p-value to reach alpha " +
+      out.notes.push_back(std::to_string(out.cannot_fail) + " of " + std::to_string(tests.size()) +
+                          " timing comparisons have too few samples for any Holm-adjusted p-value to reach alpha " +
                           fmt("%g", o.policy.alpha) + ": they cannot fail; use more frames or --trials");
     out.notes.push_back("timings: " + std::to_string(tests.size()) + " (cell, pass) comparisons of " + base.sample_kind +
                         ", Mann-Whitney U, Holm-adjusted; fail when p <= " + fmt("%g", o.policy.alpha) +
                         " and slower by more than " + fmt("%g%%", o.policy.threshold * 100) + ", warn above " +
                         fmt("%g%%", o.policy.warn * 100));
   }
-  out.exit_code = !out.cannot_compare.empty() ? 2 : out.fails > 0 ? 1 : 0;
+  // A gate whose timing comparisons could not have failed has not passed them: INCONCLUSIVE (exit 4),
+  // unless a regression was found anyway.
+  out.exit_code = !out.cannot_compare.empty() ? 2 : out.fails > 0 ? 1 : out.cannot_fail > 0 ? 4 : 0;
   return out;
 }
 
@@ -321,6 +328,8 @@ std::string format_gate(const GateOutcome& o) {
   for (const std::string& c : o.cannot_compare) s += "cannot compare: " + c + "\n";
   if (o.exit_code == 2) s += "result: CANNOT COMPARE (exit 2)\n";
   else if (o.exit_code == 1) s += "result: REGRESSION: " + std::to_string(o.fails) + " failure(s) (exit 1)\n";
+  else if (o.exit_code == 4)
+    s += "result: INCONCLUSIVE: " + std::to_string(o.cannot_fail) + " timing comparison(s) could not have failed (exit 4)\n";
   else s += "result: PASS" + (o.warns ? " with " + std::to_string(o.warns) + " warning(s)" : std::string()) + " (exit 0)\n";
   return s;
 }

@@ -1,5 +1,6 @@
 // `hybridprof gate`: compares a candidate run with a baseline run and answers with an exit code CI can
-// trust: 0 pass, 1 regression, 2 cannot compare.
+// trust: 0 pass, 1 regression, 2 cannot compare, 4 inconclusive (a timing comparison with too few samples
+// to ever fail, and no regression found).
 //
 // Rules:
 //  - Cells pair up by match_key (canonical config without `inject`). A cell on one side only: exit 2.
@@ -63,7 +64,7 @@ std::vector<std::string> environment_differences(const Environment& baseline, co
 struct GateRow {
   std::string cell, metric, baseline, candidate, change;
   std::optional<double> p_raw, p_holm;
-  std::string verdict;  ///< "pass", "pass (faster)", "WARN", "FAIL", "identical", "within tolerance"
+  std::string verdict;  ///< "pass", "pass (faster)", "cannot fail", "WARN", "FAIL", "identical", "within tolerance"
 };
 
 struct GateOptions {
@@ -78,6 +79,7 @@ struct GateOutcome {
   std::vector<std::string> cannot_compare;  ///< non-empty: exit 2
   std::vector<std::string> notes;
   size_t identical = 0, timing_comparisons = 0, fails = 0, warns = 0;
+  size_t cannot_fail = 0;  ///< timing comparisons whose smallest possible Holm-adjusted p exceeds alpha
 };
 
 GateOutcome run_gate(const GateSide& baseline, const GateSide& candidate, const GateOptions& options);

@@ -150,8 +150,17 @@ TEST(Gate, TheCannotFailNoteFollowsTheSmallestPossibleP) {
       if (n.find("cannot fail") != std::string::npos) return true;
     return false;
   };
-  EXPECT_FALSE(note(run_gate(side({cell(0, 4, 1), cell(1, 20, 1)}, "a"), side({cell(0, 4, 2), cell(1, 20, 2)}, "b"), {})));
-  EXPECT_TRUE(note(run_gate(side({cell(0, 3, 1), cell(1, 20, 1)}, "a"), side({cell(0, 3, 2), cell(1, 20, 2)}, "b"), {})));
+  const GateOutcome enough = run_gate(side({cell(0, 4, 1), cell(1, 20, 1)}, "a"), side({cell(0, 4, 2), cell(1, 20, 2)}, "b"), {});
+  EXPECT_FALSE(note(enough));
+  EXPECT_EQ(enough.exit_code, 0) << format_gate(enough);
+  // A comparison that cannot fail has not passed: the gate is INCONCLUSIVE (exit 4), its row says so.
+  const GateOutcome few = run_gate(side({cell(0, 3, 1), cell(1, 20, 1)}, "a"), side({cell(0, 3, 2), cell(1, 20, 2)}, "b"), {});
+  EXPECT_TRUE(note(few));
+  EXPECT_EQ(few.cannot_fail, 1u);
+  EXPECT_EQ(few.exit_code, 4) << format_gate(few);
+  EXPECT_NE(format_gate(few).find("result: INCONCLUSIVE: 1 timing comparison(s) could not have failed (exit 4)"),
+            std::string::npos);
+  EXPECT_EQ(std::count_if(few.rows.begin(), few.rows.end(), [](const GateRow& r) { return r.verdict == "cannot fail"; }), 1);
 }
 
 TEST(Gate, DifferentDevicesCannotCompareTimings) {
