@@ -31,13 +31,11 @@ constexpr const char* kResults = "results.jsonl";
 constexpr const char* kFolderFile = "matrix.json";
 
 // What a results folder belongs to: the matrix's name and a hash of its expanded cells' ids.
-json folder_identity(const Matrix& m) {
-  std::vector<std::string> ids;
-  for (const Scenario& c : m.cells) ids.push_back(c.id());
+json folder_identity(const std::string& matrix, std::vector<std::string> ids) {
   std::sort(ids.begin(), ids.end());
   std::string all;
   for (const std::string& id : ids) all += id + "\n";
-  return {{"schema", "hybridprof.results-folder"}, {"version", 1}, {"matrix", m.name}, {"cells", ids.size()},
+  return {{"schema", "hybridprof.results-folder"}, {"version", 1}, {"matrix", matrix}, {"cells", ids.size()},
           {"cells_hash", stable_id(all)}};
 }
 
@@ -307,10 +305,11 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
 
   // One matrix per folder: a folder that records another matrix is refused; one from before folders
   // recorded their matrix must hold only this matrix's cells.
-  const json identity = folder_identity(m);
+  std::vector<std::string> cell_ids;  // each cell's id, computed once (it hashes the canonical config)
+  for (const Scenario& c : m.cells) cell_ids.push_back(c.id());
+  const json identity = folder_identity(m.name, cell_ids);
   check_folder_matrix(out, read_folder_identity(out), identity, ": choose another --out");
-  std::set<std::string> ids;
-  for (const Scenario& c : m.cells) ids.insert(c.id());
+  const std::set<std::string> ids(cell_ids.begin(), cell_ids.end());
   std::vector<json> lines = read_results(o.out_dir);
   for (const json& r : lines) {
     if (!ids.count(r["id"].get<std::string>())) {
@@ -353,7 +352,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   std::vector<std::string> stale;
   std::vector<size_t> todo;
   for (size_t i : shard_cells) {
-    const auto it = done.find(m.cells[i].id());
+    const auto it = done.find(cell_ids[i]);
     if (it != done.end() && measured_by(it->second) == now) {
       ++sum.already_done;
       continue;
@@ -367,16 +366,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     std::string kept;
     for (const std::string& id : file_order)
       if (std::find(stale.begin(), stale.end(), id) == stale.end()) kept += done[id].dump() + "\n";
-    const fs::path tmp = fs::path(results) += ".tmp." + std::to_string(::getpid());
-    {
-      std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-      f << kept;
-      f.flush();
-      if (!f) throw InputError(tmp.string() + ": cannot write");
-    }
-    std::error_code rename_ec;
-    fs::rename(tmp, results, rename_ec);
-    if (rename_ec) throw InputError(results.string() + ": cannot replace: " + rename_ec.message());
+    write_text_atomically(results, kept);
     for (const std::string& id : stale) {
       std::error_code ignore;
       fs::remove_all(out / "cells" / id, ignore);
@@ -395,7 +385,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   for (size_t k = 0; k < todo.size(); ++k) {
     const size_t i = todo[k];
     const Scenario& s = m.cells[i];
-    const std::string id = s.id();
+    const std::string& id = cell_ids[i];
     if (tty) {
       const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
       const std::string left = k == 0 ? "?" : eta(el / double(k) * double(todo.size() - k));

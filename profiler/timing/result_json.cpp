@@ -379,6 +379,12 @@ TimingResult parse_timing_result(const json& doc) {
 }
 
 void write_json_atomically(const std::filesystem::path& path, const json& doc, int indent) {
+  std::string text = doc.dump(indent);
+  text += '\n';
+  write_text_atomically(path, text);
+}
+
+void write_text_atomically(const std::filesystem::path& path, const std::string& text) {
   check_output_path(path, "");
   // The temporary file sits in the same folder so the rename stays on one file system (atomic);
   // the pid keeps two processes writing the same result from sharing a temporary.
@@ -387,7 +393,7 @@ void write_json_atomically(const std::filesystem::path& path, const json& doc, i
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw InputError("cannot write '" + tmp.string() + "'");
-    out << doc.dump(indent) << '\n';
+    out << text;
     out.flush();
     if (!out) {
       std::error_code ignore;
