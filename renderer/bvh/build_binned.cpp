@@ -491,9 +491,8 @@ private:
     const __m128 inf = _mm_set1_ps(kInf), ninf = _mm_set1_ps(-kInf);
     __m128 lx = inf, ly = inf, lz = inf, hx = ninf, hy = ninf, hz = ninf;
     __m128i count = _mm_setzero_si128();
-    __m128* right = soa + 7 * nb;
-    for (int b = nb - 1; b > 0; --b) {
-      const __m128* q = soa + 7 * b;
+    // Grows the running bounds and count of the three axes by one bin (the same operations both ways).
+    auto grow = [&](const __m128* q) {
       lx = _mm_min_ps(lx, q[0]);
       ly = _mm_min_ps(ly, q[1]);
       lz = _mm_min_ps(lz, q[2]);
@@ -501,6 +500,10 @@ private:
       hy = _mm_max_ps(hy, q[4]);
       hz = _mm_max_ps(hz, q[5]);
       count = _mm_add_epi32(count, _mm_castps_si128(q[6]));
+    };
+    __m128* right = soa + 7 * nb;
+    for (int b = nb - 1; b > 0; --b) {
+      grow(soa + 7 * b);
       const __m128 nonzero = _mm_castsi128_ps(_mm_xor_si128(_mm_cmpeq_epi32(count, _mm_setzero_si128()), _mm_set1_epi32(-1)));
       right[b - 1] = _mm_and_ps(nonzero, _mm_mul_ps(_mm_cvtepi32_ps(count), area(lx, ly, lz, hx, hy, hz)));
     }
@@ -512,14 +515,7 @@ private:
     __m128 lane_best = inf;
     __m128i lane_bin = _mm_set1_epi32(-1), lane_count = _mm_setzero_si128();
     for (int b = 0; b < nb - 1; ++b) {
-      const __m128* q = soa + 7 * b;
-      lx = _mm_min_ps(lx, q[0]);
-      ly = _mm_min_ps(ly, q[1]);
-      lz = _mm_min_ps(lz, q[2]);
-      hx = _mm_max_ps(hx, q[3]);
-      hy = _mm_max_ps(hy, q[4]);
-      hz = _mm_max_ps(hz, q[5]);
-      count = _mm_add_epi32(count, _mm_castps_si128(q[6]));
+      grow(soa + 7 * b);
       const __m128 cost = _mm_add_ps(_mm_mul_ps(_mm_cvtepi32_ps(count), area(lx, ly, lz, hx, hy, hz)), right[b]);
       const __m128i valid = _mm_andnot_si128(
           _mm_or_si128(_mm_cmpeq_epi32(count, _mm_setzero_si128()), _mm_cmpeq_epi32(count, vn)), axis_ok);
