@@ -10,28 +10,6 @@
 
 namespace hp::cli {
 
-AtomicOutput::AtomicOutput(std::string path) : path_(std::move(path)), tmp_(path_ + ".tmp") {
-  check_output_path(path_, "");
-  out_.open(tmp_);
-  if (!out_) throw InputError(path_ + ": cannot write");
-}
-
-AtomicOutput::~AtomicOutput() {
-  if (committed_) return;
-  out_.close();
-  std::error_code ec;
-  std::filesystem::remove(tmp_, ec);
-}
-
-void AtomicOutput::commit() {
-  out_.close();
-  if (!out_) throw InputError(path_ + ": write failed");
-  std::error_code ec;
-  std::filesystem::rename(tmp_, path_, ec);
-  if (ec) throw InputError(path_ + ": cannot rename into place: " + ec.message());
-  committed_ = true;
-}
-
 CLI::Validator finite_range(double lo, double hi) {
   CLI::Validator finite(
       [](std::string& text) -> std::string {

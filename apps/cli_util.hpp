@@ -64,21 +64,4 @@ struct FrameOptions {
   FrameSettings settings() const;
 };
 
-/// An output file streamed to PATH.tmp and renamed over PATH by commit(); destroyed uncommitted (an
-/// exception on the way), it removes the temporary file, so a failed command leaves nothing half-written.
-class AtomicOutput {
- public:
-  explicit AtomicOutput(std::string path);  ///< InputError "PATH: cannot write"
-  ~AtomicOutput();
-  AtomicOutput(const AtomicOutput&) = delete;
-  AtomicOutput& operator=(const AtomicOutput&) = delete;
-  std::ostream& stream() { return out_; }
-  void commit();  ///< InputError on a write or rename failure
-
- private:
-  std::string path_, tmp_;
-  std::ofstream out_;
-  bool committed_ = false;
-};
-
 }  // namespace hp::cli

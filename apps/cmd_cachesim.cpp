@@ -16,6 +16,7 @@
 #include <string>
 
 #include "cachesim/din_replay.hpp"
+#include "atomic_file.hpp"
 #include "cachesim/preset.hpp"
 #include "cachesim/simulator.hpp"
 #include "apps/cli_util.hpp"
@@ -107,7 +108,7 @@ void run_trace(const CachesimArgs& a) {
     const bool export_here =
         !a.export_din_path.empty() && (a.export_pass.empty() ? p == 0 : pass.name == a.export_pass);
     // Written to PATH.tmp and renamed when complete; a failed replay leaves no file behind.
-    std::optional<cli::AtomicOutput> din;
+    std::optional<AtomicFile> din;
     uint64_t din_lines = 0;
     if (export_here) {
       din.emplace(a.export_din_path);
@@ -184,8 +185,8 @@ void run_trace(const CachesimArgs& a) {
   const uint64_t flushed = sim.finish();
   std::printf("\nend of frame: %llu dirty bytes written back from the L2\n", (unsigned long long)flushed);
   out["final_writeback_bytes"] = flushed;
-  if (!a.out_path.empty()) write_text_atomically(a.out_path, out.dump(1) + "\n");
-  if (!a.mrc_path.empty()) write_text_atomically(a.mrc_path, csv);
+  if (!a.out_path.empty()) write_file_atomically(a.out_path, out.dump(1) + "\n");
+  if (!a.mrc_path.empty()) write_file_atomically(a.mrc_path, csv);
 }
 
 void print_din_level(const char* name, const DinLevelStats& s) {
@@ -213,7 +214,7 @@ void run_din(const CachesimArgs& a) {
     c << "level,size_bytes,lines,miss_ratio\n";
     write_mrc_csv(c, "l1", r.l1_curve);
     write_mrc_csv(c, "l2", r.l2_curve);
-    write_text_atomically(a.mrc_path, c.str());
+    write_file_atomically(a.mrc_path, c.str());
   }
 }
 

@@ -2,6 +2,7 @@
 // memory access they make to a trace file (streamed slice by slice), optionally exporting one compute
 // unit's coalesced request stream in Dinero IV format.
 #include "apps/cli_util.hpp"
+#include "atomic_file.hpp"
 #include "apps/commands.hpp"
 #include "cachesim/preset.hpp"
 #include "cachesim/simulator.hpp"
@@ -116,7 +117,7 @@ void run_trace(const TraceArgs& a) {
     if (pass >= reader.passes().size() || reader.passes()[pass].name != traced[pass]) {
       throw std::logic_error("trace: the capture's passes are not captured_pass_names'");
     }
-    cli::AtomicOutput out(a.din_out);
+    AtomicFile out(a.din_out);
     const uint64_t lines = cachesim::export_din(
         out.stream(), preset, reader.header(), reader.passes()[pass],
         [&](cachesim::Simulator& sim) { cachesim::feed_slices(sim, reader, pass); }, a.din_cu);

@@ -1,10 +1,10 @@
 #include "frame.hpp"
 
-#include "sort/radix_config.h"
+#include "gpu/radix_config.h"
 
 #include <bit>
 
-#include "common/trace_buffers.h"
+#include "gpu/trace_buffers.h"
 #include "error.hpp"
 
 #include <glm/gtc/packing.hpp>
@@ -15,18 +15,6 @@
 #include <cstring>
 
 namespace hp {
-
-void validate_extent(uint32_t width, uint32_t height, uint32_t device_max_side) {
-  const uint32_t limit = std::min(kMaxImageSide, device_max_side);
-  if (width == 0 || height == 0) {
-    throw InputError("resolution " + std::to_string(width) + "x" + std::to_string(height) +
-                     ": width and height must be at least 1");
-  }
-  if (width > limit || height > limit) {
-    throw InputError("resolution " + std::to_string(width) + "x" + std::to_string(height) + ": exceeds the limit of " +
-                     std::to_string(limit) + " pixels per side (maxImageDimension2D of this device)");
-  }
-}
 
 Aov parse_aov(const std::string& name) {
   static const std::pair<const char*, Aov> kNames[] = {

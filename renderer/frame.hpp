@@ -6,13 +6,14 @@
 #pragma once
 
 #include "bvh/bvh.hpp"
+#include "frame_settings.hpp"
 #include "gpu_scene.hpp"
 #include "image/image.hpp"
 #include "passes/composite.hpp"
 #include "passes/gbuffer.hpp"
 #include "passes/raytrace.hpp"
 #include "rt_scene.hpp"
-#include "trace/trace_file.hpp"
+#include "trace_format.hpp"
 #include "view.hpp"
 #include "vk/pipeline_stats.hpp"
 #include "vk/timestamps.hpp"
@@ -23,23 +24,6 @@
 
 namespace hp {
 
-struct FrameSettings {
-  uint32_t width = 1280;
-  uint32_t height = 720;
-  bool reversed_z = false;
-  GeometryLayout geometry = GeometryLayout::indexed;
-  RayTracingOptions rt{.shadows = false, .reflections = false};
-  bvh::BuildOptions bvh;
-  /// Time the passes on the host (one submission each, "cpu-wall") even where the queue has timestamps:
-  /// what a queue without timestamp support gets, selectable so that path can be run and compared anywhere.
-  bool host_timing = false;
-};
-
-/// Largest image side accepted (Vulkan guarantees 4096 for 2D images; lavapipe and GPUs allow 16384).
-constexpr uint32_t kMaxImageSide = 16384;
-
-/// Throws hp::InputError naming the limit when width/height are zero or too large for the device.
-void validate_extent(uint32_t width, uint32_t height, uint32_t device_max_side);
 
 /// The views `--aov` can write.
 enum class Aov { color, depth, normal, albedo, roughness, metallic, shadow, reflection };

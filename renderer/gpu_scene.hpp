@@ -3,7 +3,7 @@
 // BVH-ordered copies: what the raster pass reads is not what the traversal reads.)
 #pragma once
 
-#include "common/shared_types.h"
+#include "gpu/shared_types.h"
 #include "scene/scene.hpp"
 #include "vk/resources.hpp"
 

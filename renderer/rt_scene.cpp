@@ -1,20 +1,12 @@
 #include "rt_scene.hpp"
 
-#include "common/shared_types.h"
+#include "gpu/shared_types.h"
 #include "error.hpp"
 
 #include <algorithm>
 
 
 namespace hp {
-
-GeometryLayout parse_geometry_layout(const std::string& name) {
-  if (name == "indexed" || name == "ebo") return GeometryLayout::indexed;
-  if (name == "soup" || name == "no-ebo") return GeometryLayout::soup;
-  throw InputError("--geometry " + name + ": unknown layout (choose indexed or soup)");
-}
-
-const char* to_string(GeometryLayout g) { return g == GeometryLayout::indexed ? "indexed" : "soup"; }
 
 namespace {
 

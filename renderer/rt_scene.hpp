@@ -2,6 +2,7 @@
 // leaf order, in one of two layouts. Only what the passes read is uploaded.
 #pragma once
 
+#include "frame_settings.hpp"
 #include "rt_geometry.hpp"
 #include "vk/pipeline.hpp"
 #include "vk/resources.hpp"
@@ -13,12 +14,6 @@
 
 namespace hp {
 
-enum class GeometryLayout {
-  indexed,  ///< "EBO": world-space vertex positions + an index buffer whose triangles are in leaf order
-  soup,     ///< "no EBO": de-indexed triangles, three vertices each, in leaf order
-};
-GeometryLayout parse_geometry_layout(const std::string& name);  // throws InputError
-const char* to_string(GeometryLayout g);
 
 class RtScene {
  public:

@@ -1,4 +1,5 @@
 #include "gbench_export.hpp"
+#include "atomic_file.hpp"
 
 #include "error.hpp"
 #include "report.hpp"
@@ -116,7 +117,7 @@ json gbench_export(const std::vector<CellResult>& cells, const std::string& time
 std::string write_gbench_export(const std::string& out_dir, const std::string& path, const std::string& time_unit) {
   const json doc = gbench_export(load_cells(out_dir), time_unit);
   const std::string target = path.empty() ? (std::filesystem::path(out_dir) / "gbench.json").string() : path;
-  write_text_atomically(target, doc.dump(2) + "\n");
+  write_file_atomically(target, doc.dump(2) + "\n");
   return target;
 }
 

@@ -1,4 +1,5 @@
 #include "report.hpp"
+#include "atomic_file.hpp"
 
 #include "error.hpp"
 #include "svg_chart.hpp"
@@ -620,31 +621,14 @@ Report build_report(const std::vector<CellResult>& cells) {
   return r;
 }
 
-void write_text_atomically(const std::string& path, const std::string& content) {
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError(path + ": cannot write");
-    out << content;
-    out.flush();
-    if (!out) throw InputError(path + ": write failed");
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw InputError(path + ": cannot rename the temporary file into place");
-  }
-}
-
 std::string write_report(const std::string& out_dir) {
   const Report r = build_report(load_cells(out_dir));
   std::error_code ec;
   fs::create_directories(fs::path(out_dir) / "charts", ec);
   if (ec) throw InputError(out_dir + "/charts: cannot create: " + ec.message());
-  for (const ReportFile& f : r.charts) write_text_atomically((fs::path(out_dir) / f.path).string(), f.content);
+  for (const ReportFile& f : r.charts) write_file_atomically((fs::path(out_dir) / f.path).string(), f.content);
   const std::string path = (fs::path(out_dir) / "report.md").string();
-  write_text_atomically(path, r.markdown);
+  write_file_atomically(path, r.markdown);
   return path;
 }
 

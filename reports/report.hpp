@@ -35,7 +35,4 @@ Report build_report(const std::vector<CellResult>& cells);
 /// renamed into place). Returns the report's path. InputError for a missing or bad results file.
 std::string write_report(const std::string& out_dir);
 
-/// Writes `content` to a temporary file beside `path` and renames it over `path`.
-void write_text_atomically(const std::string& path, const std::string& content);
-
 }  // namespace hp

@@ -1,4 +1,5 @@
 #include "runner.hpp"
+#include "atomic_file.hpp"
 
 #include "cache_analysis.hpp"
 #include "error.hpp"
@@ -249,53 +250,6 @@ std::vector<json> read_results(const std::string& out_dir) {
   return out;
 }
 
-namespace {
-// An axis value as `--filter` spells it: strings as they are, [128, 72] as 128x72, else JSON.
-bool value_matches(const json& v, const std::string& text) {
-  if (v.is_string()) return v.get<std::string>() == text;
-  if (v.dump() == text) return true;
-  if (v.is_array() && !v.empty() && std::all_of(v.begin(), v.end(), [](const json& e) { return e.is_number(); })) {
-    std::string joined;
-    for (const json& e : v) {
-      if (!joined.empty()) joined += 'x';  // appended piece by piece: GCC 12 warns falsely (-Wrestrict) on a + b
-      joined += e.dump();
-    }
-    return joined == text;
-  }
-  return false;
-}
-}  // namespace
-
-std::vector<bool> select_cells(const Matrix& m, const std::vector<std::string>& filters) {
-  std::vector<bool> keep(m.cells.size(), true);
-  for (const std::string& f : filters) {
-    const size_t eq = f.find('=');
-    if (eq == std::string::npos) {  // a cell id
-      for (size_t i = 0; i < m.cells.size(); ++i) keep[i] = keep[i] && m.cells[i].id() == f;
-      continue;
-    }
-    const std::string key = f.substr(0, eq), value = f.substr(eq + 1);
-    std::string axis;
-    for (const std::string& a : m.axes) {
-      const size_t dot = a.rfind('.');
-      if (a == key || (dot != std::string::npos && a.substr(dot + 1) == key)) axis = a;
-    }
-    if (axis.empty()) {
-      std::string names;
-      for (const std::string& a : m.axes) names += (names.empty() ? "" : ", ") + a;
-      throw InputError("--filter " + f + ": '" + key + "' is not an axis of matrix '" + m.name + "' (axes: " +
-                       (names.empty() ? "none" : names) + ")");
-    }
-    for (size_t i = 0; i < m.cells.size(); ++i)
-      keep[i] = keep[i] && m.cell_axis_values[i].contains(axis) && value_matches(m.cell_axis_values[i][axis], value);
-  }
-  if (!filters.empty() && std::none_of(keep.begin(), keep.end(), [](bool k) { return k; })) {
-    std::string all;
-    for (const std::string& f : filters) all += (all.empty() ? "" : " ") + f;
-    throw InputError("--filter " + all + ": selects no cell of matrix '" + m.name + "' (run --list shows them)");
-  }
-  return keep;
-}
 
 RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   RunSummary sum;
@@ -366,7 +320,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     std::string kept;
     for (const std::string& id : file_order)
       if (std::find(stale.begin(), stale.end(), id) == stale.end()) kept += done[id].dump() + "\n";
-    write_text_atomically(results, kept);
+    write_file_atomically(results, kept);
     for (const std::string& id : stale) {
       std::error_code ignore;
       fs::remove_all(out / "cells" / id, ignore);

@@ -6,6 +6,7 @@
 #pragma once
 
 #include "scenario.hpp"
+#include "scene/scene.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -24,10 +25,6 @@ struct RunOptions {
   /// path or its last component and VALUE as the axis value reads ("soup", "2", "128x72" or JSON).
   std::vector<std::string> filters;
 };
-
-/// Which cells of the matrix the filters select (all with none). InputError naming the filter when one
-/// names no axis or the filters together select no cell.
-std::vector<bool> select_cells(const Matrix& matrix, const std::vector<std::string>& filters);
 
 struct RunSummary {
   size_t cells = 0;        ///< in the matrix

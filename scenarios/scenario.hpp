@@ -7,7 +7,9 @@
 // combinations. A plain scenario file is a matrix of one cell.
 #pragma once
 
-#include "frame.hpp"
+#include "frame_settings.hpp"
+
+#include <glm/vec3.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -96,5 +98,9 @@ struct Shard {
   bool contains(size_t cell) const { return cell % count == index - 1; }
 };
 Shard parse_shard(const std::string& text);  // throws InputError naming --shard
+
+/// Which cells of the matrix the filters select (all with none). InputError naming the filter when one
+/// names no axis or the filters together select no cell.
+std::vector<bool> select_cells(const Matrix& matrix, const std::vector<std::string>& filters);
 
 }  // namespace hp

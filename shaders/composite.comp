@@ -1,6 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-#include "common/shared_types.h"
+#include "gpu/shared_types.h"
 #include "common/brdf.glsl"
 
 // One thread per pixel, 8x8 tiles; a ragged right/bottom edge is covered by the dispatch and skipped here.

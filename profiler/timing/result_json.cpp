@@ -1,4 +1,5 @@
 #include "timing/result_json.hpp"
+#include "atomic_file.hpp"
 
 #include <unistd.h>
 
@@ -381,33 +382,7 @@ TimingResult parse_timing_result(const json& doc) {
 void write_json_atomically(const std::filesystem::path& path, const json& doc, int indent) {
   std::string text = doc.dump(indent);
   text += '\n';
-  write_text_atomically(path, text);
-}
-
-void write_text_atomically(const std::filesystem::path& path, const std::string& text) {
-  check_output_path(path, "");
-  // The temporary file sits in the same folder so the rename stays on one file system (atomic);
-  // the pid keeps two processes writing the same result from sharing a temporary.
-  std::filesystem::path tmp = path;
-  tmp += ".tmp." + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError("cannot write '" + tmp.string() + "'");
-    out << text;
-    out.flush();
-    if (!out) {
-      std::error_code ignore;
-      std::filesystem::remove(tmp, ignore);
-      throw InputError("cannot write '" + tmp.string() + "' (disk full?)");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::error_code ignore;
-    std::filesystem::remove(tmp, ignore);
-    throw InputError("cannot rename '" + tmp.string() + "' to '" + path.string() + "': " + ec.message());
-  }
+  write_file_atomically(path, text);
 }
 
 void write_timing_result(const std::filesystem::path& path, const Environment& env,

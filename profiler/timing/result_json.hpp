@@ -70,11 +70,9 @@ nlohmann::json timing_result_json(const Environment& env, const FrameTimings& ti
 // Parses a document written by timing_result_json. Throws hp::InputError naming the field.
 TimingResult parse_timing_result(const nlohmann::json& doc);
 
-// Writes `doc` (indented) to a temporary file beside `path` and renames it over `path`, so a
-// reader never sees half a file. Throws hp::InputError naming the path when it cannot.
+// Writes `doc` (indented) through an AtomicFile (core/atomic_file.hpp): a reader never sees half a file.
+// Throws hp::InputError naming the path when it cannot.
 void write_json_atomically(const std::filesystem::path& path, const nlohmann::json& doc, int indent = 1);
-// The same for any text: PATH.tmp.<pid> in the same folder, renamed over PATH; InputError naming the path.
-void write_text_atomically(const std::filesystem::path& path, const std::string& text);
 
 // timing_result_json + write_json_atomically.
 void write_timing_result(const std::filesystem::path& path, const Environment& env,

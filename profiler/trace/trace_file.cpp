@@ -89,58 +89,28 @@ struct Cursor {
 
 }  // namespace
 
-uint64_t BufferInfo::address(uint32_t offset) const {
-  switch (kind) {
-    case BufferKind::buffer:
-      return base_address + offset;
-    case BufferKind::image_linear: {
-      uint32_t texel = offset / texel_bytes, byte = offset % texel_bytes;
-      uint32_t x = texel % width, y = texel / width;
-      return base_address + uint64_t(y) * row_pitch_bytes + uint64_t(x) * texel_bytes + byte;
-    }
-    case BufferKind::image_tiled: {
-      uint32_t texel = offset / texel_bytes, byte = offset % texel_bytes;
-      uint32_t x = texel % width, y = texel / width;
-      uint32_t tiles_x = (width + tile_width - 1) / tile_width;
-      uint64_t tile = uint64_t(y / tile_height) * tiles_x + x / tile_width;
-      uint64_t in_tile = uint64_t(y % tile_height) * tile_width + x % tile_width;
-      return base_address + (tile * tile_width * tile_height + in_tile) * texel_bytes + byte;
-    }
-  }
-  return base_address + offset;
-}
-
-const BufferInfo* TraceHeader::find_buffer(uint32_t id) const {
-  for (const BufferInfo& b : buffers)
-    if (b.id == id) return &b;
-  return nullptr;
-}
-
 // ------------------------------------------------------------------------------------------------ writer
 
-// A constructor that throws runs no destructor: this closes the FILE (and removes the unfinished file)
-// unless disarmed at the end of the constructor.
+// A constructor that throws runs no destructor of its own: this closes the FILE unless disarmed at the end
+// of the constructor.
 namespace {
 struct CloseOnThrow {
   std::FILE*& file;
-  const std::filesystem::path* remove = nullptr;
   bool armed = true;
   ~CloseOnThrow() {
-    if (!armed || !file) return;
-    std::fclose(file);
-    file = nullptr;
-    std::error_code ec;
-    if (remove) std::filesystem::remove(*remove, ec);
+    if (armed && file) {
+      std::fclose(file);
+      file = nullptr;
+    }
   }
 };
 }  // namespace
 
 TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header)
-    : path_(std::move(path)), tmp_path_(path_.string() + ".tmp") {
-  check_output_path(path_, "");
-  file_ = std::fopen(tmp_path_.c_str(), "wb");
-  if (!file_) throw InputError(tmp_path_.string() + ": cannot create trace file: " + std::strerror(errno));
-  CloseOnThrow guard{file_, &tmp_path_};
+    : out_(std::move(path)) {
+  file_ = std::fopen(out_.temp_path().c_str(), "wb");
+  if (!file_) throw InputError(out_.path().string() + ": cannot create trace file: " + std::strerror(errno));
+  CloseOnThrow guard{file_};  // and out_'s destructor removes the temporary
   FileHeader fh{};
   std::memcpy(fh.magic, kTraceMagic, 8);
   fh.version = kTraceVersion;
@@ -167,16 +137,13 @@ TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header)
 }
 
 TraceWriter::~TraceWriter() {
-  if (file_) {
-    std::fclose(file_);
-    std::error_code ec;
-    std::filesystem::remove(tmp_path_, ec);  // unfinished: never leave a file that looks like a trace
-  }
+  // Unfinished: out_ removes the temporary, so nothing that looks like a trace is left.
+  if (file_) std::fclose(file_);
 }
 
 void TraceWriter::put(const void* data, size_t bytes) {
   if (bytes && std::fwrite(data, 1, bytes, file_) != bytes)
-    throw InputError(tmp_path_.string() + ": write failed: " + std::strerror(errno));
+    throw InputError(out_.path().string() + ": write failed: " + std::strerror(errno));
 }
 
 void TraceWriter::put_chunk_header(uint32_t t, uint64_t payload_bytes) {
@@ -214,24 +181,10 @@ void TraceWriter::finish() {
   put(&e, sizeof e);
   if (std::fclose(file_) != 0) {
     file_ = nullptr;
-    throw InputError(tmp_path_.string() + ": close failed: " + std::strerror(errno));
+    throw InputError(out_.path().string() + ": close failed: " + std::strerror(errno));
   }
   file_ = nullptr;
-  std::error_code ec;
-  std::filesystem::rename(tmp_path_, path_, ec);
-  if (ec) throw InputError(path_.string() + ": cannot rename the finished trace into place: " + ec.message());
-}
-
-uint32_t TeeSink::begin_pass(const PassInfo& pass) {
-  const uint32_t i = a_.begin_pass(pass);
-  if (b_.begin_pass(pass) != i) throw std::logic_error("TeeSink: the two sinks number passes differently");
-  return i;
-}
-
-void TeeSink::write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
-                            uint64_t end_workgroup) {
-  a_.write_records(pass, records, first_workgroup, end_workgroup);
-  b_.write_records(pass, records, first_workgroup, end_workgroup);
+  out_.commit();
 }
 
 // ------------------------------------------------------------------------------------------------ reader

@@ -30,52 +30,13 @@
 #include <string>
 #include <vector>
 
-#include "common/trace_record.h"
+#include "atomic_file.hpp"
+#include "trace_format.hpp"
 
 namespace hp::trace {
 
-using gpu::TraceRecord;
-
 inline constexpr char kTraceMagic[8] = {'H', 'P', 'T', 'R', 'A', 'C', 'E', '\0'};
 inline constexpr uint32_t kTraceVersion = 1;
-
-enum class BufferKind : uint32_t { buffer = 0, image_linear = 1, image_tiled = 2 };
-
-struct BufferInfo {
-  uint32_t id = 0;  // the buffer id records carry in their info word (< 256)
-  std::string name;
-  uint64_t base_address = 0;
-  uint64_t size_bytes = 0;  // bytes the records may address (images: width * height * texel_bytes)
-  BufferKind kind = BufferKind::buffer;
-  uint32_t texel_bytes = 0;  // images only
-  uint32_t width = 0, height = 0;
-  uint32_t row_pitch_bytes = 0;  // image_linear: >= width * texel_bytes
-  uint32_t tile_width = 0, tile_height = 0;  // image_tiled
-
-  // Byte address of a record's offset: buffers add the base; images apply the declared layout.
-  uint64_t address(uint32_t offset) const;
-};
-
-struct DispatchGeometry {
-  uint32_t workgroup_size[3] = {1, 1, 1};
-  uint32_t workgroup_count[3] = {1, 1, 1};
-  uint64_t invocations_per_workgroup() const {
-    return uint64_t(workgroup_size[0]) * workgroup_size[1] * workgroup_size[2];
-  }
-  uint64_t workgroups() const { return uint64_t(workgroup_count[0]) * workgroup_count[1] * workgroup_count[2]; }
-  uint64_t invocations() const { return invocations_per_workgroup() * workgroups(); }
-};
-
-struct PassInfo {
-  std::string name;
-  DispatchGeometry dispatch;
-};
-
-struct TraceHeader {
-  uint32_t image_width = 0, image_height = 0;
-  std::vector<BufferInfo> buffers;
-  const BufferInfo* find_buffer(uint32_t id) const;
-};
 
 // A whole trace in memory: fine for tests, tools and moderate frames; streaming code uses the
 // writer's per-slice chunks and the reader's per-pass reads.
@@ -83,30 +44,6 @@ struct Trace {
   TraceHeader header;
   std::vector<PassInfo> passes;
   std::vector<std::vector<TraceRecord>> records;  // records[pass]
-};
-
-// Where a capture sends its trace, pass by pass and slice by slice (a file, the cache simulator, both).
-// Passes begin in order; a pass's slices come in increasing, non-overlapping workgroup order, and each
-// slice's records are only valid during the call.
-class TraceSink {
- public:
-  virtual ~TraceSink() = default;
-  virtual uint32_t begin_pass(const PassInfo& pass) = 0;  // returns the pass index
-  // One slice of a pass; [first_workgroup, end_workgroup) is the slice's dispatched range.
-  virtual void write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
-                             uint64_t end_workgroup) = 0;
-};
-
-// Sends everything to two sinks (keep the trace file while simulating it).
-class TeeSink final : public TraceSink {
- public:
-  TeeSink(TraceSink& a, TraceSink& b) : a_(a), b_(b) {}
-  uint32_t begin_pass(const PassInfo& pass) override;
-  void write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
-                     uint64_t end_workgroup) override;
-
- private:
-  TraceSink &a_, &b_;
 };
 
 // Streams a trace file: header and buffer table at construction, then passes and record slices.
@@ -127,7 +64,7 @@ class TraceWriter final : public TraceSink {
  private:
   void put(const void* data, size_t bytes);
   void put_chunk_header(uint32_t tag, uint64_t payload_bytes);
-  std::filesystem::path path_, tmp_path_;
+  AtomicFile out_;
   std::FILE* file_ = nullptr;
   uint32_t passes_ = 0;
   uint64_t total_records_ = 0;

@@ -1,4 +1,5 @@
 #include "bvh/ray_io.hpp"
+#include "atomic_file.hpp"
 
 #include "error.hpp"
 
@@ -36,23 +37,9 @@ std::vector<T> read_records(const std::string& path, const char* what) {
 
 template <class T>
 void write_records(const std::string& path, std::span<const T> records, const char* what) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError(path + ": cannot write " + what + " file: " + std::strerror(errno));
-    out.write(reinterpret_cast<const char*>(records.data()), static_cast<std::streamsize>(records.size_bytes()));
-    out.close();
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw InputError(path + ": cannot write " + what + " file");
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::remove(tmp.c_str());
-    throw InputError(path + ": cannot write " + what + " file: " + ec.message());
-  }
+  AtomicFile file(path, std::string(what) + " file");
+  file.stream().write(reinterpret_cast<const char*>(records.data()), static_cast<std::streamsize>(records.size_bytes()));
+  file.commit();
 }
 
 }  // namespace

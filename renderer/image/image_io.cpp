@@ -1,4 +1,5 @@
 #include "error.hpp"
+#include "atomic_file.hpp"
 #include "image/image.hpp"
 #include "output_path.hpp"
 
@@ -43,17 +44,9 @@ void check_image_output(const std::string& path, const std::string& what) {
 void write_image(const std::string& path, const Image4f& image) {
   check_image_output(path, "");
   const std::string ext = lower_extension(path);
-  const std::filesystem::path final_path(path);
-  if (final_path.has_parent_path()) {
-    std::error_code ec;
-    std::filesystem::create_directories(final_path.parent_path(), ec);
-  }
-  // The temporary keeps the extension so that OpenImageIO picks the right format.
-  std::string tmp_name = final_path.stem().string();  // appended, not "." + ...: GCC 12's -Wrestrict (PR 105651)
-  tmp_name.insert(0, 1, '.');
-  tmp_name += ".tmp";
-  tmp_name += ext;
-  const std::string tmp = (final_path.parent_path() / tmp_name).string();
+  // The temporary keeps the extension, so OpenImageIO picks the right format.
+  AtomicFile file(path, "", /*create_folders=*/true);
+  const std::string tmp = file.temp_path().string();
   auto out = OIIO::ImageOutput::create(tmp);
   if (!out) throw InputError(path + ": cannot create an image writer: " + OIIO::geterror());
   bool ok = false;
@@ -72,16 +65,8 @@ void write_image(const std::string& path, const Image4f& image) {
   }
   std::string err = out->geterror();
   ok = out->close() && ok;
-  if (!ok) {
-    std::remove(tmp.c_str());
-    throw InputError(path + ": cannot write image: " + (err.empty() ? std::string("unknown error") : err));
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, final_path, ec);
-  if (ec) {
-    std::remove(tmp.c_str());
-    throw InputError(path + ": cannot write image: " + ec.message());
-  }
+  if (!ok) throw InputError(path + ": cannot write image: " + (err.empty() ? std::string("unknown error") : err));
+  file.commit();
 }
 
 Image4f read_image(const std::string& path) {

@@ -9,7 +9,7 @@
 #include "shaders/sort_radix_scan_traced_comp.h"
 #include "shaders/sort_radix_scatter_comp.h"
 #include "shaders/sort_radix_scatter_traced_comp.h"
-#include "sort/radix_config.h"
+#include "gpu/radix_config.h"
 
 #include <stdexcept>
 #include <string>

@@ -1,6 +1,6 @@
 #include "passes/ray_batch.hpp"
 
-#include "common/shared_types.h"
+#include "gpu/shared_types.h"
 #include "error.hpp"
 
 #include "shaders/trace_rays_comp.h"

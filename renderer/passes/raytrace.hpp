@@ -4,7 +4,8 @@
 #pragma once
 
 #include "bvh/geometry.hpp"
-#include "common/shared_types.h"
+#include "frame_settings.hpp"
+#include "gpu/shared_types.h"
 #include "passes/gbuffer.hpp"
 #include "passes/radix_sort.hpp"
 #include "rt_scene.hpp"
@@ -15,45 +16,7 @@
 
 namespace hp {
 
-enum class ShadowOffset { normal_bias, robust };
-enum class JitterMode { shared, per_thread };
-/// How reflection rays reach the traversal: `direct` (one thread per grid cell) or `compact` (valid rays
-/// appended to a buffer, optionally sorted, consumed by an indirectly sized dispatch: the study's 4.2).
-enum class ReflectionPath { direct, compact };
-enum class SortKey { none, octant, direction, origin };
-enum class Writeback { index, reproject };
-ShadowOffset parse_shadow_offset(const std::string& name);
-JitterMode parse_jitter_mode(const std::string& name);
-ReflectionPath parse_reflection_path(const std::string& name);
-SortKey parse_sort_key(const std::string& name);
-Writeback parse_writeback(const std::string& name);
-const char* to_string(ShadowOffset o);
-const char* to_string(JitterMode j);
-const char* to_string(ReflectionPath p);
-const char* to_string(SortKey k);
-const char* to_string(Writeback w);
-/// Significant bits of a sort key mode (the radix sort's passes follow: 4 bits each).
-uint32_t sort_key_bits(SortKey k);
 
-struct RayTracingOptions {
-  bool shadows = true;
-  bool reflections = true;
-  ShadowOffset offset = ShadowOffset::normal_bias;
-  float bias = 0.1f;                 ///< world units, for ShadowOffset::normal_bias (the study's 0.1)
-  JitterMode jitter = JitterMode::per_thread;
-  uint32_t reflection_divisor = 1;   ///< 1, 2 or 4: reflection grid = ceil(extent / divisor) per axis
-  float roughness_threshold = 0.35f; ///< reflective where roughness < this
-  bool reflection_shadows = true;    ///< shadow rays from reflection hits
-  bool counters = false;             ///< count rays, nodes visited, triangles tested (deterministic)
-  bool dump_rays = false;            ///< record every ray and its result (tests, cross-checks)
-  uint32_t seed = 1;
-  /// Gate-validation knob: the shadow pass re-traces the first fraction of the image rows (same results,
-  /// more work). 0 = off.
-  float inject_shadow_fraction = 0.0f;
-  ReflectionPath reflection_path = ReflectionPath::direct;
-  SortKey sort = SortKey::none;          ///< compact path only
-  Writeback writeback = Writeback::index;  ///< compact path only
-};
 
 /// The ray of a dump record (RayTracingOptions::dump_rays): its first two vectors are the bvh::Ray layout.
 inline bvh::Ray dumped_ray(const gpu::RayDump& d) {

@@ -2,7 +2,7 @@
 #ifndef HP_COMPACTION_GLSL
 #define HP_COMPACTION_GLSL
 
-#include "common/shared_types.h"
+#include "gpu/shared_types.h"
 
 layout(std430, set = 0, binding = 22) buffer CompactRayBuffer { CompactRay compact_rays[]; };
 layout(std430, set = 0, binding = 23) buffer SortKeyBuffer { uint sort_keys[]; };

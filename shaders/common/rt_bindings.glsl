@@ -4,7 +4,7 @@
 #ifndef HP_RT_BINDINGS_GLSL
 #define HP_RT_BINDINGS_GLSL
 
-#include "common/shared_types.h"
+#include "gpu/shared_types.h"
 #include "common/ray_offset.glsl"
 
 // Geometry layout: 0 = "indexed" (EBO: vertex positions + an index buffer in leaf order),

@@ -3,8 +3,8 @@
 #ifndef HP_TRACE_CAPTURE_GLSL
 #define HP_TRACE_CAPTURE_GLSL
 
-#include "common/trace_buffers.h"
-#include "common/trace_record.h"
+#include "gpu/trace_buffers.h"
+#include "gpu/trace_record.h"
 
 #ifdef HP_TRACE
 layout(std430, set = 0, binding = 21) coherent buffer TraceBuffer {

@@ -3,7 +3,7 @@
 #ifndef HP_SORT_RADIX_COMMON_GLSL
 #define HP_SORT_RADIX_COMMON_GLSL
 
-#include "sort/radix_config.h"
+#include "gpu/radix_config.h"
 #include "common/trace_capture.glsl"
 
 layout(push_constant) uniform RadixPush {

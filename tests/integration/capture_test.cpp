@@ -4,7 +4,7 @@
 #include "vulkan_env.hpp"
 
 #include "cache_analysis.hpp"
-#include "common/trace_buffers.h"
+#include "gpu/trace_buffers.h"
 #include "error.hpp"
 #include "frame.hpp"
 #include "scene/load.hpp"

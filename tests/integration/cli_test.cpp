@@ -1,4 +1,6 @@
 // The command line as a user meets it: exit codes, one-line errors, nothing half-written.
+#include "atomic_file.hpp"
+
 #include <gtest/gtest.h>
 
 #include <array>
@@ -109,7 +111,7 @@ TEST(Cli, CachesimExportsOneComputeUnitOrNamesTheLimitAndWritesNothing) {
   r = run("cachesim " + trace.string() + " --preset vega56 --export-din " + din.string() + " --export-cu 56");
   expect_bad_input(r, "compute unit 56 does not exist (preset 'vega56' has 56)");
   EXPECT_FALSE(fs::exists(din));
-  EXPECT_FALSE(fs::exists(din.string() + ".tmp"));
+  EXPECT_FALSE(hp::atomic_temporary_exists(din));
   // A good export: the file has exactly the lines the command reports.
   r = run("cachesim " + trace.string() + " --preset vega56 --export-din " + din.string() + " --export-cu 0");
   ASSERT_EQ(r.code, 0) << r.output;
@@ -122,7 +124,7 @@ TEST(Cli, CachesimExportsOneComputeUnitOrNamesTheLimitAndWritesNothing) {
   while (std::getline(in, line)) ++lines;
   EXPECT_EQ(lines, reported);
   EXPECT_GT(lines, 0u);
-  EXPECT_FALSE(fs::exists(din.string() + ".tmp"));
+  EXPECT_FALSE(hp::atomic_temporary_exists(din));
   // The sort's dispatches are traced passes too: `trace` can export one (checked before the capture).
   r = run("trace --scene builtin:cornell --width 32 --height 24 --reflection-path compact --sort octant --passes reflections "
           "--out " + trace.string() + " --export-din " + (d / "sort.din").string() + " --din-pass sort_scatter_0");

@@ -1,4 +1,5 @@
 // The binary triangle, ray and hit files: exact round trips, the documented byte layout, clear errors.
+#include "atomic_file.hpp"
 #include "bvh/ray_io.hpp"
 #include "error.hpp"
 
@@ -68,7 +69,7 @@ TEST(BvhRayIo, RoundTripsBitExactly) {
   EXPECT_EQ(f, 5.5f);
 
   // No temporary file is left behind.
-  EXPECT_FALSE(std::filesystem::exists(hp_ + ".tmp"));
+  EXPECT_FALSE(atomic_temporary_exists(hp_));
   for (const auto& p : {tp, rp, hp_}) std::filesystem::remove(p);
 }
 

@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "atomic_file.hpp"
 #include "error.hpp"
 #include "trace/trace_file.hpp"
 
@@ -72,7 +73,7 @@ TEST(TraceFile, RoundTrip) {
   const Trace t = sample();
   const auto p = tmp("round.hptrace");
   write_trace(p, t);
-  EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
+  EXPECT_FALSE(atomic_temporary_exists(p));
   const Trace r = read_trace(p);
   EXPECT_EQ(r.header.image_width, 16u);
   ASSERT_EQ(r.header.buffers.size(), 2u);
@@ -182,7 +183,7 @@ TEST(TraceFile, UnfinishedWriterLeavesNoFile) {
     w.begin_pass(sample().passes[0]);
   }
   EXPECT_FALSE(fs::exists(p));
-  EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
+  EXPECT_FALSE(atomic_temporary_exists(p));
 }
 
 TEST(TraceFile, CorruptFilesGiveOneLineErrorsNamingTheFile) {

@@ -312,7 +312,6 @@ TEST(Shard, ParsesAndPartitions) {
 
 // `run --filter`: a cell id or AXIS=VALUE (the axis key path or its last component; values as the report
 // writes them), all filters at once; a filter naming no axis, or filters selecting nothing, name themselves.
-#include "runner.hpp"
 
 namespace hp {
 namespace {
