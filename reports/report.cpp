@@ -2,6 +2,8 @@
 #include "atomic_file.hpp"
 
 #include "error.hpp"
+#include "markdown.hpp"
+#include "study.hpp"
 #include "svg_chart.hpp"
 #include "timing/stats.hpp"
 #include "tradeoff.hpp"
@@ -27,69 +29,6 @@ std::string fmt(const char* f, double v) { return format_number(f, v); }
 std::string ms(double ns) { return fmt("%.3f", ns / 1e6); }
 std::string pct(double ratio) { return fmt("%+.1f%%", (ratio - 1.0) * 100.0); }
 std::string p_text(double p) { return p < 0.001 ? "< 0.001" : fmt("%.3f", p); }
-std::string count_text(double v) {
-  // Thousands separators: counts are read by eye against the study's tables, which use them.
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.0f", v);
-  std::string s = buf, out;
-  const size_t lead = s[0] == '-' ? 1 : 0;
-  for (size_t i = 0; i < s.size(); ++i) {
-    if (i > lead && (s.size() - i) % 3 == 0) out += ',';
-    out += s[i];
-  }
-  return out;
-}
-std::string md_escape(std::string s) {
-  std::string out;
-  for (char c : s) out += c == '|' ? std::string("\\|") : std::string(1, c);
-  return out;
-}
-
-// Study Table 1 (PIX on a Vega 56, reflection pass): L1 hit, L1 miss, L2 hit, L2 miss.
-struct StudyRow {
-  const char* label;
-  bool shared_offset, indexed;
-  double l1_hit, l1_miss, l2_hit, l2_miss;
-};
-constexpr StudyRow kTable1[] = {
-    {"offset + noEBO", true, false, 4873530, 291719, 115552, 217475},
-    {"offset + EBO", true, true, 6251450, 258988, 91876, 214712},
-    {"nooffset + noEBO", false, false, 5374096, 290892, 134387, 194732},
-    {"nooffset + EBO", false, true, 5979267, 241950, 87422, 192207},
-};
-const StudyRow& study(bool shared, bool indexed) {
-  for (const StudyRow& r : kTable1)
-    if (r.shared_offset == shared && r.indexed == indexed) return r;
-  return kTable1[0];
-}
-
-std::string study_block(const std::string& leaf, bool have_cache) {
-  std::string s = "\n**Beside the study (Santoro 2020, Table 1: PIX on a Vega 56, reflection pass).** ";
-  s += "\"offset\" is one shared jitter offset per frame (our `jitter: shared`), \"EBO\" an index buffer "
-       "(our `geometry: indexed`).\n\n| study configuration | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate |\n|---|---|---|---|---|---|\n";
-  for (const StudyRow& r : kTable1) {
-    s += std::string("| ") + r.label + " | " + count_text(r.l1_hit) + " | " + count_text(r.l1_miss) + " | " +
-         count_text(r.l2_hit) + " | " + count_text(r.l2_miss) + " | " +
-         fmt("%.1f%%", 100.0 * r.l1_hit / (r.l1_hit + r.l1_miss)) + " |\n";
-  }
-  s += "\n";
-  if (leaf == "geometry") {
-    s += "In the study the index buffer raised L1 hits by " +
-         pct(study(true, true).l1_hit / study(true, false).l1_hit).substr(1) + " with a shared offset and by " +
-         pct(study(false, true).l1_hit / study(false, false).l1_hit).substr(1) + " without one.";
-  } else {
-    s += "In the study the shared offset changed L1 hits by " + pct(study(true, true).l1_hit / study(false, true).l1_hit) +
-         " with an index buffer and by " + pct(study(true, false).l1_hit / study(false, false).l1_hit) + " without one.";
-  }
-  if (have_cache) {
-    s += " Our L1-hit changes for the same comparison are in the sentences above (our scene, our cache preset, "
-         "one traced frame per cell); the full tables are in each cell's section.\n";
-  } else {
-    s += " Our L1/L2 columns for this comparison appear beside these once GPU traces are captured: this run's "
-         "cells carry no cache tables (add `\"trace\": {\"passes\": [\"reflections\"]}` to the scenario).\n";
-  }
-  return s;
-}
 
 // Environment fields that decide whether numbers are comparable, and the rest shown for context.
 struct EnvField {
@@ -136,7 +75,7 @@ std::string environment_section(const std::vector<CellResult>& cells) {
     } else {
       for (const std::string& v : values) joined += (joined.empty() ? "" : "; ") + v;
     }
-    s += std::string("| ") + f.label + " | " + md_escape(joined) + " |\n";
+    s += std::string("| ") + f.label + " | " + md::escape(joined) + " |\n";
     if (f.must_match && values.size() > 1) differing.push_back(f.label);
   }
   if (!differing.empty()) {
@@ -203,14 +142,14 @@ std::string cache_tables(const CellResult& c) {
                   "), in the study's form:\n\n| pass | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate | L2 hit rate |\n|---|---|---|---|---|---|---|\n";
   std::string buffers, heatmaps;
   for (const CachePass& p : passes) {
-    s += "| " + p.pass + " | " + count_text(p.l1_hits) + " | " + count_text(p.l1_misses) + " | " + count_text(p.l2_hits) + " | " +
-         count_text(p.l2_misses) + " | " + rate(p.l1_hits, p.l1_misses) + " | " + rate(p.l2_hits, p.l2_misses) + " |\n";
+    s += "| " + p.pass + " | " + md::count(p.l1_hits) + " | " + md::count(p.l1_misses) + " | " + md::count(p.l2_hits) + " | " +
+         md::count(p.l2_misses) + " | " + rate(p.l1_hits, p.l1_misses) + " | " + rate(p.l2_hits, p.l2_misses) + " |\n";
     if (p.j->contains("buffers") && (*p.j)["buffers"].is_object()) {
       for (const auto& [buf, b] : (*p.j)["buffers"].items()) {
         const double l1r = num_or0(b, "l1_requests"), l1m = num_or0(b, "l1_misses");
         const double l2r = num_or0(b, "l2_requests"), l2m = num_or0(b, "l2_misses");
-        buffers += "| " + p.pass + " | " + buf + " | " + count_text(l1r) + " | " + count_text(l1m) + " | " + rate(l1r - l1m, l1m) +
-                   " | " + count_text(l2r) + " | " + count_text(l2m) + " | " + rate(l2r - l2m, l2m) + " |\n";
+        buffers += "| " + p.pass + " | " + buf + " | " + md::count(l1r) + " | " + md::count(l1m) + " | " + rate(l1r - l1m, l1m) +
+                   " | " + md::count(l2r) + " | " + md::count(l2m) + " | " + rate(l2r - l2m, l2m) + " |\n";
       }
     }
     if (p.j->contains("heatmaps") && (*p.j)["heatmaps"].is_object()) {
@@ -274,7 +213,7 @@ std::string overlap_text(const TimingSummary& t) {
 }
 
 std::string cell_section(const CellResult& c) {
-  std::string s = "### " + md_escape(cell_label(c)) + "\n\nCell `" + c.id + "`";
+  std::string s = "### " + md::escape(cell_label(c)) + "\n\nCell `" + c.id + "`";
   if (!c.name.empty()) s += " of `" + c.name + "`";
   s += ": " + std::to_string(c.timing.timings.measured().size()) + " measured frames after " +
        std::to_string(c.timing.summary.warmup_frames) + " warm-up.\n\n";
@@ -292,19 +231,19 @@ std::string cell_section(const CellResult& c) {
     for (const PassStat& p : stats) {
       if (!has_pass(k, p.pass) || k.get(p.pass, counter::rays_cast) == 0) continue;
       const double rays = double(k.get(p.pass, counter::rays_cast));
-      s += "| " + p.pass + " | " + count_text(rays / frames) + " | " +
+      s += "| " + p.pass + " | " + md::count(rays / frames) + " | " +
            fmt("%.2f", per_ray(k, p.pass, counter::nodes_visited).value_or(0.0)) + " | " +
            fmt("%.2f", per_ray(k, p.pass, counter::triangles_tested).value_or(0.0)) + " | " +
            fmt("%.2f", p.summary.median > 0 ? rays / frames / p.summary.median * 1e3 : 0.0) + " |\n";
     }
   }
   if (c.bvh.is_object()) {
-    s += "\nBVH: " + count_text(c.bvh.value("nodes", 0.0)) + " nodes, " + count_text(c.bvh.value("leaves", 0.0)) +
+    s += "\nBVH: " + md::count(c.bvh.value("nodes", 0.0)) + " nodes, " + md::count(c.bvh.value("leaves", 0.0)) +
          " leaves, depth " + std::to_string(c.bvh.value("max_depth", 0)) + ", SAH cost " + fmt("%.3f", c.bvh.value("sah_cost", 0.0)) +
          ", built in " + fmt("%.1f", c.bvh.value("build_ms", 0.0)) + " ms";
-    s += c.triangles ? " over " + count_text(double(*c.triangles)) + " triangles.\n" : ".\n";
+    s += c.triangles ? " over " + md::count(double(*c.triangles)) + " triangles.\n" : ".\n";
   } else if (c.triangles) {
-    s += "\nScene: " + count_text(double(*c.triangles)) + " triangles (no BVH: no rays traced).\n";
+    s += "\nScene: " + md::count(double(*c.triangles)) + " triangles (no BVH: no rays traced).\n";
   }
   s += cache_tables(c);
   s += error_table(c);
@@ -470,10 +409,10 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
   const std::string va = axis_value_text(a.axes[axis]), vb = axis_value_text(b.axes[axis]);
   const std::string leaf = axis_leaf(axis);
   const std::string others = others_text(a, axis);
-  std::string head = "#### " + md_escape(va) + " → " + md_escape(vb) + (others.empty() ? "" : " (" + md_escape(others) + ")") + "\n\n";
+  std::string head = "#### " + md::escape(va) + " → " + md::escape(vb) + (others.empty() ? "" : " (" + md::escape(others) + ")") + "\n\n";
 
   const std::vector<PassStat> sa = pass_stats(a), sb = pass_stats(b);
-  std::string table = "| pass | " + md_escape(va) + " (ms) | " + md_escape(vb) +
+  std::string table = "| pass | " + md::escape(va) + " (ms) | " + md::escape(vb) +
                       " (ms) | change | p (Mann-Whitney) | rays | nodes visited | triangles tested |\n|---|---|---|---|---|---|---|---|\n";
   std::vector<std::string> significant;
   std::string largest;
@@ -524,7 +463,7 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
     auto y = std::find_if(cb.begin(), cb.end(), [&](const CachePass& p) { return p.pass == x.pass; });
     if (y == cb.end() || x.l1_hits <= 0) continue;
     cache_part += (cache_part.empty() ? "" : ", ") + x.pass + " L1 hits " + pct(y->l1_hits / x.l1_hits) + " (" +
-                  count_text(x.l1_hits) + " → " + count_text(y->l1_hits) + ")";
+                  md::count(x.l1_hits) + " → " + md::count(y->l1_hits) + ")";
   }
 
   std::string sentence = "Changing " + leaf + " from " + va + " to " + vb + (others.empty() ? "" : " (with " + others + ")");
@@ -579,9 +518,9 @@ void comparisons_section(const std::vector<CellResult>& cells, std::string& s) {
       }
     }
     if (n == 0) s += "No two cells differ in this axis alone.\n\n";
-    const std::string leaf = axis_leaf(axis);
     const bool have_cache = std::any_of(cells.begin(), cells.end(), [](const CellResult& c) { return !cache_passes(c).empty(); });
-    if (leaf == "geometry" || leaf == "jitter") s += study_block(leaf, have_cache) + "\n";
+    const std::string note = study::comparison_note(axis_leaf(axis), have_cache);
+    if (!note.empty()) s += note + "\n";
   }
 }
 
@@ -592,7 +531,7 @@ Report build_report(const std::vector<CellResult>& cells) {
   Report r;
   std::string& s = r.markdown;
   const std::string matrix = cells.front().matrix.empty() ? cells.front().name : cells.front().matrix;
-  s += "# hybridprof report: " + md_escape(matrix) + "\n\n";
+  s += "# hybridprof report: " + md::escape(matrix) + "\n\n";
   s += std::to_string(cells.size()) + " cell(s) from `results.jsonl`. Pass times are in milliseconds: the median "
        "over the measured frames with its distribution-free 95% confidence interval (order statistics; none "
        "below 6 frames), and the coefficient of variation (CV = standard deviation / mean) of the frames.\n\n";

@@ -1,6 +1,8 @@
 #include "tradeoff.hpp"
 
 #include "error.hpp"
+#include "cache_sampling.hpp"
+#include "markdown.hpp"
 #include "svg_chart.hpp"
 #include "timing/stats.hpp"
 
@@ -17,34 +19,6 @@ using json = nlohmann::json;
 namespace {
 
 std::string fmt(const char* f, double v) { return format_number(f, v); }
-std::string md_escape(const std::string& s) {
-  std::string out;
-  for (char c : s) out += c == '|' ? std::string("\\|") : std::string(1, c);
-  return out;
-}
-std::string count_text(double v) {
-  std::string s = fmt("%.0f", v), out;
-  const size_t lead = s[0] == '-' ? 1 : 0;
-  for (size_t i = 0; i < s.size(); ++i) {
-    if (i > lead && (s.size() - i) % 3 == 0) out += ',';
-    out += s[i];
-  }
-  return out;
-}
-// Counts with separators, other numbers to four significant digits.
-std::string general(double v) {
-  if (std::isfinite(v) && v == std::floor(v) && std::abs(v) < 1e15) return count_text(v);
-  return fmt("%.4g", v);
-}
-std::string list_text(const std::vector<std::string>& items) {
-  std::string s;
-  for (size_t i = 0; i < items.size(); ++i) s += (i == 0 ? "" : i + 1 == items.size() ? " and " : ", ") + items[i];
-  return s;
-}
-std::optional<double> number_at(const json& j, const char* key) {
-  if (!j.is_object() || !j.contains(key) || !j[key].is_number()) return std::nullopt;
-  return j[key].get<double>();
-}
 
 // A parsed metric name.
 struct Metric {
@@ -132,7 +106,7 @@ std::optional<MetricValue> time_value(const CellResult& c, const std::vector<std
 }
 
 std::string value_text(const MetricValue& v, bool with_ci = true) {
-  if (!v.is_time) return general(v.value);
+  if (!v.is_time) return md::general(v.value);
   std::string s = fmt("%.3f", v.value);
   if (with_ci) s += v.ci ? " [" + fmt("%.3f", v.ci->first) + ", " + fmt("%.3f", v.ci->second) + "]" : " (no CI: n < 6)";
   return s;
@@ -154,23 +128,6 @@ void check_passes_ran(const std::vector<CellResult>& cells, const Metric& m, con
 }
 
 // The axes whose values differ among these cells, as "key=value, ..." (the cell's label when none differ).
-std::string varying_label(const CellResult& c, const std::vector<const CellResult*>& among,
-                          const std::vector<std::string>& skip_leaves = {}) {
-  std::string s;
-  for (const auto& [k, v] : c.axes.items()) {
-    if (std::find(skip_leaves.begin(), skip_leaves.end(), axis_leaf(k)) != skip_leaves.end()) continue;
-    const bool varies = std::any_of(among.begin(), among.end(), [&](const CellResult* o) {
-      return !o->axes.contains(k) || o->axes[k] != v;
-    });
-    if (varies) s += (s.empty() ? "" : ", ") + axis_leaf(k) + "=" + axis_value_text(v);
-  }
-  if (!s.empty()) return s;
-  if (skip_leaves.empty()) return cell_label(c);
-  for (const auto& [k, v] : c.axes.items())
-    if (std::find(skip_leaves.begin(), skip_leaves.end(), axis_leaf(k)) == skip_leaves.end())
-      s += (s.empty() ? "" : ", ") + axis_leaf(k) + "=" + axis_value_text(v);
-  return s.empty() ? (c.name.empty() ? c.id : c.name) : s;
-}
 
 std::string string_field(const json& o, const char* key, const std::string& fallback, const std::string& context) {
   if (!o.contains(key)) return fallback;
@@ -231,11 +188,11 @@ std::string tradeoff_section(const std::vector<CellResult>& cells, const json& s
     for (const std::string& col : columns) r.extra.push_back(resolve_metric(c, col, context));
     rows.push_back(r);
   }
-  std::string s = "### " + md_escape(title) + "\n\n";
-  s += "x: `" + xn + "` (" + md_escape(x_label) + "), y: `" + yn + "` (" + md_escape(y_label) + "); both lower is better.\n\n";
+  std::string s = "### " + md::escape(title) + "\n\n";
+  s += "x: `" + xn + "` (" + md::escape(x_label) + "), y: `" + yn + "` (" + md::escape(y_label) + "); both lower is better.\n\n";
   if (rows.empty()) {
     s += "No cell has both values, so there is nothing to compare.";
-    if (!skipped.empty()) s += " Not available: " + md_escape(list_text(skipped)) + ".";
+    if (!skipped.empty()) s += " Not available: " + md::escape(md::list(skipped)) + ".";
     return s + "\n\n";
   }
   std::sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) { return a.x.value != b.x.value ? a.x.value < b.x.value : a.y.value < b.y.value; });
@@ -277,7 +234,7 @@ std::string tradeoff_section(const std::vector<CellResult>& cells, const json& s
   }
   const std::string path = "charts/tradeoff_" + std::to_string(n) + ".svg";
   charts.push_back({path, svg::render(chart)});
-  s += "![" + md_escape(title) + "](" + path + ")\n\n";
+  s += "![" + md::escape(title) + "](" + path + ")\n\n";
 
   // One sentence on the front.
   std::vector<std::string> on;
@@ -288,22 +245,22 @@ std::string tradeoff_section(const std::vector<CellResult>& cells, const json& s
     s += "Only one cell has both values; it is trivially on the Pareto front.\n\n";
   } else if (n_front == rows.size()) {
     s += "Every cell is on the Pareto front (no cell is beaten on both " + x_label + " and " + y_label +
-         " by another); in x order: " + list_text(on) + ".\n\n";
+         " by another); in x order: " + md::list(on) + ".\n\n";
   } else {
     s += std::to_string(n_front) + " of " + std::to_string(rows.size()) +
          " cells are on the Pareto front (no other cell is at least as good in both " + x_label + " and " + y_label +
-         " and better in one): " + list_text(on) + "; the other " + std::to_string(rows.size() - n_front) +
+         " and better in one): " + md::list(on) + "; the other " + std::to_string(rows.size() - n_front) +
          " are dominated.\n\n";
   }
 
-  s += "| cell | " + md_escape(x_label) + (rows.front().x.is_time ? " (ms, 95% CI)" : "") + " | " + md_escape(y_label) +
+  s += "| cell | " + md::escape(x_label) + (rows.front().x.is_time ? " (ms, 95% CI)" : "") + " | " + md::escape(y_label) +
        (rows.front().y.is_time ? " (ms, 95% CI)" : "") + " |";
-  for (const std::string& col : columns) s += " `" + md_escape(col) + "` |";
+  for (const std::string& col : columns) s += " `" + md::escape(col) + "` |";
   s += " Pareto |\n|---|---|---|";
   for (size_t i = 0; i < columns.size(); ++i) s += "---|";
   s += "---|\n";
   for (const Row& r : rows) {
-    s += "| " + md_escape(cell_label(*r.cell)) + " | " + value_text(r.x) + " | " + value_text(r.y) + " |";
+    s += "| " + md::escape(cell_label(*r.cell)) + " | " + value_text(r.x) + " | " + value_text(r.y) + " |";
     for (const auto& e : r.extra) {
       s += ' ';
       s += e ? value_text(*e) : std::string("—");
@@ -312,238 +269,12 @@ std::string tradeoff_section(const std::vector<CellResult>& cells, const json& s
     s += std::string(" ") + (r.front ? "**yes**" : "no") + " |\n";
   }
   s += "\n";
-  if (!skipped.empty()) notes.push_back("Not available, left out: " + list_text(skipped) + ".");
+  if (!skipped.empty()) notes.push_back("Not available, left out: " + md::list(skipped) + ".");
   if (std::any_of(rows.begin(), rows.end(), [](const Row& r) {
         return std::any_of(r.extra.begin(), r.extra.end(), [](const auto& e) { return !e.has_value(); });
       }))
     notes.push_back("— in a column: not available for that cell.");
-  for (const std::string& note : notes) s += "*Note:* " + md_escape(note) + "\n\n";
-  return s;
-}
-
-// ---- cache sampling --------------------------------------------------------------------------
-
-std::optional<double> sample_every(const CellResult& c) {
-  if (!c.config.is_object() || !c.config.contains("trace") || !c.config["trace"].is_object()) return std::nullopt;
-  return number_at(c.config["trace"], "sample_every");
-}
-
-struct LevelRates {
-  std::optional<double> l1, l2;
-  std::map<std::string, double> buffer_l1;
-};
-std::optional<double> hit_rate(const json& level) {
-  const auto h = number_at(level, "hits"), m = number_at(level, "misses");
-  if (h && m && *h + *m > 0) return *h / (*h + *m);
-  return number_at(level, "hit_rate");
-}
-std::map<std::string, LevelRates> cache_rates(const CellResult& c) {
-  std::map<std::string, LevelRates> out;
-  if (!c.cache.is_object() || !c.cache.contains("passes") || !c.cache["passes"].is_array()) return out;
-  for (const json& p : c.cache["passes"]) {
-    if (!p.is_object() || !p.contains("pass") || !p["pass"].is_string()) continue;
-    LevelRates r;
-    if (p.contains("l1")) r.l1 = hit_rate(p["l1"]);
-    if (p.contains("l2")) r.l2 = hit_rate(p["l2"]);
-    if (p.contains("buffers") && p["buffers"].is_object()) {
-      for (const auto& [name, b] : p["buffers"].items()) {
-        const auto req = number_at(b, "l1_requests"), miss = number_at(b, "l1_misses");
-        if (req && miss && *req > 0) r.buffer_l1[name] = (*req - *miss) / *req;
-      }
-    }
-    out[p["pass"].get<std::string>()] = r;
-  }
-  return out;
-}
-
-std::string cache_sampling_section(const std::vector<CellResult>& cells, std::vector<ReportFile>& charts) {
-  std::string s = "### Cache simulation on sampled traces\n\n";
-  // The burst length (trace.sample_block) does not matter for a full trace (k = 1): any full cell partners
-  // every burst length, and each burst length is a group of its own.
-  const std::vector<std::string> key_ignore = {"/trace/sample_every", "/trace/sample_block", "/trace/scale_model"};
-  std::vector<const CellResult*> traced;
-  for (const CellResult& c : cells)
-    if (c.cache.is_object()) traced.push_back(&c);
-  std::map<std::string, const CellResult*> full;
-  for (const CellResult* c : traced)
-    if (sample_every(*c).value_or(1.0) == 1.0 && !full.count(match_key_ignoring(*c, key_ignore))) full[match_key_ignoring(*c, key_ignore)] = c;
-  // Groups: a full-trace cell and its sampled partners, in the order the full cells appear.
-  struct Group {
-    const CellResult* full;
-    double block;
-    std::string key;  // the sampled cells' configuration without k: one group per burst length and model
-    std::vector<std::pair<double, const CellResult*>> sampled;
-  };
-  std::vector<Group> groups;
-  std::vector<std::string> orphans;
-  for (const CellResult* c : traced) {
-    const double k = sample_every(*c).value_or(1.0);
-    if (k <= 1.0) continue;
-    const auto it = full.find(match_key_ignoring(*c, key_ignore));
-    if (it == full.end()) {
-      orphans.push_back(cell_label(*c) + " (sample_every " + general(k) + ")");
-      continue;
-    }
-    const double block = number_at(c->config["trace"], "sample_block").value_or(1.0);
-    const std::string key = match_key_ignoring(*c, {"/trace/sample_every"});
-    auto g = std::find_if(groups.begin(), groups.end(), [&](const Group& x) { return x.full == it->second && x.key == key; });
-    if (g == groups.end()) {
-      groups.push_back({it->second, block, key, {}});
-      g = groups.end() - 1;
-    }
-    g->sampled.push_back({k, c});
-  }
-  if (groups.empty() && orphans.empty()) {
-    return s + "No traced cell samples its trace (`trace.sample_every` > 1), so there is nothing to compare with the full trace.\n\n";
-  }
-  s += "Each traced cell with `trace.sample_every` k > 1 (the memory accesses of every k-th burst of `trace.sample_block` "
-       "consecutive workgroups, in dispatch order, replayed through the caches) "
-       "against the cell with the same configuration traced in full (k = 1). |error| is the absolute difference of the hit "
-       "rates in percentage points; the per-buffer column is the largest such difference over the pass's buffers' L1 hit "
-       "rates. Simulation time is the cache simulator's wall time for the cell (all traced passes); speed-up = full / sampled.\n\n";
-  std::vector<const CellResult*> all_group_cells;
-  for (const Group& g : groups) {
-    all_group_cells.push_back(g.full);
-    for (const auto& [k, c] : g.sampled) all_group_cells.push_back(c);
-  }
-  for (Group& g : groups) std::stable_sort(g.sampled.begin(), g.sampled.end(), [](auto& a, auto& b) { return a.first < b.first; });
-  std::vector<std::string> pass_order;
-  for (const Group& g : groups)
-    for (const auto& [k, c] : g.sampled)
-      for (const auto& [pass, r] : cache_rates(*c))
-        if (std::find(pass_order.begin(), pass_order.end(), pass) == pass_order.end()) pass_order.push_back(pass);
-
-  auto pp = [](const std::optional<double>& a, const std::optional<double>& b) -> std::optional<double> {
-    if (!a || !b) return std::nullopt;
-    return std::abs(*a - *b) * 100.0;
-  };
-  auto pct = [](const std::optional<double>& r) { return r ? fmt("%.2f%%", *r * 100.0) : std::string("—"); };
-  auto ppt = [](const std::optional<double>& e) { return e ? fmt("%.3f", *e) : std::string("—"); };
-  svg::LineChart chart;
-  chart.title = "Hit-rate error of sampled cache traces against the full trace";
-  chart.x_label = "sample_every k (log)";
-  chart.y_label = "|hit rate error| (percentage points, log)";
-  chart.log_x = chart.log_y = true;
-  size_t zero_points = 0;
-  for (const std::string& pass : pass_order) {
-    s += "#### " + md_escape(pass) + "\n\n| cell | k | L1 hit rate | L1 \\|error\\| (pp) | L2 hit rate | L2 \\|error\\| (pp) | "
-         "max per-buffer L1 \\|error\\| (pp) | simulation (s) | speed-up |\n|---|---|---|---|---|---|---|---|---|\n";
-    for (const Group& g : groups) {
-      const auto fr = cache_rates(*g.full);
-      const auto fp = fr.find(pass);
-      if (fp == fr.end()) continue;
-      std::string group_label = g.sampled.empty() ? std::string()
-                                : varying_label(*g.sampled.front().second, all_group_cells, {"sample_every", "sample_block"});
-      group_label = (group_label.empty() || group_label == g.full->name ? "" : group_label + ", ") + "bursts of " +
-                    general(g.block) + (g.block == 1.0 ? " workgroup" : " workgroups");
-      const auto full_sim = number_at(g.full->cache, "simulation_s");
-      s += "| " + md_escape(group_label) + " | 1 | " + pct(fp->second.l1) + " | — | " + pct(fp->second.l2) + " | — | — | " +
-           (full_sim ? fmt("%.2f", *full_sim) : "—") + " | 1× |\n";
-      svg::Line l1{pass + " L1" + (groups.size() > 1 ? " (" + group_label + ")" : ""), {}, {}, {}, {}};
-      svg::Line l2{pass + " L2" + (groups.size() > 1 ? " (" + group_label + ")" : ""), {}, {}, {}, {}};
-      for (const auto& [k, c] : g.sampled) {
-        const auto sr = cache_rates(*c);
-        const auto sp = sr.find(pass);
-        if (sp == sr.end()) continue;
-        const auto e1 = pp(sp->second.l1, fp->second.l1), e2 = pp(sp->second.l2, fp->second.l2);
-        std::optional<double> emax;
-        for (const auto& [buf, rate] : sp->second.buffer_l1) {
-          const auto f = fp->second.buffer_l1.find(buf);
-          if (f == fp->second.buffer_l1.end()) continue;
-          emax = std::max(emax.value_or(0.0), std::abs(rate - f->second) * 100.0);
-        }
-        const auto sim = number_at(c->cache, "simulation_s");
-        s += "| " + md_escape(group_label) + " | " + general(k) + " | " + pct(sp->second.l1) + " | " + ppt(e1) + " | " +
-             pct(sp->second.l2) + " | " + ppt(e2) + " | " + ppt(emax) + " | " + (sim ? fmt("%.2f", *sim) : "—") + " | " +
-             (sim && full_sim && *sim > 0 ? fmt("%.1f", *full_sim / *sim) + "×" : "—") + " |\n";
-        for (auto [line, e] : {std::pair{&l1, e1}, std::pair{&l2, e2}}) {
-          if (!e) continue;
-          if (*e <= 0) {
-            ++zero_points;
-            continue;
-          }
-          line->x.push_back(k);
-          line->y.push_back(*e);
-        }
-      }
-      for (svg::Line* l : {&l1, &l2})
-        if (!l->x.empty()) chart.lines.push_back(*l);
-    }
-    s += "\n";
-  }
-  if (!chart.lines.empty()) {
-    charts.push_back({"charts/cache_sampling.svg", svg::render(chart)});
-    s += "![hit-rate error against sample_every](charts/cache_sampling.svg)\n\n";
-    if (zero_points > 0)
-      s += "(" + std::to_string(zero_points) + " exact point(s), |error| = 0, are not drawn on the log axis.)\n\n";
-  } else if (!groups.empty()) {
-    s += "Every sampled hit rate equals the full trace's (|error| = 0), so there is no log-scale chart.\n\n";
-  }
-  // Speed against error: each cell's simulator time against its mean |hit-rate error| (L1 and L2 over every
-  // traced pass; the full trace at 0), with the Pareto front.
-  struct Summary {
-    std::string label;
-    double sim, err;
-  };
-  std::vector<Summary> sums;
-  for (const Group& g : groups) {
-    const auto full_sim = number_at(g.full->cache, "simulation_s");
-    if (full_sim && std::none_of(sums.begin(), sums.end(), [&](const Summary& x) { return x.err == 0.0 && x.sim == *full_sim; })) {
-      sums.push_back({"full trace", *full_sim, 0.0});
-    }
-    const auto fr = cache_rates(*g.full);
-    for (const auto& [k, c] : g.sampled) {
-      const auto sim = number_at(c->cache, "simulation_s");
-      if (!sim) continue;
-      double total = 0.0;
-      int n = 0;
-      for (const auto& [pass, r] : cache_rates(*c)) {
-        const auto f = fr.find(pass);
-        if (f == fr.end()) continue;
-        for (const auto& e : {pp(r.l1, f->second.l1), pp(r.l2, f->second.l2)}) {
-          if (e) total += *e, ++n;
-        }
-      }
-      if (n == 0) continue;
-      // The other axes that differ between the compared cells (e.g. scale_model), if any.
-      std::string other;
-      for (const auto& [axis, v] : c->axes.items()) {
-        const std::string leaf = axis_leaf(axis);
-        if (leaf == "sample_every" || leaf == "sample_block") continue;
-        const bool varies = std::any_of(all_group_cells.begin(), all_group_cells.end(), [&](const CellResult* o) {
-          return !o->axes.contains(axis) || o->axes[axis] != v;
-        });
-        if (varies) other += ", " + leaf + "=" + axis_value_text(v);
-      }
-      sums.push_back({"k=" + general(k) + ", bursts of " + general(g.block) + other, *sim, total / n});
-    }
-  }
-  if (sums.size() > 1) {
-    std::vector<std::pair<double, double>> pts;
-    for (const Summary& x : sums) pts.emplace_back(x.sim, x.err);
-    const std::vector<bool> front = pareto_front(pts);
-    std::vector<size_t> order(sums.size());
-    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return sums[a].sim < sums[b].sim; });
-    svg::ScatterChart sc;
-    sc.title = "Cache simulation: simulator time against the error of the sampled hit rates";
-    sc.x_label = "simulator wall time, s";
-    sc.y_label = "mean |hit-rate error| over passes and levels, pp";
-    s += "Time against error: the simulator's wall time against the mean |hit-rate error| (L1 and L2 of every traced pass, "
-         "percentage points); the Pareto front (both lower is better) is marked.\n\n"
-         "| sampling | simulation (s) | mean \\|error\\| (pp) | Pareto |\n|---|---|---|---|\n";
-    for (size_t i : order) {
-      s += "| " + md_escape(sums[i].label) + " | " + fmt("%.3f", sums[i].sim) + " | " + fmt("%.3f", sums[i].err) + " | " +
-           (front[i] ? "**yes**" : "no") + " |\n";
-      sc.points.push_back({sums[i].sim, sums[i].err, sums[i].label, "", bool(front[i])});
-    }
-    charts.push_back({"charts/cache_sampling_tradeoff.svg", svg::render(sc)});
-    s += "\n![simulator time against hit-rate error](charts/cache_sampling_tradeoff.svg)\n\n";
-  }
-  if (!orphans.empty()) {
-    s += "Without a full-trace partner (no cell with the same configuration and `trace.sample_every` 1), so not compared: " +
-         md_escape(list_text(orphans)) + ".\n\n";
-  }
+  for (const std::string& note : notes) s += "*Note:* " + md::escape(note) + "\n\n";
   return s;
 }
 
@@ -571,7 +302,7 @@ std::string depth_error_section(const std::vector<CellResult>& cells, std::vecto
     const json& d = c->error["depth"];
     const auto px = number_at(d, "pixels"), mean = number_at(d, "mean_rel"), mx = number_at(d, "max_rel");
     const size_t nbins = d.contains("bins") && d["bins"].is_array() ? d["bins"].size() : 0;
-    s += "| " + md_escape(cell_label(*c)) + " | " + (px ? count_text(*px) : "—") + " | " + (mean ? fmt("%.3g", *mean) : "—") +
+    s += "| " + md::escape(cell_label(*c)) + " | " + (px ? md::count(*px) : "—") + " | " + (mean ? fmt("%.3g", *mean) : "—") +
          " | " + (mx ? fmt("%.3g", *mx) : "—") + " | " + std::to_string(nbins) + " |\n";
     svg::Line line{varying_label(*c, with), {}, {}, {}, {}};
     if (nbins) {
@@ -595,7 +326,7 @@ std::string depth_error_section(const std::vector<CellResult>& cells, std::vecto
     s += "![mean relative position error by distance](charts/depth_error.svg)\n\n";
   }
   if (dropped) s += "(" + std::to_string(dropped) + " bin(s) with zero error are not drawn on the log axes.)\n\n";
-  if (!without.empty()) s += "Without depth-error numbers: " + md_escape(list_text(without)) + ".\n\n";
+  if (!without.empty()) s += "Without depth-error numbers: " + md::escape(md::list(without)) + ".\n\n";
   return s;
 }
 
@@ -615,6 +346,29 @@ std::string distinct_numbers(const std::vector<CellResult>& cells, const char* k
 }
 
 }  // namespace
+
+std::optional<double> number_at(const json& j, const char* key) {
+  if (!j.is_object() || !j.contains(key) || !j[key].is_number()) return std::nullopt;
+  return j[key].get<double>();
+}
+
+std::string varying_label(const CellResult& c, const std::vector<const CellResult*>& among,
+                          const std::vector<std::string>& skip_leaves) {
+  std::string s;
+  for (const auto& [k, v] : c.axes.items()) {
+    if (std::find(skip_leaves.begin(), skip_leaves.end(), axis_leaf(k)) != skip_leaves.end()) continue;
+    const bool varies = std::any_of(among.begin(), among.end(), [&](const CellResult* o) {
+      return !o->axes.contains(k) || o->axes[k] != v;
+    });
+    if (varies) s += (s.empty() ? "" : ", ") + axis_leaf(k) + "=" + axis_value_text(v);
+  }
+  if (!s.empty()) return s;
+  if (skip_leaves.empty()) return cell_label(c);
+  for (const auto& [k, v] : c.axes.items())
+    if (std::find(skip_leaves.begin(), skip_leaves.end(), axis_leaf(k)) == skip_leaves.end())
+      s += (s.empty() ? "" : ", ") + axis_leaf(k) + "=" + axis_value_text(v);
+  return s.empty() ? (c.name.empty() ? c.id : c.name) : s;
+}
 
 std::vector<bool> pareto_front(const std::vector<std::pair<double, double>>& pts) {
   std::vector<bool> front(pts.size(), false);
@@ -716,12 +470,12 @@ std::string error_table(const CellResult& c) {
   if (e.contains("reference") && e["reference"].is_object()) {
     const json& r = e["reference"];
     std::string t = r.contains("id") && r["id"].is_string() ? "`" + r["id"].get<std::string>() + "`" : std::string("?");
-    if (const auto n = number_at(r, "samples")) t += ", " + count_text(*n) + " samples per pixel";
+    if (const auto n = number_at(r, "samples")) t += ", " + md::count(*n) + " samples per pixel";
     if (const auto sec = number_at(r, "render_s")) t += ", rendered in " + fmt("%.1f", *sec) + " s";
     if (r.contains("cached") && r["cached"].is_boolean()) t += r["cached"].get<bool>() ? " (cached)" : " (rendered for this run)";
     s += "| reference | " + t + " |\n";
   }
-  if (const auto f = number_at(e, "frames")) s += "| frames accumulated | " + count_text(*f) + " |\n";
+  if (const auto f = number_at(e, "frames")) s += "| frames accumulated | " + md::count(*f) + " |\n";
   if (e.contains("image") && e["image"].is_object()) {
     const json& im = e["image"];
     auto row = [&](const std::string& label, const char* key, const char* f) {
@@ -740,15 +494,15 @@ std::string error_table(const CellResult& c) {
     if (const auto o = number_at(im, "over_threshold")) {
       const auto th = number_at(im, "threshold");
       const auto px = number_at(im, "pixels");
-      s += "| pixels over " + (th ? fmt("%g", *th) : std::string("the threshold")) + " | " + count_text(*o) +
-           (px && *px > 0 ? " (" + fmt("%.3g", 100.0 * *o / *px) + "% of " + count_text(*px) + ")" : std::string()) + " |\n";
+      s += "| pixels over " + (th ? fmt("%g", *th) : std::string("the threshold")) + " | " + md::count(*o) +
+           (px && *px > 0 ? " (" + fmt("%.3g", 100.0 * *o / *px) + "% of " + md::count(*px) + ")" : std::string()) + " |\n";
     }
-    if (const auto nf = number_at(im, "non_finite")) s += "| non-finite pixels | " + count_text(*nf) + " |\n";
+    if (const auto nf = number_at(im, "non_finite")) s += "| non-finite pixels | " + md::count(*nf) + " |\n";
     if (const auto fl = number_at(im, "flip_mean"); fl && *fl >= 0) s += "| FLIP (mean) | " + fmt("%.4f", *fl) + " |\n";
   }
   if (e.contains("shadow") && e["shadow"].is_object()) {
     const json& sh = e["shadow"];
-    auto v = [&](const char* k) { const auto x = number_at(sh, k); return x ? count_text(*x) : std::string("—"); };
+    auto v = [&](const char* k) { const auto x = number_at(sh, k); return x ? md::count(*x) : std::string("—"); };
     s += "| shadow acne / leaks | " + v("acne") + " / " + v("leaks") + " of " + v("compared") + " compared pixels |\n";
     s += "| shadow coverage mismatches | " + v("coverage_mismatch") + " |\n";
   }

@@ -34,6 +34,13 @@ namespace hp {
 /// Which points are on the Pareto front when both coordinates are minimised: no other point is <= in
 /// both and < in at least one. Duplicates of a front point are all on the front; a point with a NaN
 /// coordinate is never on it (and dominates nothing).
+/// The number at `key` of a JSON object, if it is one.
+std::optional<double> number_at(const nlohmann::json& j, const char* key);
+/// The axis values that tell `c` apart from the other cells in `among` ("k=4, block=2"), axes whose last
+/// component is in `skip_leaves` left out; the cell's label when none differs.
+std::string varying_label(const CellResult& c, const std::vector<const CellResult*>& among,
+                          const std::vector<std::string>& skip_leaves = {});
+
 std::vector<bool> pareto_front(const std::vector<std::pair<double, double>>& pts);
 
 /// One resolved metric of one cell. For times, `ci` is the 95% CI of the median (absent with fewer
