@@ -142,124 +142,106 @@ bool bool_field(const json& o, const char* key, const std::string& context) {
 
 // ---- trade-offs ------------------------------------------------------------------------------
 
-std::string tradeoff_section(const std::vector<CellResult>& cells, const json& spec, size_t n, std::vector<ReportFile>& charts) {
-  std::string context = "report spec: tradeoffs[" + std::to_string(n - 1) + "]";
+// A "tradeoffs" entry of the report spec, validated: its metrics exist and their passes ran.
+struct TradeoffSpec {
+  std::string context, title, xn, yn, x_label, y_label;
+  bool log_x = false, log_y = false;
+  std::vector<std::string> columns;
+};
+
+TradeoffSpec parse_tradeoff(const std::vector<CellResult>& cells, const json& spec, size_t n) {
+  TradeoffSpec t;
+  t.context = "report spec: tradeoffs[" + std::to_string(n - 1) + "]";
+  const std::string& context = t.context;
   if (!spec.is_object()) throw InputError(context + ": not an object");
-  const std::string title = string_field(spec, "title", "Trade-off " + std::to_string(n), context);
-  context += " \"" + title + "\"";
+  t.title = string_field(spec, "title", "Trade-off " + std::to_string(n), context);
+  t.context += " \"" + t.title + "\"";
   for (const char* k : {"x", "y"})
     if (!spec.contains(k) || !spec[k].is_string()) throw InputError(context + ": '" + k + "' (a metric name) missing or not a string");
-  const std::string xn = spec["x"].get<std::string>(), yn = spec["y"].get<std::string>();
-  const std::string x_label = string_field(spec, "x_label", xn, context), y_label = string_field(spec, "y_label", yn, context);
-  const bool log_x = bool_field(spec, "log_x", context), log_y = bool_field(spec, "log_y", context);
-  std::vector<std::string> columns;
+  t.xn = spec["x"].get<std::string>();
+  t.yn = spec["y"].get<std::string>();
+  t.x_label = string_field(spec, "x_label", t.xn, context);
+  t.y_label = string_field(spec, "y_label", t.yn, context);
+  t.log_x = bool_field(spec, "log_x", context);
+  t.log_y = bool_field(spec, "log_y", context);
   if (spec.contains("columns")) {
     if (!spec["columns"].is_array()) throw InputError(context + ": 'columns' is not a list of metric names");
     for (const json& c : spec["columns"]) {
       if (!c.is_string()) throw InputError(context + ": 'columns' is not a list of metric names");
-      columns.push_back(c.get<std::string>());
+      t.columns.push_back(c.get<std::string>());
     }
   }
-  for (const std::string& name : [&] {
-         std::vector<std::string> all = {xn, yn};
-         all.insert(all.end(), columns.begin(), columns.end());
-         return all;
-       }()) {
-    check_passes_ran(cells, parse_metric(name, context), name, context);
-  }
+  std::vector<std::string> all = {t.xn, t.yn};
+  all.insert(all.end(), t.columns.begin(), t.columns.end());
+  for (const std::string& name : all) check_passes_ran(cells, parse_metric(name, context), name, context);
+  return t;
+}
 
-  struct Row {
-    const CellResult* cell;
-    MetricValue x, y;
-    std::vector<std::optional<MetricValue>> extra;
-    bool front = false;
-  };
-  std::vector<Row> rows;
-  std::vector<std::string> skipped;
-  for (const CellResult& c : cells) {
-    std::string why_x, why_y;
-    const auto x = resolve_metric(c, xn, context, &why_x);
-    const auto y = resolve_metric(c, yn, context, &why_y);
-    if (!x || !y) {
-      skipped.push_back(cell_label(c) + " (" + (!x ? "`" + xn + "`: " + why_x : "`" + yn + "`: " + why_y) + ")");
-      continue;
-    }
-    Row r{&c, *x, *y, {}};
-    for (const std::string& col : columns) r.extra.push_back(resolve_metric(c, col, context));
-    rows.push_back(r);
-  }
-  std::string s = "### " + md::escape(title) + "\n\n";
-  s += "x: `" + xn + "` (" + md::escape(x_label) + "), y: `" + yn + "` (" + md::escape(y_label) + "); both lower is better.\n\n";
-  if (rows.empty()) {
-    s += "No cell has both values, so there is nothing to compare.";
-    if (!skipped.empty()) s += " Not available: " + md::escape(md::list(skipped)) + ".";
-    return s + "\n\n";
-  }
-  std::sort(rows.begin(), rows.end(), [](const Row& a, const Row& b) { return a.x.value != b.x.value ? a.x.value < b.x.value : a.y.value < b.y.value; });
-  std::vector<std::pair<double, double>> pts;
-  for (const Row& r : rows) pts.push_back({r.x.value, r.y.value});
-  const std::vector<bool> front = pareto_front(pts);
-  for (size_t i = 0; i < rows.size(); ++i) rows[i].front = front[i];
+struct TradeoffRow {
+  const CellResult* cell;
+  MetricValue x, y;
+  std::vector<std::optional<MetricValue>> extra;
+  bool front = false;
+};
 
-  std::vector<const CellResult*> among;
-  for (const Row& r : rows) among.push_back(r.cell);
-
-  // The chart, with the log axes asked for where every value allows one.
-  std::vector<std::string> notes;
+// The scatter chart, with the log axes asked for where every value allows one (a note says where not).
+svg::ScatterChart tradeoff_chart(const TradeoffSpec& t, const std::vector<TradeoffRow>& rows,
+                                 const std::vector<const CellResult*>& among, std::vector<std::string>& notes) {
   svg::ScatterChart chart;
-  chart.title = title;
-  chart.x_label = x_label + (log_x ? " (log)" : "");
-  chart.y_label = y_label + (log_y ? " (log)" : "");
-  chart.log_x = log_x && std::all_of(rows.begin(), rows.end(), [](const Row& r) { return r.x.value > 0; });
-  chart.log_y = log_y && std::all_of(rows.begin(), rows.end(), [](const Row& r) { return r.y.value > 0; });
-  if (log_x && !chart.log_x) {
-    chart.x_label = x_label;
+  chart.title = t.title;
+  chart.x_label = t.x_label + (t.log_x ? " (log)" : "");
+  chart.y_label = t.y_label + (t.log_y ? " (log)" : "");
+  chart.log_x = t.log_x && std::all_of(rows.begin(), rows.end(), [](const TradeoffRow& r) { return r.x.value > 0; });
+  chart.log_y = t.log_y && std::all_of(rows.begin(), rows.end(), [](const TradeoffRow& r) { return r.y.value > 0; });
+  if (t.log_x && !chart.log_x) {
+    chart.x_label = t.x_label;
     notes.push_back("The x axis is linear: a value is <= 0, which a log axis cannot show.");
   }
-  if (log_y && !chart.log_y) {
-    chart.y_label = y_label;
+  if (t.log_y && !chart.log_y) {
+    chart.y_label = t.y_label;
     notes.push_back("The y axis is linear: a value is <= 0, which a log axis cannot show.");
   }
-  for (const Row& r : rows) {
+  for (const TradeoffRow& r : rows) {
     svg::ScatterPoint p;
     p.x = r.x.value;
     p.y = r.y.value;
     // Only the front is labelled (every point has its tooltip): labels on every point of a 24-cell sweep
     // overlap into an unreadable band.
     if (r.front) p.label = varying_label(*r.cell, among);
-    p.tooltip = cell_label(*r.cell) + ": " + x_label + " " + value_text(r.x) + ", " + y_label + " " + value_text(r.y) +
+    p.tooltip = cell_label(*r.cell) + ": " + t.x_label + " " + value_text(r.x) + ", " + t.y_label + " " + value_text(r.y) +
                 (r.front ? " (on the Pareto front)" : "");
     p.front = r.front;
     chart.points.push_back(p);
   }
-  const std::string path = "charts/tradeoff_" + std::to_string(n) + ".svg";
-  charts.push_back({path, svg::render(chart)});
-  s += "![" + md::escape(title) + "](" + path + ")\n\n";
+  return chart;
+}
 
-  // One sentence on the front.
+// One sentence on the Pareto front.
+std::string front_sentence(const TradeoffSpec& t, const std::vector<TradeoffRow>& rows,
+                           const std::vector<const CellResult*>& among) {
   std::vector<std::string> on;
-  for (const Row& r : rows)
+  for (const TradeoffRow& r : rows)
     if (r.front) on.push_back(varying_label(*r.cell, among) + " (" + value_text(r.x, false) + ", " + value_text(r.y, false) + ")");
   const size_t n_front = on.size();
-  if (rows.size() == 1) {
-    s += "Only one cell has both values; it is trivially on the Pareto front.\n\n";
-  } else if (n_front == rows.size()) {
-    s += "Every cell is on the Pareto front (no cell is beaten on both " + x_label + " and " + y_label +
-         " by another); in x order: " + md::list(on) + ".\n\n";
-  } else {
-    s += std::to_string(n_front) + " of " + std::to_string(rows.size()) +
-         " cells are on the Pareto front (no other cell is at least as good in both " + x_label + " and " + y_label +
+  if (rows.size() == 1) return "Only one cell has both values; it is trivially on the Pareto front.\n\n";
+  if (n_front == rows.size()) {
+    return "Every cell is on the Pareto front (no cell is beaten on both " + t.x_label + " and " + t.y_label +
+           " by another); in x order: " + md::list(on) + ".\n\n";
+  }
+  return std::to_string(n_front) + " of " + std::to_string(rows.size()) +
+         " cells are on the Pareto front (no other cell is at least as good in both " + t.x_label + " and " + t.y_label +
          " and better in one): " + md::list(on) + "; the other " + std::to_string(rows.size() - n_front) +
          " are dominated.\n\n";
-  }
+}
 
-  s += "| cell | " + md::escape(x_label) + (rows.front().x.is_time ? " (ms, 95% CI)" : "") + " | " + md::escape(y_label) +
-       (rows.front().y.is_time ? " (ms, 95% CI)" : "") + " |";
-  for (const std::string& col : columns) s += " `" + md::escape(col) + "` |";
+std::string tradeoff_table(const TradeoffSpec& t, const std::vector<TradeoffRow>& rows) {
+  std::string s = "| cell | " + md::escape(t.x_label) + (rows.front().x.is_time ? " (ms, 95% CI)" : "") + " | " +
+                  md::escape(t.y_label) + (rows.front().y.is_time ? " (ms, 95% CI)" : "") + " |";
+  for (const std::string& col : t.columns) s += " `" + md::escape(col) + "` |";
   s += " Pareto |\n|---|---|---|";
-  for (size_t i = 0; i < columns.size(); ++i) s += "---|";
+  for (size_t i = 0; i < t.columns.size(); ++i) s += "---|";
   s += "---|\n";
-  for (const Row& r : rows) {
+  for (const TradeoffRow& r : rows) {
     s += "| " + md::escape(cell_label(*r.cell)) + " | " + value_text(r.x) + " | " + value_text(r.y) + " |";
     for (const auto& e : r.extra) {
       s += ' ';
@@ -268,9 +250,51 @@ std::string tradeoff_section(const std::vector<CellResult>& cells, const json& s
     }
     s += std::string(" ") + (r.front ? "**yes**" : "no") + " |\n";
   }
-  s += "\n";
+  return s + "\n";
+}
+
+std::string tradeoff_section(const std::vector<CellResult>& cells, const json& spec, size_t n, std::vector<ReportFile>& charts) {
+  const TradeoffSpec t = parse_tradeoff(cells, spec, n);
+  std::vector<TradeoffRow> rows;
+  std::vector<std::string> skipped;
+  for (const CellResult& c : cells) {
+    std::string why_x, why_y;
+    const auto x = resolve_metric(c, t.xn, t.context, &why_x);
+    const auto y = resolve_metric(c, t.yn, t.context, &why_y);
+    if (!x || !y) {
+      skipped.push_back(cell_label(c) + " (" + (!x ? "`" + t.xn + "`: " + why_x : "`" + t.yn + "`: " + why_y) + ")");
+      continue;
+    }
+    TradeoffRow r{&c, *x, *y, {}};
+    for (const std::string& col : t.columns) r.extra.push_back(resolve_metric(c, col, t.context));
+    rows.push_back(r);
+  }
+  std::string s = "### " + md::escape(t.title) + "\n\n";
+  s += "x: `" + t.xn + "` (" + md::escape(t.x_label) + "), y: `" + t.yn + "` (" + md::escape(t.y_label) +
+       "); both lower is better.\n\n";
+  if (rows.empty()) {
+    s += "No cell has both values, so there is nothing to compare.";
+    if (!skipped.empty()) s += " Not available: " + md::escape(md::list(skipped)) + ".";
+    return s + "\n\n";
+  }
+  std::sort(rows.begin(), rows.end(), [](const TradeoffRow& a, const TradeoffRow& b) {
+    return a.x.value != b.x.value ? a.x.value < b.x.value : a.y.value < b.y.value;
+  });
+  std::vector<std::pair<double, double>> pts;
+  for (const TradeoffRow& r : rows) pts.push_back({r.x.value, r.y.value});
+  const std::vector<bool> front = pareto_front(pts);
+  for (size_t i = 0; i < rows.size(); ++i) rows[i].front = front[i];
+  std::vector<const CellResult*> among;
+  for (const TradeoffRow& r : rows) among.push_back(r.cell);
+
+  std::vector<std::string> notes;
+  const std::string path = "charts/tradeoff_" + std::to_string(n) + ".svg";
+  charts.push_back({path, svg::render(tradeoff_chart(t, rows, among, notes))});
+  s += "![" + md::escape(t.title) + "](" + path + ")\n\n";
+  s += front_sentence(t, rows, among);
+  s += tradeoff_table(t, rows);
   if (!skipped.empty()) notes.push_back("Not available, left out: " + md::list(skipped) + ".");
-  if (std::any_of(rows.begin(), rows.end(), [](const Row& r) {
+  if (std::any_of(rows.begin(), rows.end(), [](const TradeoffRow& r) {
         return std::any_of(r.extra.begin(), r.extra.end(), [](const auto& e) { return !e.has_value(); });
       }))
     notes.push_back("— in a column: not available for that cell.");
