@@ -32,6 +32,66 @@ double ns_to_trace_us(std::uint64_t ns) {
   return us;
 }
 
+// One frame's span and its passes on one queue's track: passes clamped to the frame and trimmed so that
+// none starts before the previous one ends (ties keep input order); `fixes` counts what was moved.
+template <class ToUs>
+void add_frame_track(json& events, const FrameSample& f, std::size_t i, Span frame, int tid,
+                     const std::vector<std::size_t>& indices, const ToUs& us, TimelineFixes& fixes) {
+  events.push_back({{"ph", "X"}, {"name", "frame"}, {"cat", "frame"}, {"pid", kPid}, {"tid", tid},
+                    {"ts", us(frame.begin)}, {"dur", ns_to_trace_us(frame.end - frame.begin)},
+                    {"args", {{"frame", i}, {"frame_ns", f.duration_ns()}, {"cpu_wall_ns", f.cpu_wall_ns}}}});
+
+  std::vector<Span> spans;
+  for (std::size_t k : indices) {
+    const PassSample& p = f.passes[k];
+    Span s{std::clamp(p.begin_ns, frame.begin, frame.end), std::clamp(p.end_ns, frame.begin, frame.end)};
+    if (s.begin != p.begin_ns || s.end != p.end_ns) ++fixes.passes_clamped;
+    spans.push_back(s);
+  }
+  std::vector<std::size_t> order(indices.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    if (spans[a].begin != spans[b].begin) return spans[a].begin < spans[b].begin;
+    return spans[a].end < spans[b].end;
+  });
+  std::uint64_t prev_end = frame.begin;
+  for (std::size_t o : order) {
+    Span s = spans[o];
+    if (s.begin < prev_end) {
+      s.begin = prev_end;
+      s.end = std::max(s.end, s.begin);
+      ++fixes.passes_trimmed;
+    }
+    prev_end = s.end;
+    const PassSample& p = f.passes[indices[o]];
+    events.push_back({{"ph", "X"}, {"name", p.pass}, {"cat", "pass"}, {"pid", kPid}, {"tid", tid},
+                      {"ts", us(s.begin)}, {"dur", ns_to_trace_us(s.end - s.begin)},
+                      {"args", {{"frame", i}, {"duration_ns", p.duration_ns()}}}});
+  }
+}
+
+// The frames timed as the application records them (Frame::render_overlapped), on track `tid`.
+template <class ToUs>
+void add_overlapped_track(json& events, const FrameTimings& timings, int tid, const ToUs& us, TimelineFixes& fixes) {
+  events.push_back({{"ph", "M"}, {"name", "thread_name"}, {"pid", kPid}, {"tid", tid},
+                    {"args", {{"name", "frame as recorded (passes free to overlap)"}}}});
+  events.push_back({{"ph", "M"}, {"name", "thread_sort_index"}, {"pid", kPid}, {"tid", tid},
+                    {"args", {{"sort_index", tid}}}});
+  std::uint64_t prev_end = 0;
+  for (std::size_t i = 0; i < timings.overlapped().size(); ++i) {
+    Span o{timings.overlapped()[i].begin_ns, timings.overlapped()[i].end_ns};
+    if (i > 0 && o.begin < prev_end) {
+      o.begin = prev_end;
+      o.end = std::max(o.end, o.begin);
+      ++fixes.frames_trimmed;
+    }
+    prev_end = o.end;
+    events.push_back({{"ph", "X"}, {"name", "frame (overlapped)"}, {"cat", "frame"}, {"pid", kPid}, {"tid", tid},
+                      {"ts", us(o.begin)}, {"dur", ns_to_trace_us(o.end - o.begin)},
+                      {"args", {{"paired_with_frame", i}, {"frame_ns", timings.overlapped()[i].duration_ns()}}}});
+  }
+}
+
 json build_timeline(const FrameTimings& timings, TimelineFixes* fixes_out, const TimelineOptions& options) {
   const std::vector<FrameSample>& frames = timings.measured();
   TimelineFixes fixes;
@@ -94,39 +154,7 @@ json build_timeline(const FrameTimings& timings, TimelineFixes* fixes_out, const
     std::map<int, std::vector<std::size_t>> by_track;
     for (std::size_t k = 0; k < f.passes.size(); ++k) by_track[tid_of(f.passes[k].queue)].push_back(k);
 
-    for (auto& [tid, indices] : by_track) {
-      events.push_back({{"ph", "X"}, {"name", "frame"}, {"cat", "frame"}, {"pid", kPid}, {"tid", tid},
-                        {"ts", us(frame.begin)}, {"dur", ns_to_trace_us(frame.end - frame.begin)},
-                        {"args", {{"frame", i}, {"frame_ns", f.duration_ns()}, {"cpu_wall_ns", f.cpu_wall_ns}}}});
-
-      std::vector<Span> spans;
-      for (std::size_t k : indices) {
-        const PassSample& p = f.passes[k];
-        Span s{std::clamp(p.begin_ns, frame.begin, frame.end), std::clamp(p.end_ns, frame.begin, frame.end)};
-        if (s.begin != p.begin_ns || s.end != p.end_ns) ++fixes.passes_clamped;
-        spans.push_back(s);
-      }
-      std::vector<std::size_t> order(indices.size());
-      std::iota(order.begin(), order.end(), 0);
-      std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-        if (spans[a].begin != spans[b].begin) return spans[a].begin < spans[b].begin;
-        return spans[a].end < spans[b].end;
-      });
-      std::uint64_t prev_end = frame.begin;
-      for (std::size_t o : order) {
-        Span s = spans[o];
-        if (s.begin < prev_end) {
-          s.begin = prev_end;
-          s.end = std::max(s.end, s.begin);
-          ++fixes.passes_trimmed;
-        }
-        prev_end = s.end;
-        const PassSample& p = f.passes[indices[o]];
-        events.push_back({{"ph", "X"}, {"name", p.pass}, {"cat", "pass"}, {"pid", kPid}, {"tid", tid},
-                          {"ts", us(s.begin)}, {"dur", ns_to_trace_us(s.end - s.begin)},
-                          {"args", {{"frame", i}, {"duration_ns", p.duration_ns()}}}});
-      }
-    }
+    for (auto& [tid, indices] : by_track) add_frame_track(events, f, i, frame, tid, indices, us, fixes);
 
     if (options.counter_tracks) {
       for (const char* name : counter_names) {
@@ -144,26 +172,7 @@ json build_timeline(const FrameTimings& timings, TimelineFixes* fixes_out, const
 
   // The frames as the application records them: one span each on a track of their own (no pass inside:
   // with the passes free to overlap, no boundary between them can be timed).
-  if (overlapped_track) {
-    const int tid = static_cast<int>(queues.size()) + 1;
-    events.push_back({{"ph", "M"}, {"name", "thread_name"}, {"pid", kPid}, {"tid", tid},
-                      {"args", {{"name", "frame as recorded (passes free to overlap)"}}}});
-    events.push_back({{"ph", "M"}, {"name", "thread_sort_index"}, {"pid", kPid}, {"tid", tid},
-                      {"args", {{"sort_index", tid}}}});
-    std::uint64_t prev_end = 0;
-    for (std::size_t i = 0; i < timings.overlapped().size(); ++i) {
-      Span o{timings.overlapped()[i].begin_ns, timings.overlapped()[i].end_ns};
-      if (i > 0 && o.begin < prev_end) {
-        o.begin = prev_end;
-        o.end = std::max(o.end, o.begin);
-        ++fixes.frames_trimmed;
-      }
-      prev_end = o.end;
-      events.push_back({{"ph", "X"}, {"name", "frame (overlapped)"}, {"cat", "frame"}, {"pid", kPid}, {"tid", tid},
-                        {"ts", us(o.begin)}, {"dur", ns_to_trace_us(o.end - o.begin)},
-                        {"args", {{"paired_with_frame", i}, {"frame_ns", timings.overlapped()[i].duration_ns()}}}});
-    }
-  }
+  if (overlapped_track) add_overlapped_track(events, timings, static_cast<int>(queues.size()) + 1, us, fixes);
 
   if (fixes_out != nullptr) *fixes_out = fixes;
   return {{"traceEvents", std::move(events)},
