@@ -198,6 +198,80 @@ static std::string one_line(std::string s) {
 
 void TraceReader::fail(const std::string& what) const { throw InputError(one_line(path_.string() + ": " + what)); }
 
+void TraceReader::read_buffer_table(const std::vector<char>& payload, const std::string& at) {
+  Cursor c{payload};
+  uint32_t count = 0;
+  if (!c.get(&count, 4)) fail("malformed BUFS" + at);
+  for (uint32_t i = 0; i < count; ++i) {
+    BufferEntry e{};
+    if (!c.get(&e, sizeof e)) fail("malformed BUFS" + at + ": entry " + std::to_string(i));
+    BufferInfo b;
+    // Bound the name by the chunk before allocating it (a corrupt length once asked for 4 GiB).
+    if (e.name_bytes > payload.size() - c.pos)
+      fail("malformed BUFS" + at + ": name of entry " + std::to_string(i) + " runs past the chunk");
+    b.name.resize(e.name_bytes);
+    if (!c.get(b.name.data(), e.name_bytes)) fail("malformed BUFS" + at + ": name of entry " + std::to_string(i));
+    // The writer's names are printable ASCII; anything else is corruption (and cannot go into JSON).
+    if (!printable_ascii(b.name)) fail("malformed BUFS" + at + ": name of entry " + std::to_string(i) + " is not printable ASCII");
+    c.pos += pad8(e.name_bytes);
+    if (e.kind > uint32_t(BufferKind::image_tiled) || e.id > HP_TRACE_BUFFER_MASK)
+      fail("BUFS" + at + ": entry " + std::to_string(i) + " has an invalid kind or id");
+    b.id = e.id;
+    b.kind = BufferKind(e.kind);
+    b.base_address = e.base_address;
+    b.size_bytes = e.size_bytes;
+    b.texel_bytes = e.texel_bytes;
+    b.width = e.width;
+    b.height = e.height;
+    b.row_pitch_bytes = e.row_pitch_bytes;
+    b.tile_width = e.tile_width;
+    b.tile_height = e.tile_height;
+    if (b.kind != BufferKind::buffer &&
+        (b.texel_bytes == 0 || b.width == 0 || b.height == 0 ||
+         (b.kind == BufferKind::image_linear && b.row_pitch_bytes < uint64_t(b.width) * b.texel_bytes) ||
+         (b.kind == BufferKind::image_tiled && (b.tile_width == 0 || b.tile_height == 0))))
+      fail("BUFS" + at + ": image '" + b.name + "' has an impossible layout");
+    if (header_.find_buffer(b.id)) fail("BUFS" + at + ": duplicate buffer id " + std::to_string(b.id));
+    header_.buffers.push_back(std::move(b));
+  }
+}
+
+void TraceReader::read_pass(const std::vector<char>& payload, const std::string& at) {
+  Cursor c{payload};
+  PassEntry e{};
+  if (!c.get(&e, sizeof e)) fail("malformed PASS" + at);
+  if (e.index != passes_.size()) fail("PASS" + at + " out of order");
+  PassInfo p;
+  if (e.name_bytes > payload.size() - c.pos) fail("malformed PASS" + at + ": name runs past the chunk");
+  p.name.resize(e.name_bytes);
+  if (!c.get(p.name.data(), e.name_bytes)) fail("malformed PASS" + at);
+  if (!printable_ascii(p.name)) fail("malformed PASS" + at + ": the name is not printable ASCII");
+  for (int i = 0; i < 3; ++i) {
+    p.dispatch.workgroup_size[i] = e.workgroup_size[i];
+    p.dispatch.workgroup_count[i] = e.workgroup_count[i];
+    if (e.workgroup_size[i] == 0) fail("PASS '" + p.name + "': workgroup size 0");
+  }
+  unsigned __int128 invocations = 1;  // six 32-bit factors: 128 bits hold any product of four, then clamp
+  for (int i = 0; i < 3 && invocations <= 0xFFFFFFFFull; ++i)
+    invocations *= (unsigned __int128)e.workgroup_size[i] * e.workgroup_count[i];
+  if (invocations > 0xFFFFFFFFull) fail("PASS '" + p.name + "': 2^32 invocations or more");
+  passes_.push_back(std::move(p));
+}
+
+// A workgroup belongs to at most one slice: sliced replay (read_slices) relies on it.
+void TraceReader::check_slices_disjoint() const {
+  std::vector<const Chunk*> order;
+  for (const Chunk& c : chunks_)
+    if (c.first_workgroup < c.end_workgroup) order.push_back(&c);
+  std::sort(order.begin(), order.end(), [](const Chunk* a, const Chunk* b) {
+    return a->pass != b->pass ? a->pass < b->pass : a->first_workgroup < b->first_workgroup;
+  });
+  for (size_t i = 1; i < order.size(); ++i)
+    if (order[i]->pass == order[i - 1]->pass && order[i]->first_workgroup < order[i - 1]->end_workgroup)
+      fail("RECS slices of pass " + std::to_string(order[i]->pass) + " overlap at workgroup " +
+           std::to_string(order[i]->first_workgroup));
+}
+
 TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
   std::error_code dir_ec;
   if (std::filesystem::is_directory(path_, dir_ec)) fail("is a directory, not a trace file");
@@ -253,59 +327,9 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
       if (ch.tag == kTagBuffers) {
         if (have_buffers) fail("second BUFS" + at);
         have_buffers = true;
-        uint32_t count = 0;
-        if (!c.get(&count, 4)) fail("malformed BUFS" + at);
-        for (uint32_t i = 0; i < count; ++i) {
-          BufferEntry e{};
-          if (!c.get(&e, sizeof e)) fail("malformed BUFS" + at + ": entry " + std::to_string(i));
-          BufferInfo b;
-          // Bound the name by the chunk before allocating it (a corrupt length once asked for 4 GiB).
-          if (e.name_bytes > payload.size() - c.pos)
-            fail("malformed BUFS" + at + ": name of entry " + std::to_string(i) + " runs past the chunk");
-          b.name.resize(e.name_bytes);
-          if (!c.get(b.name.data(), e.name_bytes)) fail("malformed BUFS" + at + ": name of entry " + std::to_string(i));
-          // The writer's names are printable ASCII; anything else is corruption (and cannot go into JSON).
-          if (!printable_ascii(b.name)) fail("malformed BUFS" + at + ": name of entry " + std::to_string(i) + " is not printable ASCII");
-          c.pos += pad8(e.name_bytes);
-          if (e.kind > uint32_t(BufferKind::image_tiled) || e.id > HP_TRACE_BUFFER_MASK)
-            fail("BUFS" + at + ": entry " + std::to_string(i) + " has an invalid kind or id");
-          b.id = e.id;
-          b.kind = BufferKind(e.kind);
-          b.base_address = e.base_address;
-          b.size_bytes = e.size_bytes;
-          b.texel_bytes = e.texel_bytes;
-          b.width = e.width;
-          b.height = e.height;
-          b.row_pitch_bytes = e.row_pitch_bytes;
-          b.tile_width = e.tile_width;
-          b.tile_height = e.tile_height;
-          if (b.kind != BufferKind::buffer &&
-              (b.texel_bytes == 0 || b.width == 0 || b.height == 0 ||
-               (b.kind == BufferKind::image_linear && b.row_pitch_bytes < uint64_t(b.width) * b.texel_bytes) ||
-               (b.kind == BufferKind::image_tiled && (b.tile_width == 0 || b.tile_height == 0))))
-            fail("BUFS" + at + ": image '" + b.name + "' has an impossible layout");
-          if (header_.find_buffer(b.id)) fail("BUFS" + at + ": duplicate buffer id " + std::to_string(b.id));
-          header_.buffers.push_back(std::move(b));
-        }
+        read_buffer_table(payload, at);
       } else if (ch.tag == kTagPass) {
-        PassEntry e{};
-        if (!c.get(&e, sizeof e)) fail("malformed PASS" + at);
-        if (e.index != passes_.size()) fail("PASS" + at + " out of order");
-        PassInfo p;
-        if (e.name_bytes > payload.size() - c.pos) fail("malformed PASS" + at + ": name runs past the chunk");
-        p.name.resize(e.name_bytes);
-        if (!c.get(p.name.data(), e.name_bytes)) fail("malformed PASS" + at);
-        if (!printable_ascii(p.name)) fail("malformed PASS" + at + ": the name is not printable ASCII");
-        for (int i = 0; i < 3; ++i) {
-          p.dispatch.workgroup_size[i] = e.workgroup_size[i];
-          p.dispatch.workgroup_count[i] = e.workgroup_count[i];
-          if (e.workgroup_size[i] == 0) fail("PASS '" + p.name + "': workgroup size 0");
-        }
-        unsigned __int128 invocations = 1;  // six 32-bit factors: 128 bits hold any product of four, then clamp
-        for (int i = 0; i < 3 && invocations <= 0xFFFFFFFFull; ++i)
-          invocations *= (unsigned __int128)e.workgroup_size[i] * e.workgroup_count[i];
-        if (invocations > 0xFFFFFFFFull) fail("PASS '" + p.name + "': 2^32 invocations or more");
-        passes_.push_back(std::move(p));
+        read_pass(payload, at);
       } else if (ch.tag == kTagEnd) {
         EndEntry e{};
         if (!c.get(&e, sizeof e)) fail("malformed END" + at);
@@ -325,17 +349,7 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
   }
   if (!have_buffers) fail("truncated: no buffer table");
   if (!have_end) fail("truncated: no END chunk (the writer did not finish)");
-  // A workgroup belongs to at most one slice: sliced replay (read_slices) relies on it.
-  std::vector<const Chunk*> order;
-  for (const Chunk& c : chunks_)
-    if (c.first_workgroup < c.end_workgroup) order.push_back(&c);
-  std::sort(order.begin(), order.end(), [](const Chunk* a, const Chunk* b) {
-    return a->pass != b->pass ? a->pass < b->pass : a->first_workgroup < b->first_workgroup;
-  });
-  for (size_t i = 1; i < order.size(); ++i)
-    if (order[i]->pass == order[i - 1]->pass && order[i]->first_workgroup < order[i - 1]->end_workgroup)
-      fail("RECS slices of pass " + std::to_string(order[i]->pass) + " overlap at workgroup " +
-           std::to_string(order[i]->first_workgroup));
+  check_slices_disjoint();
   guard.armed = false;
 }
 

@@ -101,6 +101,10 @@ class TraceReader {
   };
   void read_chunk(const Chunk& c, TraceRecord* out) const;  // c.count records to `out`, validated
   [[noreturn]] void fail(const std::string& what) const;
+  // Parts of the constructor's directory read; `at` names the chunk in errors.
+  void read_buffer_table(const std::vector<char>& payload, const std::string& at);
+  void read_pass(const std::vector<char>& payload, const std::string& at);
+  void check_slices_disjoint() const;
   std::filesystem::path path_;
   std::FILE* file_ = nullptr;
   TraceHeader header_;
