@@ -51,6 +51,88 @@ double ms_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
+// What `bvh` prints of the build: time and rate, method, node counts, SAH cost, the leaf-size histogram.
+void print_build(const BvhArgs& a, const bvh::BuildOptions& o, const bvh::Bvh& tree, size_t triangles, double build_ms) {
+  const bvh::BvhStats s = bvh::bvh_stats(tree);
+  std::string method = a.full_sweep ? std::string("full-sweep SAH (3 axes)")
+                                    : "binned SAH, " + std::to_string(a.buckets) + " buckets, " +
+                                          (a.largest_axis_only ? "largest centroid axis" : "3 axes");
+  std::printf("build: %.2f ms (%.2f M triangles/s), %s, %s granularity, leaf size <= %d, %s threads\n", build_ms,
+              build_ms > 0 ? static_cast<double>(triangles) / build_ms / 1e3 : 0.0, method.c_str(),
+              a.granularity.c_str(), a.leaf_size, a.threads > 0 ? std::to_string(a.threads).c_str() : "all");
+  std::printf("nodes: %zu, leaves: %zu, primitives: %zu (%zu triangles), max depth: %d (stack %d)\n", s.nodes, s.leaves,
+              s.primitives, s.triangles, s.max_depth, HP_BVH_STACK_SIZE);
+  if (tree.depth_limited_splits > 0) {
+    std::printf("depth bound: %zu SAH splits replaced by median splits to fit the stack\n", tree.depth_limited_splits);
+  }
+  if (o.granularity == bvh::Granularity::object) {
+    std::printf("SAH cost: %.4f (leaf = objects), %.4f (leaf = triangles), traversal cost %.2f\n", s.sah_cost,
+                s.sah_cost_triangles, o.traversal_cost);
+  } else {
+    std::printf("SAH cost: %.4f (traversal cost %.2f, triangle cost 1, relative to the root's area)\n", s.sah_cost,
+                o.traversal_cost);
+  }
+  std::printf("leaf sizes:");
+  for (std::size_t k = 1; k < s.leaf_size_histogram.size(); ++k) {
+    if (s.leaf_size_histogram[k] == 0) continue;
+    std::printf(" %zu:%zu (%.1f%%)", k, s.leaf_size_histogram[k],
+                100.0 * static_cast<double>(s.leaf_size_histogram[k]) / static_cast<double>(s.leaves));
+  }
+  std::printf("\n");
+}
+
+// The rays through the reference traversal; the hits go to --hits.
+void cast_on_cpu(const BvhArgs& a, const bvh::Bvh& tree, const bvh::LeafOrderTriangles& lt,
+                 const std::vector<bvh::Ray>& rays) {
+  bvh::TraversalStats ts;
+  const auto cast_start = std::chrono::steady_clock::now();
+  const std::vector<bvh::Hit> hits =
+      bvh::cast_rays(tree, lt, rays, a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest, a.threads, &ts);
+  const double cast_ms = ms_since(cast_start);
+  bvh::write_hits(a.hits, hits);
+  std::size_t hit_count = 0;
+  for (const auto& h : hits) hit_count += h.hit();
+  const double n = rays.empty() ? 1.0 : static_cast<double>(rays.size());
+  std::printf("rays: %zu (%s), %zu hits (%.2f%%), %.2f ms (%.2f M rays/s), %.1f nodes and %.1f triangles per ray\n",
+              rays.size(), a.any_hit ? "any hit" : "closest hit", hit_count, 100.0 * static_cast<double>(hit_count) / n,
+              cast_ms, cast_ms > 0 ? static_cast<double>(rays.size()) / cast_ms / 1e3 : 0.0,
+              static_cast<double>(ts.nodes_visited) / n, static_cast<double>(ts.triangles_tested) / n);
+  std::printf("hits written to %s\n", a.hits.c_str());
+}
+
+// The same rays through the passes' traversal on the device (shaders/trace_rays.comp): one untimed cast
+// (pipeline compilation, caches), then three timed by GPU timestamps, and the answers checked against the
+// reference bit for bit.
+void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeometry g,
+                  const std::vector<bvh::Ray>& rays) {
+  const RtScene rts(ctx, scene, g, parse_geometry_layout(a.geometry), false);
+  RayBatchTracer tracer(ctx, rts, rays);
+  const bvh::HitMode mode = a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest;
+  tracer.trace(ctx, mode);
+  std::vector<double> ms;
+  for (int i = 0; i < 3; ++i) ms.push_back(double(tracer.trace(ctx, mode)) * 1e-6);
+  const BatchCheck check = check_against_reference(g.bvh, g.leaf, rays, mode, tracer.results(ctx));
+  std::sort(ms.begin(), ms.end());
+  if (ms[1] > 0.0) {
+    std::printf("gpu: %s, %s layout: %.2f ms median of 3 (%.2f-%.2f) by timestamps, %.2f M rays/s\n",
+                ctx.info().name.c_str(), a.geometry.c_str(), ms[1], ms[0], ms[2], double(rays.size()) / ms[1] / 1e3);
+  } else {
+    std::printf("gpu: %s, %s layout: no timestamps on this queue, not timed\n", ctx.info().name.c_str(),
+                a.geometry.c_str());
+  }
+  for (const std::string& d : check.first_differences) std::printf("  differs: %s\n", d.c_str());
+  std::printf("gpu vs reference: %zu of %zu rays equal (hit, t, u, v bit for bit; nodes and triangles per ray)\n",
+              check.rays - check.differ, check.rays);
+  if (check.differ > 0) {
+    throw std::runtime_error("bvh --gpu: " + std::to_string(check.differ) + " of " + std::to_string(check.rays) +
+                             " rays differ from the reference traversal");
+  }
+  if (ctx.validation_enabled() && ctx.validation_message_count() > 0) {
+    throw std::runtime_error("bvh --gpu: " + std::to_string(ctx.validation_message_count()) +
+                             " validation message(s); last: " + ctx.last_validation_message());
+  }
+}
+
 void run_bvh(const BvhArgs& a) {
   if (a.rays.empty() != a.hits.empty()) throw InputError("bvh: --rays and --hits go together");
   // Outputs and the device are checked before any work: a failure leaves no file of this run behind.
@@ -83,88 +165,20 @@ void run_bvh(const BvhArgs& a) {
                                                 : std::span<const uint32_t>();
 
   const auto build_start = std::chrono::steady_clock::now();
-  const bvh::Bvh tree = bvh::build_bvh(tris, o, objects);
-  const double build_ms = ms_since(build_start);
-  const bvh::BvhStats s = bvh::bvh_stats(tree);
-
-  std::string method = a.full_sweep ? std::string("full-sweep SAH (3 axes)")
-                                    : "binned SAH, " + std::to_string(a.buckets) + " buckets, " +
-                                          (a.largest_axis_only ? "largest centroid axis" : "3 axes");
-  std::printf("build: %.2f ms (%.2f M triangles/s), %s, %s granularity, leaf size <= %d, %s threads\n", build_ms,
-              build_ms > 0 ? static_cast<double>(tris.size()) / build_ms / 1e3 : 0.0, method.c_str(),
-              a.granularity.c_str(), a.leaf_size, a.threads > 0 ? std::to_string(a.threads).c_str() : "all");
-  std::printf("nodes: %zu, leaves: %zu, primitives: %zu (%zu triangles), max depth: %d (stack %d)\n", s.nodes, s.leaves,
-              s.primitives, s.triangles, s.max_depth, HP_BVH_STACK_SIZE);
-  if (tree.depth_limited_splits > 0) {
-    std::printf("depth bound: %zu SAH splits replaced by median splits to fit the stack\n", tree.depth_limited_splits);
-  }
-  if (o.granularity == bvh::Granularity::object) {
-    std::printf("SAH cost: %.4f (leaf = objects), %.4f (leaf = triangles), traversal cost %.2f\n", s.sah_cost,
-                s.sah_cost_triangles, o.traversal_cost);
-  } else {
-    std::printf("SAH cost: %.4f (traversal cost %.2f, triangle cost 1, relative to the root's area)\n", s.sah_cost,
-                o.traversal_cost);
-  }
-  std::printf("leaf sizes:");
-  for (std::size_t k = 1; k < s.leaf_size_histogram.size(); ++k) {
-    if (s.leaf_size_histogram[k] == 0) continue;
-    std::printf(" %zu:%zu (%.1f%%)", k, s.leaf_size_histogram[k],
-                100.0 * static_cast<double>(s.leaf_size_histogram[k]) / static_cast<double>(s.leaves));
-  }
-  std::printf("\n");
+  bvh::Bvh tree = bvh::build_bvh(tris, o, objects);
+  print_build(a, o, tree, tris.size(), ms_since(build_start));
 
   if (a.rays.empty()) return;
   const std::vector<bvh::Ray> rays = bvh::read_rays(a.rays);
-  const bvh::LeafOrderTriangles lt = bvh::leaf_order(tree, tris);
-  bvh::TraversalStats ts;
-  const auto cast_start = std::chrono::steady_clock::now();
-  const std::vector<bvh::Hit> hits =
-      bvh::cast_rays(tree, lt, rays, a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest, a.threads, &ts);
-  const double cast_ms = ms_since(cast_start);
-  bvh::write_hits(a.hits, hits);
-  std::size_t hit_count = 0;
-  for (const auto& h : hits) hit_count += h.hit();
-  const double n = rays.empty() ? 1.0 : static_cast<double>(rays.size());
-  std::printf("rays: %zu (%s), %zu hits (%.2f%%), %.2f ms (%.2f M rays/s), %.1f nodes and %.1f triangles per ray\n",
-              rays.size(), a.any_hit ? "any hit" : "closest hit", hit_count, 100.0 * static_cast<double>(hit_count) / n,
-              cast_ms, cast_ms > 0 ? static_cast<double>(rays.size()) / cast_ms / 1e3 : 0.0,
-              static_cast<double>(ts.nodes_visited) / n, static_cast<double>(ts.triangles_tested) / n);
-  std::printf("hits written to %s\n", a.hits.c_str());
+  bvh::LeafOrderTriangles lt = bvh::leaf_order(tree, tris);
+  cast_on_cpu(a, tree, lt, rays);
   if (!a.gpu) return;
-
-  // The same rays through the passes' traversal on the device (shaders/trace_rays.comp): one untimed cast
-  // (pipeline compilation, caches), then three timed by GPU timestamps.
   RtGeometry g;
   g.world = world;
   g.triangles = tris;
-  g.bvh = tree;
-  g.leaf = lt;
-  const RtScene rts(*ctx, scene, g, parse_geometry_layout(a.geometry), false);
-  RayBatchTracer tracer(*ctx, rts, rays);
-  const bvh::HitMode mode = a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest;
-  tracer.trace(*ctx, mode);
-  std::vector<double> ms;
-  for (int i = 0; i < 3; ++i) ms.push_back(double(tracer.trace(*ctx, mode)) * 1e-6);
-  const BatchCheck check = check_against_reference(tree, lt, rays, mode, tracer.results(*ctx));
-  std::sort(ms.begin(), ms.end());
-  if (ms[1] > 0.0) {
-    std::printf("gpu: %s, %s layout: %.2f ms median of 3 (%.2f-%.2f) by timestamps, %.2f M rays/s\n",
-                ctx->info().name.c_str(), a.geometry.c_str(), ms[1], ms[0], ms[2], double(rays.size()) / ms[1] / 1e3);
-  } else {
-    std::printf("gpu: %s, %s layout: no timestamps on this queue, not timed\n", ctx->info().name.c_str(),
-                a.geometry.c_str());
-  }
-  for (const std::string& d : check.first_differences) std::printf("  differs: %s\n", d.c_str());
-  std::printf("gpu vs reference: %zu of %zu rays equal (hit, t, u, v bit for bit; nodes and triangles per ray)\n",
-              check.rays - check.differ, check.rays);
-  if (check.differ > 0) {
-    throw std::runtime_error("bvh --gpu: " + std::to_string(check.differ) + " of " + std::to_string(check.rays) +
-                             " rays differ from the reference traversal");
-  }
-  if (ctx->validation_enabled() && ctx->validation_message_count() > 0) {
-    throw std::runtime_error("bvh --gpu: " + std::to_string(ctx->validation_message_count()) +
-                             " validation message(s); last: " + ctx->last_validation_message());
-  }
+  g.bvh = std::move(tree);
+  g.leaf = std::move(lt);
+  trace_on_gpu(a, *ctx, scene, std::move(g), rays);
 }
 
 }  // namespace
