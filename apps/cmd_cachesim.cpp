@@ -76,6 +76,66 @@ void check_outputs(const CachesimArgs& a) {
   if (!a.export_din_path.empty()) check_output_path(a.export_din_path, "--export-din");
 }
 
+// One replayed pass: its tables printed, its JSON returned, its miss-ratio curves appended to `csv`.
+nlohmann::json report_pass(const PassResult& r, const trace::TraceHeader& header, const SimOptions& opt,
+                           bool per_invocation, std::string& csv) {
+  const auto& s = r.stats;
+  std::printf("\npass '%s': %llu lane accesses, %llu workgroups, %llu wavefront steps, %u slice(s) (at most %llu "
+              "records held at once)\n",
+              r.name.c_str(), (unsigned long long)r.lane_accesses, (unsigned long long)r.workgroups,
+              (unsigned long long)r.wave_steps, r.slices, (unsigned long long)r.peak_resident_records);
+  std::printf("  %-3s %14s %14s %14s %9s %14s %14s\n", "", "requests", "hits", "misses", "hit rate", "sectors",
+              "sector misses");
+  print_level("L1", s.l1);
+  print_level("L2", s.l2);
+  std::printf("  stores %llu, atomics %llu (write through the L1 / performed at the L2)\n",
+              (unsigned long long)s.stores, (unsigned long long)s.atomics);
+  std::printf("  DRAM read %llu bytes, written back %llu bytes\n", (unsigned long long)s.dram_read_bytes,
+              (unsigned long long)s.dram_write_bytes);
+  std::printf("  %-20s %12s %12s %9s %12s %12s %9s %14s\n", "buffer", "L1 requests", "L1 misses", "L1 miss",
+              "L2 requests", "L2 misses", "L2 miss", "DRAM read B");
+  nlohmann::json buffers = nlohmann::json::array();
+  for (const auto& b : header.buffers) {
+    const BufferStats& bs = r.buffers[b.id];
+    if (!bs.l1_requests && !bs.l2_requests) continue;
+    std::printf("  %-20s %12llu %12llu %9s %12llu %12llu %9s %14llu\n", b.name.c_str(),
+                (unsigned long long)bs.l1_requests, (unsigned long long)bs.l1_misses,
+                pct(bs.l1_misses, bs.l1_requests).c_str(), (unsigned long long)bs.l2_requests,
+                (unsigned long long)bs.l2_misses, pct(bs.l2_misses, bs.l2_requests).c_str(),
+                (unsigned long long)bs.dram_read_bytes);
+    buffers.push_back({{"id", b.id}, {"name", b.name}, {"l1_requests", bs.l1_requests},
+                       {"l1_misses", bs.l1_misses}, {"l2_requests", bs.l2_requests},
+                       {"l2_misses", bs.l2_misses}, {"dram_read_bytes", bs.dram_read_bytes}});
+  }
+  nlohmann::json pj = {{"name", r.name},
+                       {"lane_accesses", r.lane_accesses},
+                       {"wave_steps", r.wave_steps},
+                       {"slices", r.slices},
+                       {"peak_resident_records", r.peak_resident_records},
+                       {"workgroups", r.workgroups},
+                       {"l1", level_json(s.l1)},
+                       {"l2", level_json(s.l2)},
+                       {"stores", s.stores},
+                       {"atomics", s.atomics},
+                       {"dram_read_bytes", s.dram_read_bytes},
+                       {"dram_write_bytes", s.dram_write_bytes},
+                       {"buffers", buffers}};
+  if (opt.l2_mrc) {
+    pj["l1_mrc"] = curve_json(r.l1_curve);
+    pj["l2_mrc"] = curve_json(r.l2_curve);
+    std::ostringstream c;
+    write_mrc_csv(c, "l1", r.l1_curve);
+    write_mrc_csv(c, "l2", r.l2_curve);
+    std::istringstream lines(c.str());
+    for (std::string line; std::getline(lines, line);) csv += r.name + "," + line + "\n";
+  }
+  if (per_invocation) {
+    pj["l1_misses_per_invocation"] = r.l1_misses;
+    pj["l2_misses_per_invocation"] = r.l2_misses;
+  }
+  return pj;
+}
+
 void run_trace(const CachesimArgs& a) {
   check_outputs(a);
   const Preset preset = scale_for_sampling(find_preset(a.preset), a.scale_model);
@@ -107,7 +167,7 @@ void run_trace(const CachesimArgs& a) {
     // The Dinero export watches this very replay (the request stream does not depend on cache state).
     const bool export_here =
         !a.export_din_path.empty() && (a.export_pass.empty() ? p == 0 : pass.name == a.export_pass);
-    // Written to PATH.tmp and renamed when complete; a failed replay leaves no file behind.
+    // An AtomicFile, committed when the pass is replayed: a failed replay leaves no file behind.
     std::optional<AtomicFile> din;
     uint64_t din_lines = 0;
     if (export_here) {
@@ -125,61 +185,7 @@ void run_trace(const CachesimArgs& a) {
                   a.export_cu, pass.name.c_str(), a.export_din_path.c_str());
       exported = true;
     }
-    const auto& s = r.stats;
-    std::printf("\npass '%s': %llu lane accesses, %llu workgroups, %llu wavefront steps, %u slice(s) (at most %llu "
-                "records held at once)\n",
-                r.name.c_str(), (unsigned long long)r.lane_accesses, (unsigned long long)r.workgroups,
-                (unsigned long long)r.wave_steps, r.slices, (unsigned long long)r.peak_resident_records);
-    std::printf("  %-3s %14s %14s %14s %9s %14s %14s\n", "", "requests", "hits", "misses", "hit rate", "sectors",
-                "sector misses");
-    print_level("L1", s.l1);
-    print_level("L2", s.l2);
-    std::printf("  stores %llu, atomics %llu (write through the L1 / performed at the L2)\n",
-                (unsigned long long)s.stores, (unsigned long long)s.atomics);
-    std::printf("  DRAM read %llu bytes, written back %llu bytes\n", (unsigned long long)s.dram_read_bytes,
-                (unsigned long long)s.dram_write_bytes);
-    std::printf("  %-20s %12s %12s %9s %12s %12s %9s %14s\n", "buffer", "L1 requests", "L1 misses", "L1 miss",
-                "L2 requests", "L2 misses", "L2 miss", "DRAM read B");
-    nlohmann::json buffers = nlohmann::json::array();
-    for (const auto& b : header.buffers) {
-      const BufferStats& bs = r.buffers[b.id];
-      if (!bs.l1_requests && !bs.l2_requests) continue;
-      std::printf("  %-20s %12llu %12llu %9s %12llu %12llu %9s %14llu\n", b.name.c_str(),
-                  (unsigned long long)bs.l1_requests, (unsigned long long)bs.l1_misses,
-                  pct(bs.l1_misses, bs.l1_requests).c_str(), (unsigned long long)bs.l2_requests,
-                  (unsigned long long)bs.l2_misses, pct(bs.l2_misses, bs.l2_requests).c_str(),
-                  (unsigned long long)bs.dram_read_bytes);
-      buffers.push_back({{"id", b.id}, {"name", b.name}, {"l1_requests", bs.l1_requests},
-                         {"l1_misses", bs.l1_misses}, {"l2_requests", bs.l2_requests},
-                         {"l2_misses", bs.l2_misses}, {"dram_read_bytes", bs.dram_read_bytes}});
-    }
-    nlohmann::json pj = {{"name", r.name},
-                         {"lane_accesses", r.lane_accesses},
-                         {"wave_steps", r.wave_steps},
-                         {"slices", r.slices},
-                         {"peak_resident_records", r.peak_resident_records},
-                         {"workgroups", r.workgroups},
-                         {"l1", level_json(s.l1)},
-                         {"l2", level_json(s.l2)},
-                         {"stores", s.stores},
-                         {"atomics", s.atomics},
-                         {"dram_read_bytes", s.dram_read_bytes},
-                         {"dram_write_bytes", s.dram_write_bytes},
-                         {"buffers", buffers}};
-    if (opt.l2_mrc) {
-      pj["l1_mrc"] = curve_json(r.l1_curve);
-      pj["l2_mrc"] = curve_json(r.l2_curve);
-      std::ostringstream c;
-      write_mrc_csv(c, "l1", r.l1_curve);
-      write_mrc_csv(c, "l2", r.l2_curve);
-      std::istringstream lines(c.str());
-      for (std::string line; std::getline(lines, line);) csv += pass.name + "," + line + "\n";
-    }
-    if (a.per_invocation) {
-      pj["l1_misses_per_invocation"] = r.l1_misses;
-      pj["l2_misses_per_invocation"] = r.l2_misses;
-    }
-    out["passes"].push_back(pj);
+    out["passes"].push_back(report_pass(r, header, opt, a.per_invocation, csv));
   }
   if (!exported) throw InputError("--export-pass: no pass named '" + a.export_pass + "' in " + a.trace_path);
   const uint64_t flushed = sim.finish();
