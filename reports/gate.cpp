@@ -150,16 +150,15 @@ std::vector<std::string> environment_differences(const Environment& a, const Env
   return d;
 }
 
-GateOutcome run_gate(const GateSide& base, const GateSide& cand, const GateOptions& o) {
-  validate_policy(o.policy, "gate");
-  GateOutcome out;
-  for (const std::string& p : base.problems) out.cannot_compare.push_back(p);
-  for (const std::string& p : cand.problems) out.cannot_compare.push_back(p);
+namespace {
 
-  // Pair the cells.
+using CellPairs = std::vector<std::pair<const CellResult*, const CellResult*>>;
+
+// The cells of the two sides paired by match_key; cells on one side only go to out.cannot_compare.
+CellPairs pair_cells(const GateSide& base, const GateSide& cand, GateOutcome& out) {
+  CellPairs pairs;
   std::map<std::string, const CellResult*> cand_by_key;
   for (const CellResult& c : cand.cells) cand_by_key.emplace(match_key(c), &c);
-  std::vector<std::pair<const CellResult*, const CellResult*>> pairs;
   std::set<std::string> base_keys;
   std::string only_base, only_cand;
   for (const CellResult& b : base.cells) {
@@ -173,19 +172,11 @@ GateOutcome run_gate(const GateSide& base, const GateSide& cand, const GateOptio
     if (!base_keys.count(match_key(c))) only_cand += (only_cand.empty() ? "" : ", ") + cell_label(c) + " (" + c.id + ")";
   if (!only_base.empty()) out.cannot_compare.push_back("cells only in the baseline (" + base.label + "): " + only_base);
   if (!only_cand.empty()) out.cannot_compare.push_back("cells only in the candidate (" + cand.label + "): " + only_cand);
+  return pairs;
+}
 
-  // Environments: timings from different devices, drivers or thread counts do not compare.
-  std::vector<std::string> env_diff;
-  for (const auto& [b, c] : pairs)
-    for (const std::string& d : environment_differences(b->timing.environment, c->timing.environment))
-      if (std::find(env_diff.begin(), env_diff.end(), d) == env_diff.end()) env_diff.push_back(d);
-  const bool compare_timings = !o.deterministic_only && env_diff.empty();
-  for (const std::string& d : env_diff) {
-    if (o.deterministic_only) out.notes.push_back("environments differ (timings are not compared anyway): " + d);
-    else out.cannot_compare.push_back("timings not compared: the sides ran on different environments: " + d);
-  }
-
-  // Deterministic metrics.
+// Deterministic metrics must be equal (or within the policy's tolerance for that metric).
+void compare_deterministic(const CellPairs& pairs, const GateOptions& o, GateOutcome& out) {
   for (const auto& [b, c] : pairs) {
     const auto mb = deterministic_metrics(*b), mc = deterministic_metrics(*c);
     std::set<std::string> names;
@@ -219,76 +210,100 @@ GateOutcome run_gate(const GateSide& base, const GateSide& cand, const GateOptio
       out.rows.push_back(row);
     }
   }
+}
 
-  // Timings: one U test per (cell, pass), Holm across all of them.
-  if (compare_timings) {
-    struct T {
-      const CellResult* cell;
-      std::string pass;
-      double mb, mc, p;
-      size_t nb, nc;
-      bool slower;  ///< the U test's direction: candidate frames above baseline frames more often than not
-      bool exact;   ///< exact null distribution (no ties, fewer than 50 a side)
-    };
-    std::vector<T> tests;
-    for (const auto& [b, c] : pairs) {
-      const PassSamples& sb = base.samples.at(match_key(*b));
-      const PassSamples& sc = cand.samples.at(match_key(*c));
-      for (const auto& [pass, xb] : sb) {
-        auto it = std::find_if(sc.begin(), sc.end(), [&](auto& e) { return e.first == pass; });
-        if (it == sc.end()) {
-          out.cannot_compare.push_back("pass " + pass + " of cell " + cell_label(*b) + " is only in the baseline");
-          continue;
-        }
-        const MannWhitneyResult mw = mann_whitney_u(it->second, xb);
-        tests.push_back({b, pass, median_of(xb), median_of(it->second), mw.p_value, xb.size(), it->second.size(),
-                         mw.u > 0.5 * double(xb.size()) * double(it->second.size()), mw.exact});
+// Timings: one U test per (cell, pass), Holm across all of them.
+void compare_timings_of(const GateSide& base, const GateSide& cand, const CellPairs& pairs, const GateOptions& o,
+                     GateOutcome& out) {
+  struct T {
+    const CellResult* cell;
+    std::string pass;
+    double mb, mc, p;
+    size_t nb, nc;
+    bool slower;  ///< the U test's direction: candidate frames above baseline frames more often than not
+    bool exact;   ///< exact null distribution (no ties, fewer than 50 a side)
+  };
+  std::vector<T> tests;
+  for (const auto& [b, c] : pairs) {
+    const PassSamples& sb = base.samples.at(match_key(*b));
+    const PassSamples& sc = cand.samples.at(match_key(*c));
+    for (const auto& [pass, xb] : sb) {
+      auto it = std::find_if(sc.begin(), sc.end(), [&](auto& e) { return e.first == pass; });
+      if (it == sc.end()) {
+        out.cannot_compare.push_back("pass " + pass + " of cell " + cell_label(*b) + " is only in the baseline");
+        continue;
       }
-      for (const auto& [pass, xc] : sc)
-        if (std::none_of(sb.begin(), sb.end(), [&](auto& e) { return e.first == pass; }))
-          out.cannot_compare.push_back("pass " + pass + " of cell " + cell_label(*b) + " is only in the candidate");
+      const MannWhitneyResult mw = mann_whitney_u(it->second, xb);
+      tests.push_back({b, pass, median_of(xb), median_of(it->second), mw.p_value, xb.size(), it->second.size(),
+                       mw.u > 0.5 * double(xb.size()) * double(it->second.size()), mw.exact});
     }
-    std::vector<double> raw;
-    for (const T& t : tests) raw.push_back(t.p);
-    const std::vector<double> adj = holm_adjust(raw);
-    out.timing_comparisons = tests.size();
-    bool undetectable = false;
-    for (size_t i = 0; i < tests.size(); ++i) {
-      const T& t = tests[i];
-      const double ratio = t.mc / t.mb;
-      const bool sig = adj[i] <= o.policy.alpha;
-      GateRow row{cell_label(*t.cell), "time " + t.pass + " (ms)", fmt("%.3f", t.mb / 1e6), fmt("%.3f", t.mc / 1e6),
-                  change_text(t.mb, t.mc), raw[i], adj[i], "pass"};
-      // The two-sided test's significance counts only in the direction the medians moved: a bimodal
-      // candidate can have a higher median while its frames are mostly faster (audit find).
-      if (sig && t.slower && ratio > 1.0 + o.policy.threshold) {
-        row.verdict = "FAIL";
-        ++out.fails;
-      } else if (sig && t.slower && ratio > 1.0 + o.policy.warn) {
-        row.verdict = "WARN";
-        ++out.warns;
-      } else if (sig && !t.slower && ratio < 1.0) {
-        row.verdict = "pass (faster)";
-      }
-      // Holm tests the largest p at alpha itself: a comparison cannot fail when even its smallest possible
-      // p exceeds alpha. That bound holds for the exact test; with ties the normal approximation can go
-      // lower, so nothing is claimed then.
-      if (t.exact && min_p(t.nb, t.nc) > o.policy.alpha) {
-        undetectable = true;
-        ++out.cannot_fail;
-        if (row.verdict == "pass") row.verdict = "cannot fail";
-      }
-      out.rows.push_back(row);
-    }
-    if (undetectable)
-      out.notes.push_back(std::to_string(out.cannot_fail) + " of " + std::to_string(tests.size()) +
-                          " timing comparisons have too few samples for any Holm-adjusted p-value to reach alpha " +
-                          fmt("%g", o.policy.alpha) + ": they cannot fail; use more frames or --trials");
-    out.notes.push_back("timings: " + std::to_string(tests.size()) + " (cell, pass) comparisons of " + base.sample_kind +
-                        ", Mann-Whitney U, Holm-adjusted; fail when p <= " + fmt("%g", o.policy.alpha) +
-                        " and slower by more than " + fmt("%g%%", o.policy.threshold * 100) + ", warn above " +
-                        fmt("%g%%", o.policy.warn * 100));
+    for (const auto& [pass, xc] : sc)
+      if (std::none_of(sb.begin(), sb.end(), [&](auto& e) { return e.first == pass; }))
+        out.cannot_compare.push_back("pass " + pass + " of cell " + cell_label(*b) + " is only in the candidate");
   }
+  std::vector<double> raw;
+  for (const T& t : tests) raw.push_back(t.p);
+  const std::vector<double> adj = holm_adjust(raw);
+  out.timing_comparisons = tests.size();
+  bool undetectable = false;
+  for (size_t i = 0; i < tests.size(); ++i) {
+    const T& t = tests[i];
+    const double ratio = t.mc / t.mb;
+    const bool sig = adj[i] <= o.policy.alpha;
+    GateRow row{cell_label(*t.cell), "time " + t.pass + " (ms)", fmt("%.3f", t.mb / 1e6), fmt("%.3f", t.mc / 1e6),
+                change_text(t.mb, t.mc), raw[i], adj[i], "pass"};
+    // The two-sided test's significance counts only in the direction the medians moved: a bimodal
+    // candidate can have a higher median while its frames are mostly faster (audit find).
+    if (sig && t.slower && ratio > 1.0 + o.policy.threshold) {
+      row.verdict = "FAIL";
+      ++out.fails;
+    } else if (sig && t.slower && ratio > 1.0 + o.policy.warn) {
+      row.verdict = "WARN";
+      ++out.warns;
+    } else if (sig && !t.slower && ratio < 1.0) {
+      row.verdict = "pass (faster)";
+    }
+    // Holm tests the largest p at alpha itself: a comparison cannot fail when even its smallest possible
+    // p exceeds alpha. That bound holds for the exact test; with ties the normal approximation can go
+    // lower, so nothing is claimed then.
+    if (t.exact && min_p(t.nb, t.nc) > o.policy.alpha) {
+      undetectable = true;
+      ++out.cannot_fail;
+      if (row.verdict == "pass") row.verdict = "cannot fail";
+    }
+    out.rows.push_back(row);
+  }
+  if (undetectable)
+    out.notes.push_back(std::to_string(out.cannot_fail) + " of " + std::to_string(tests.size()) +
+                        " timing comparisons have too few samples for any Holm-adjusted p-value to reach alpha " +
+                        fmt("%g", o.policy.alpha) + ": they cannot fail; use more frames or --trials");
+  out.notes.push_back("timings: " + std::to_string(tests.size()) + " (cell, pass) comparisons of " + base.sample_kind +
+                      ", Mann-Whitney U, Holm-adjusted; fail when p <= " + fmt("%g", o.policy.alpha) +
+                      " and slower by more than " + fmt("%g%%", o.policy.threshold * 100) + ", warn above " +
+                      fmt("%g%%", o.policy.warn * 100));
+}
+
+}  // namespace
+
+GateOutcome run_gate(const GateSide& base, const GateSide& cand, const GateOptions& o) {
+  validate_policy(o.policy, "gate");
+  GateOutcome out;
+  for (const std::string& p : base.problems) out.cannot_compare.push_back(p);
+  for (const std::string& p : cand.problems) out.cannot_compare.push_back(p);
+  const CellPairs pairs = pair_cells(base, cand, out);
+  // Environments: timings from different devices, drivers or thread counts do not compare.
+  std::vector<std::string> env_diff;
+  for (const auto& [b, c] : pairs)
+    for (const std::string& d : environment_differences(b->timing.environment, c->timing.environment))
+      if (std::find(env_diff.begin(), env_diff.end(), d) == env_diff.end()) env_diff.push_back(d);
+  const bool compare_timings = !o.deterministic_only && env_diff.empty();
+  for (const std::string& d : env_diff) {
+    if (o.deterministic_only) out.notes.push_back("environments differ (timings are not compared anyway): " + d);
+    else out.cannot_compare.push_back("timings not compared: the sides ran on different environments: " + d);
+  }
+
+  compare_deterministic(pairs, o, out);
+  if (compare_timings) compare_timings_of(base, cand, pairs, o, out);
   // A gate whose timing comparisons could not have failed has not passed them: INCONCLUSIVE (exit 4),
   // unless a regression was found anyway.
   out.exit_code = !out.cannot_compare.empty() ? 2 : out.fails > 0 ? 1 : out.cannot_fail > 0 ? 4 : 0;
