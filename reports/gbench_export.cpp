@@ -1,6 +1,6 @@
 #include "gbench_export.hpp"
-#include "atomic_file.hpp"
 
+#include "atomic_file.hpp"
 #include "error.hpp"
 #include "report.hpp"
 #include "timing/stats.hpp"

@@ -1,6 +1,6 @@
 #include "report.hpp"
-#include "atomic_file.hpp"
 
+#include "atomic_file.hpp"
 #include "error.hpp"
 #include "markdown.hpp"
 #include "study.hpp"
@@ -16,7 +16,6 @@
 #include <fstream>
 #include <map>
 #include <set>
-#include <unistd.h>
 
 namespace hp {
 

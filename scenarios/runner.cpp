@@ -1,6 +1,6 @@
 #include "runner.hpp"
-#include "atomic_file.hpp"
 
+#include "atomic_file.hpp"
 #include "cache_analysis.hpp"
 #include "error.hpp"
 #include "input_file.hpp"

@@ -1,13 +1,12 @@
 #include "timing/result_json.hpp"
-#include "atomic_file.hpp"
 
-#include <unistd.h>
 
 #include <fstream>
 #include <limits>
 #include <sstream>
 #include <system_error>
 
+#include "atomic_file.hpp"
 #include "error.hpp"
 #include "input_file.hpp"
 #include "json_depth.hpp"

@@ -1,6 +1,6 @@
 #include "bvh/ray_io.hpp"
-#include "atomic_file.hpp"
 
+#include "atomic_file.hpp"
 #include "error.hpp"
 
 #include <bit>
