@@ -1,6 +1,5 @@
 #include "timing/result_json.hpp"
 
-
 #include <fstream>
 #include <limits>
 #include <sstream>
