@@ -1,7 +1,7 @@
 // Checks an output path before any work is done for it, so that a command fails at once, with the path
-// named, instead of after minutes of rendering or tracing with other outputs already written. Writers call
-// it too: each writes PATH.tmp and renames it over PATH, which would replace a device node such as
-// /dev/null (as root) or fail late on a folder.
+// named, instead of after minutes of rendering or tracing with other outputs already written. AtomicFile
+// calls it too: it writes a temporary beside PATH and renames it over PATH, which would replace a device
+// node such as /dev/null (as root) or fail late on a folder.
 #pragma once
 
 #include "error.hpp"

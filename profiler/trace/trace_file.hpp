@@ -47,7 +47,7 @@ struct Trace {
 };
 
 // Streams a trace file: header and buffer table at construction, then passes and record slices.
-// Writes to PATH.tmp and renames to PATH in finish(), so a crashed capture never leaves a file that
+// Writes through an AtomicFile, renamed to PATH in finish(), so a crashed capture never leaves a file that
 // looks complete; destroying an unfinished writer removes the temporary file.
 class TraceWriter final : public TraceSink {
  public:
