@@ -20,6 +20,7 @@ bool vulkan_required();
 vk::Context* vulkan_context(std::string* why_not = nullptr);
 
 /// Skips the current test when there is no Vulkan device.
+// clang-format off: clang-format 14 breaks the struct declared at the macro's end
 #define HP_REQUIRE_VULKAN(ctx_var)                                        \
   std::string hp_why_;                                                    \
   ::hp::vk::Context* ctx_var = ::hp::test::vulkan_context(&hp_why_);      \
@@ -35,5 +36,6 @@ vk::Context* vulkan_context(std::string* why_not = nullptr);
           << "validation messages; last: " << c->last_validation_message(); \
     }                                                                     \
   } hp_validation_check_{ctx_var, hp_msgs_before_}
+// clang-format on
 
 }  // namespace hp::test

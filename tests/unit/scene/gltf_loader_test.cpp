@@ -130,8 +130,10 @@ TEST(GltfLoader, ReadsInterleavedStridesU8IndicesAndFileNormals) {
   QuadGltf q;
   // Interleaved position + normal, 24-byte stride; normals deliberately not +z (and one unnormalised) so
   // that we can tell file normals from computed ones.
+  // clang-format off: two vertices a row
   const std::vector<float> interleaved = {0, 0, 0, 0, 1, 0,  1, 0, 0, 0, 1, 0,
                                           1, 1, 0, 0, 2, 0,  0, 1, 0, 0, 1, 0};
+  // clang-format on
   const std::vector<uint8_t> idx8 = {0, 1, 2, 0, 2, 3};
   test::BufferBuilder b;
   const std::size_t vo = b.append(interleaved);
