@@ -30,8 +30,6 @@ Aov parse_aov(const std::string& name) {
 
 namespace {
 
-constexpr uint32_t kCompositeShadows = 1u;
-constexpr uint32_t kCompositeReflections = 2u;
 constexpr uint32_t kMaxPasses = 8;
 
 vk::Image make_dummy(vk::Context& ctx, VkFormat format) {
@@ -97,8 +95,8 @@ void Frame::upload_uniforms() {
   u.light_color = glm::vec4(light_.color, 1.0f);
   u.sky_color = glm::vec4(scene_.sky_color, 1.0f);
   uint32_t flags = 0;
-  if (settings_.rt.shadows) flags |= kCompositeShadows;
-  if (settings_.rt.reflections) flags |= kCompositeReflections;
+  if (settings_.rt.shadows) flags |= HP_COMPOSITE_SHADOWS;
+  if (settings_.rt.reflections) flags |= HP_COMPOSITE_REFLECTIONS;
   u.extent = glm::uvec4(settings_.width, settings_.height, frame_index_, flags);
   u.params = glm::vec4(settings_.reversed_z ? 1.0f : 0.0f, camera_.znear, camera_.zfar,
                        float(settings_.rt.reflection_divisor));

@@ -1,6 +1,7 @@
 #include "passes/raytrace.hpp"
 
 #include "error.hpp"
+#include "gpu/bindings.h"
 #include "vk/check.hpp"
 
 #include "shaders/accumulate_comp.h"
@@ -19,6 +20,11 @@
 #include <cstring>
 
 namespace hp {
+
+// RayParams.bounds_min.w carries the sort key mode as the shaders' HP_SORT_* value.
+static_assert(int(SortKey::none) == HP_SORT_NONE && int(SortKey::octant) == HP_SORT_OCTANT &&
+                  int(SortKey::direction) == HP_SORT_DIRECTION && int(SortKey::origin) == HP_SORT_ORIGIN,
+              "hp::SortKey must match the shaders' HP_SORT_* values");
 
 namespace {
 
@@ -76,45 +82,58 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   accum_ = vk::Image(ctx, refl ? grid_w_ : 1, refl ? grid_h_ : 1, VK_FORMAT_R32G32B32A32_SFLOAT, img_usage);
 
   std::vector<VkDescriptorSetLayoutBinding> b;
-  b.push_back({0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kCS, nullptr});
-  b.push_back({1, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kCS, nullptr});
-  RtScene::add_traversal_bindings(b);  // 3-7, 26, 29-31, 34
-  b.push_back({2, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
-  for (uint32_t i = 8; i <= 14; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
-  for (uint32_t i = 15; i <= 17; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCS, nullptr});
-  for (uint32_t i = 18; i <= 20; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCS, nullptr});
-  b.push_back({21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // trace records (instrumented variants)
-  for (uint32_t i = 22; i <= 25; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // compaction
-  for (uint32_t i : {32u, 33u, 35u, 36u}) {
+  b.push_back({HP_BIND_RT_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kCS, nullptr});
+  b.push_back({HP_BIND_RT_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kCS, nullptr});
+  RtScene::add_traversal_bindings(b);
+  b.push_back({HP_BIND_RT_NODES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
+  for (uint32_t i : {HP_BIND_RT_NORMALS, HP_BIND_RT_SOUP_NORMALS, HP_BIND_RT_SLOT_MATERIAL, HP_BIND_RT_MATERIALS,
+                     HP_BIND_RT_COUNTERS, HP_BIND_RT_SHADOW_DUMP, HP_BIND_RT_REFLECTION_DUMP}) {
+    b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
+  }
+  for (uint32_t i : {HP_BIND_RT_GBUF_DEPTH, HP_BIND_RT_GBUF_NORMAL, HP_BIND_RT_GBUF_ALBEDO}) {
+    b.push_back({i, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCS, nullptr});
+  }
+  for (uint32_t i : {HP_BIND_RT_SHADOW_MASK, HP_BIND_RT_REFLECTION, HP_BIND_RT_REFLECTION_ACCUM}) {
+    b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCS, nullptr});
+  }
+  // trace records (instrumented variants)
+  b.push_back({HP_BIND_TRACE_RECORDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
+  for (uint32_t i : {HP_BIND_RT_COMPACT_RAYS, HP_BIND_RT_SORT_KEYS, HP_BIND_RT_SORT_VALUES, HP_BIND_RT_RAY_COUNT}) {
+    b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // compaction
+  }
+  for (uint32_t i : {HP_BIND_RT_NORMAL_TEXELS, HP_BIND_RT_SOUP_NORMAL_TEXELS, HP_BIND_RT_SLOT_MATERIAL_TEXELS,
+                     HP_BIND_RT_MATERIAL_TEXELS}) {
     b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // shading data as texels
   }
   descriptors_ = vk::DescriptorSet(ctx, b, 0, 0);
   auto& ds = descriptors_;
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-  ds.write_buffer(0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
-  ds.write_buffer(1, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, params_.handle());
-  ds.write_buffer(2, SB, scene.nodes().handle());
+  const VkDescriptorType TB = VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+  const VkDescriptorType CIS = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, SI = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+  ds.write_buffer(HP_BIND_RT_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
+  ds.write_buffer(HP_BIND_RT_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, params_.handle());
+  ds.write_buffer(HP_BIND_RT_NODES, SB, scene.nodes().handle());
   scene.write_traversal_bindings(ds);
-  ds.write_texel_buffer(32, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.normal_texels());
-  ds.write_texel_buffer(33, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.soup_normal_texels());
-  ds.write_texel_buffer(35, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.slot_material_texels());
-  ds.write_texel_buffer(36, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, scene.material_texels());
-  ds.write_buffer(8, SB, scene.normals().handle());
-  ds.write_buffer(9, SB, scene.soup_normals().handle());
-  ds.write_buffer(10, SB, scene.slot_material().handle());
-  ds.write_buffer(11, SB, scene.materials().handle());
-  ds.write_buffer(12, SB, counters_.handle());
-  ds.write_buffer(13, SB, shadow_dump_.handle());
-  ds.write_buffer(14, SB, reflection_dump_.handle());
+  ds.write_texel_buffer(HP_BIND_RT_NORMAL_TEXELS, TB, scene.normal_texels());
+  ds.write_texel_buffer(HP_BIND_RT_SOUP_NORMAL_TEXELS, TB, scene.soup_normal_texels());
+  ds.write_texel_buffer(HP_BIND_RT_SLOT_MATERIAL_TEXELS, TB, scene.slot_material_texels());
+  ds.write_texel_buffer(HP_BIND_RT_MATERIAL_TEXELS, TB, scene.material_texels());
+  ds.write_buffer(HP_BIND_RT_NORMALS, SB, scene.normals().handle());
+  ds.write_buffer(HP_BIND_RT_SOUP_NORMALS, SB, scene.soup_normals().handle());
+  ds.write_buffer(HP_BIND_RT_SLOT_MATERIAL, SB, scene.slot_material().handle());
+  ds.write_buffer(HP_BIND_RT_MATERIALS, SB, scene.materials().handle());
+  ds.write_buffer(HP_BIND_RT_COUNTERS, SB, counters_.handle());
+  ds.write_buffer(HP_BIND_RT_SHADOW_DUMP, SB, shadow_dump_.handle());
+  ds.write_buffer(HP_BIND_RT_REFLECTION_DUMP, SB, reflection_dump_.handle());
   const VkImageLayout ro = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
-  ds.write_image(15, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.depth.view(), ro, sampler);
-  ds.write_image(16, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.normal_roughness.view(), ro, sampler);
-  ds.write_image(17, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.albedo_metal.view(), ro, sampler);
-  ds.write_image(18, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, shadow_mask_.view(), VK_IMAGE_LAYOUT_GENERAL);
-  ds.write_image(19, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, reflection_.view(), VK_IMAGE_LAYOUT_GENERAL);
-  ds.write_image(20, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, accum_.view(), VK_IMAGE_LAYOUT_GENERAL);
+  ds.write_image(HP_BIND_RT_GBUF_DEPTH, CIS, gbuffer.depth.view(), ro, sampler);
+  ds.write_image(HP_BIND_RT_GBUF_NORMAL, CIS, gbuffer.normal_roughness.view(), ro, sampler);
+  ds.write_image(HP_BIND_RT_GBUF_ALBEDO, CIS, gbuffer.albedo_metal.view(), ro, sampler);
+  ds.write_image(HP_BIND_RT_SHADOW_MASK, SI, shadow_mask_.view(), VK_IMAGE_LAYOUT_GENERAL);
+  ds.write_image(HP_BIND_RT_REFLECTION, SI, reflection_.view(), VK_IMAGE_LAYOUT_GENERAL);
+  ds.write_image(HP_BIND_RT_REFLECTION_ACCUM, SI, accum_.view(), VK_IMAGE_LAYOUT_GENERAL);
   dummy_trace_ = vk::Buffer(ctx, 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
-  ds.write_buffer(21, SB, dummy_trace_.handle());
+  ds.write_buffer(HP_BIND_TRACE_RECORDS, SB, dummy_trace_.handle());
   // Compaction buffers: sized for every grid cell when that path is on, else 4-byte dummies.
   const bool compact = options.reflections && options.reflection_path == ReflectionPath::compact;
   const uint64_t cells = uint64_t(grid_w_) * grid_h_;
@@ -129,10 +148,10 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
                      std::to_string((cells * sizeof(gpu::CompactRay)) >> 20) +
                      " MiB, over this device's maxStorageBufferRange");
   }
-  ds.write_buffer(22, SB, compact_rays_.handle());
-  ds.write_buffer(23, SB, sort_keys_.handle());
-  ds.write_buffer(24, SB, sort_values_.handle());
-  ds.write_buffer(25, SB, ray_count_.handle());
+  ds.write_buffer(HP_BIND_RT_COMPACT_RAYS, SB, compact_rays_.handle());
+  ds.write_buffer(HP_BIND_RT_SORT_KEYS, SB, sort_keys_.handle());
+  ds.write_buffer(HP_BIND_RT_SORT_VALUES, SB, sort_values_.handle());
+  ds.write_buffer(HP_BIND_RT_RAY_COUNT, SB, ray_count_.handle());
 
   // Only the pipelines the options ask for are compiled (lavapipe compiles each one with LLVM).
   if (options.shadows) shadow_pipeline_ = create_rt_pipeline(ctx, shadows_comp, ds.pipeline_layout(), scene, flags_);
@@ -188,7 +207,7 @@ glm::uvec2 RayTracingPasses::workgroups(Traced pass, uint32_t rays) const {
 
 void RayTracingPasses::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer, bool shadows,
                                            bool reflections) {
-  descriptors_.write_buffer(21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
+  descriptors_.write_buffer(HP_BIND_TRACE_RECORDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
   if (options_.shadows && shadows && !shadow_traced_.handle()) {
     shadow_traced_ = create_rt_pipeline(ctx, shadows_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
   }
