@@ -1,19 +1,8 @@
-#include "passes/raytrace.hpp"
+#include "passes/rt_resources.hpp"
 
 #include "error.hpp"
 #include "gpu/bindings.h"
 #include "vk/check.hpp"
-
-#include "shaders/accumulate_comp.h"
-#include "shaders/compact_args_comp.h"
-#include "shaders/compact_comp.h"
-#include "shaders/compact_traced_comp.h"
-#include "shaders/consume_traced_comp.h"
-#include "shaders/consume_comp.h"
-#include "shaders/reflections_comp.h"
-#include "shaders/reflections_traced_comp.h"
-#include "shaders/shadows_comp.h"
-#include "shaders/shadows_traced_comp.h"
 
 #include <algorithm>
 #include <cmath>
@@ -39,11 +28,40 @@ glm::vec2 halton23(uint32_t i) {
   return {r2, r3};
 }
 
+std::vector<VkDescriptorSetLayoutBinding> rt_set_layout() {
+  std::vector<VkDescriptorSetLayoutBinding> b;
+  auto add = [&](uint32_t binding, VkDescriptorType type) { b.push_back({binding, type, 1, kCS, nullptr}); };
+  const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  add(HP_BIND_RT_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER);
+  add(HP_BIND_RT_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER);
+  RtScene::add_traversal_bindings(b);
+  add(HP_BIND_RT_NODES, SB);
+  for (uint32_t i : {HP_BIND_RT_NORMALS, HP_BIND_RT_SOUP_NORMALS, HP_BIND_RT_SLOT_MATERIAL, HP_BIND_RT_MATERIALS,
+                     HP_BIND_RT_COUNTERS, HP_BIND_RT_SHADOW_DUMP, HP_BIND_RT_REFLECTION_DUMP}) {
+    add(i, SB);
+  }
+  for (uint32_t i : {HP_BIND_RT_GBUF_DEPTH, HP_BIND_RT_GBUF_NORMAL, HP_BIND_RT_GBUF_ALBEDO}) {
+    add(i, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER);
+  }
+  for (uint32_t i : {HP_BIND_RT_SHADOW_MASK, HP_BIND_RT_REFLECTION, HP_BIND_RT_REFLECTION_ACCUM}) {
+    add(i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE);
+  }
+  add(HP_BIND_TRACE_RECORDS, SB);  // trace records (instrumented variants)
+  for (uint32_t i : {HP_BIND_RT_COMPACT_RAYS, HP_BIND_RT_SORT_KEYS, HP_BIND_RT_SORT_VALUES, HP_BIND_RT_RAY_COUNT}) {
+    add(i, SB);  // compaction
+  }
+  for (uint32_t i : {HP_BIND_RT_NORMAL_TEXELS, HP_BIND_RT_SOUP_NORMAL_TEXELS, HP_BIND_RT_SLOT_MATERIAL_TEXELS,
+                     HP_BIND_RT_MATERIAL_TEXELS}) {
+    add(i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER);  // shading data as texels
+  }
+  return b;
+}
+
 }  // namespace
 
-RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const GBuffer& gbuffer,
-                                   const vk::Buffer& frame_uniforms, VkSampler sampler,
-                                   const RayTracingOptions& options, const Aabb& scene_bounds)
+RtResources::RtResources(vk::Context& ctx, const RtScene& scene, const GBuffer& gbuffer,
+                         const vk::Buffer& frame_uniforms, VkSampler sampler, const RayTracingOptions& options,
+                         const Aabb& scene_bounds)
     : options_(options),
       width_(gbuffer.depth.width()),
       height_(gbuffer.depth.height()),
@@ -62,54 +80,51 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   const uint32_t d = options.reflection_divisor;
   grid_w_ = (width_ + d - 1) / d;
   grid_h_ = (height_ + d - 1) / d;
+  create_buffers(ctx);
+  descriptors_ = vk::DescriptorSet(ctx, rt_set_layout(), 0, 0);
+  write_descriptors(gbuffer, frame_uniforms, sampler);
+  begin_frame(0);
+}
 
+void RtResources::create_buffers(vk::Context& ctx) {
   params_ = vk::Buffer(ctx, sizeof(gpu::RayParams), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
   counters_ = vk::Buffer(ctx, HP_COUNTER_WORDS * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                                         VK_BUFFER_USAGE_TRANSFER_DST_BIT |
                                                         VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
   const VkBufferUsageFlags dump_usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
-  shadow_dump_ = vk::Buffer(ctx, options.dump_rays ? uint64_t(width_) * height_ * sizeof(gpu::RayDump) : 4,
-                            dump_usage, false);
-  reflection_dump_ = vk::Buffer(ctx, options.dump_rays ? uint64_t(grid_w_) * grid_h_ * sizeof(gpu::RayDump) : 4,
-                                dump_usage, false);
+  const bool dump = options_.dump_rays;
+  shadow_dump_ = vk::Buffer(ctx, dump ? uint64_t(width_) * height_ * sizeof(gpu::RayDump) : 4, dump_usage, false);
+  reflection_dump_ =
+      vk::Buffer(ctx, dump ? uint64_t(grid_w_) * grid_h_ * sizeof(gpu::RayDump) : 4, dump_usage, false);
   const VkImageUsageFlags img_usage =
       VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
   // A disabled pass's output is a 1x1 stand-in (the composite reads it only when the pass is on): a frame
   // without reflections does not hold two 16-byte-per-cell images for them (29 MiB at 1280x720).
-  const bool sh = options.shadows, refl = options.reflections;
+  const bool sh = options_.shadows, refl = options_.reflections;
   shadow_mask_ = vk::Image(ctx, sh ? width_ : 1, sh ? height_ : 1, VK_FORMAT_R32_SFLOAT, img_usage);
   reflection_ = vk::Image(ctx, refl ? grid_w_ : 1, refl ? grid_h_ : 1, VK_FORMAT_R32G32B32A32_SFLOAT, img_usage);
   accum_ = vk::Image(ctx, refl ? grid_w_ : 1, refl ? grid_h_ : 1, VK_FORMAT_R32G32B32A32_SFLOAT, img_usage);
+  dummy_trace_ = vk::Buffer(ctx, 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
+  // Compaction buffers: sized for every grid cell when that path is on, else 4-byte dummies.
+  const bool compact = compaction();
+  const uint64_t cells = uint64_t(grid_w_) * grid_h_;
+  const VkBufferUsageFlags sb_usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
+  compact_rays_ = vk::Buffer(ctx, compact ? cells * sizeof(gpu::CompactRay) : 4, sb_usage, false);
+  sort_keys_ = vk::Buffer(ctx, compact ? cells * 4 : 4, sb_usage, false);
+  sort_values_ = vk::Buffer(ctx, compact ? cells * 4 : 4, sb_usage, false);
+  ray_count_ = vk::Buffer(ctx, 16, sb_usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                          false);
+  if (compact && cells * sizeof(gpu::CompactRay) > ctx.properties().limits.maxStorageBufferRange) {
+    throw InputError("compact reflections: " + std::to_string(cells) + " rays need " +
+                     std::to_string((cells * sizeof(gpu::CompactRay)) >> 20) +
+                     " MiB, over this device's maxStorageBufferRange");
+  }
+}
 
-  std::vector<VkDescriptorSetLayoutBinding> b;
-  b.push_back({HP_BIND_RT_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kCS, nullptr});
-  b.push_back({HP_BIND_RT_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kCS, nullptr});
-  RtScene::add_traversal_bindings(b);
-  b.push_back({HP_BIND_RT_NODES, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
-  for (uint32_t i : {HP_BIND_RT_NORMALS, HP_BIND_RT_SOUP_NORMALS, HP_BIND_RT_SLOT_MATERIAL, HP_BIND_RT_MATERIALS,
-                     HP_BIND_RT_COUNTERS, HP_BIND_RT_SHADOW_DUMP, HP_BIND_RT_REFLECTION_DUMP}) {
-    b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
-  }
-  for (uint32_t i : {HP_BIND_RT_GBUF_DEPTH, HP_BIND_RT_GBUF_NORMAL, HP_BIND_RT_GBUF_ALBEDO}) {
-    b.push_back({i, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCS, nullptr});
-  }
-  for (uint32_t i : {HP_BIND_RT_SHADOW_MASK, HP_BIND_RT_REFLECTION, HP_BIND_RT_REFLECTION_ACCUM}) {
-    b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCS, nullptr});
-  }
-  // trace records (instrumented variants)
-  b.push_back({HP_BIND_TRACE_RECORDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});
-  for (uint32_t i : {HP_BIND_RT_COMPACT_RAYS, HP_BIND_RT_SORT_KEYS, HP_BIND_RT_SORT_VALUES, HP_BIND_RT_RAY_COUNT}) {
-    b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCS, nullptr});  // compaction
-  }
-  for (uint32_t i : {HP_BIND_RT_NORMAL_TEXELS, HP_BIND_RT_SOUP_NORMAL_TEXELS, HP_BIND_RT_SLOT_MATERIAL_TEXELS,
-                     HP_BIND_RT_MATERIAL_TEXELS}) {
-    b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, kCS, nullptr});  // shading data as texels
-  }
-  descriptors_ = vk::DescriptorSet(ctx, b, 0, 0);
+void RtResources::write_descriptors(const GBuffer& gbuffer, const vk::Buffer& frame_uniforms, VkSampler sampler) {
   auto& ds = descriptors_;
-  const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-  const VkDescriptorType TB = VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
-  const VkDescriptorType CIS = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, SI = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+  const RtScene& scene = scene_;
+  const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, TB = VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
   ds.write_buffer(HP_BIND_RT_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
   ds.write_buffer(HP_BIND_RT_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, params_.handle());
   ds.write_buffer(HP_BIND_RT_NODES, SB, scene.nodes().handle());
@@ -126,51 +141,29 @@ RayTracingPasses::RayTracingPasses(vk::Context& ctx, const RtScene& scene, const
   ds.write_buffer(HP_BIND_RT_SHADOW_DUMP, SB, shadow_dump_.handle());
   ds.write_buffer(HP_BIND_RT_REFLECTION_DUMP, SB, reflection_dump_.handle());
   const VkImageLayout ro = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+  const VkDescriptorType CIS = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, SI = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
   ds.write_image(HP_BIND_RT_GBUF_DEPTH, CIS, gbuffer.depth.view(), ro, sampler);
   ds.write_image(HP_BIND_RT_GBUF_NORMAL, CIS, gbuffer.normal_roughness.view(), ro, sampler);
   ds.write_image(HP_BIND_RT_GBUF_ALBEDO, CIS, gbuffer.albedo_metal.view(), ro, sampler);
   ds.write_image(HP_BIND_RT_SHADOW_MASK, SI, shadow_mask_.view(), VK_IMAGE_LAYOUT_GENERAL);
   ds.write_image(HP_BIND_RT_REFLECTION, SI, reflection_.view(), VK_IMAGE_LAYOUT_GENERAL);
   ds.write_image(HP_BIND_RT_REFLECTION_ACCUM, SI, accum_.view(), VK_IMAGE_LAYOUT_GENERAL);
-  dummy_trace_ = vk::Buffer(ctx, 16, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, false);
   ds.write_buffer(HP_BIND_TRACE_RECORDS, SB, dummy_trace_.handle());
-  // Compaction buffers: sized for every grid cell when that path is on, else 4-byte dummies.
-  const bool compact = options.reflections && options.reflection_path == ReflectionPath::compact;
-  const uint64_t cells = uint64_t(grid_w_) * grid_h_;
-  const VkBufferUsageFlags sb_usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
-  compact_rays_ = vk::Buffer(ctx, compact ? cells * sizeof(gpu::CompactRay) : 4, sb_usage, false);
-  sort_keys_ = vk::Buffer(ctx, compact ? cells * 4 : 4, sb_usage, false);
-  sort_values_ = vk::Buffer(ctx, compact ? cells * 4 : 4, sb_usage, false);
-  ray_count_ = vk::Buffer(ctx, 16, sb_usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                          false);
-  if (compact && cells * sizeof(gpu::CompactRay) > ctx.properties().limits.maxStorageBufferRange) {
-    throw InputError("compact reflections: " + std::to_string(cells) + " rays need " +
-                     std::to_string((cells * sizeof(gpu::CompactRay)) >> 20) +
-                     " MiB, over this device's maxStorageBufferRange");
-  }
   ds.write_buffer(HP_BIND_RT_COMPACT_RAYS, SB, compact_rays_.handle());
   ds.write_buffer(HP_BIND_RT_SORT_KEYS, SB, sort_keys_.handle());
   ds.write_buffer(HP_BIND_RT_SORT_VALUES, SB, sort_values_.handle());
   ds.write_buffer(HP_BIND_RT_RAY_COUNT, SB, ray_count_.handle());
-
-  // Only the pipelines the options ask for are compiled (lavapipe compiles each one with LLVM).
-  if (options.shadows) shadow_pipeline_ = create_rt_pipeline(ctx, shadows_comp, ds.pipeline_layout(), scene, flags_);
-  if (compact) {
-    compact_pipeline_ = create_rt_pipeline(ctx, compact_comp, ds.pipeline_layout(), scene, flags_);
-    args_pipeline_ = create_rt_pipeline(ctx, compact_args_comp, ds.pipeline_layout(), scene, flags_);
-    consume_pipeline_ = create_rt_pipeline(ctx, consume_comp, ds.pipeline_layout(), scene, flags_);
-    if (options.sort != SortKey::none) sorter_ = std::make_unique<RadixSort>(ctx, uint32_t(cells));
-  }
-  if (options.reflections && !compact) {
-    reflection_pipeline_ = create_rt_pipeline(ctx, reflections_comp, ds.pipeline_layout(), scene, flags_);
-  }
-  if (options.reflections) {
-    accumulate_pipeline_ = create_rt_pipeline(ctx, accumulate_comp, ds.pipeline_layout(), scene, flags_);
-  }
-  begin_frame(0);
 }
 
-void RayTracingPasses::begin_frame(uint32_t sample_index) {
+vk::Pipeline RtResources::create_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv) const {
+  return create_rt_pipeline(ctx, spirv, descriptors_.pipeline_layout(), scene_, flags_);
+}
+
+void RtResources::attach_trace_buffer(const vk::Buffer& trace_buffer) {
+  descriptors_.write_buffer(HP_BIND_TRACE_RECORDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
+}
+
+void RtResources::begin_frame(uint32_t sample_index) {
   gpu::RayParams p{};
   // The modes and what the frame records are the pipelines' specialization constant (flags_), not here.
   p.grid = glm::uvec4(grid_w_, grid_h_, options_.reflection_divisor, 0u);
@@ -191,56 +184,13 @@ void RayTracingPasses::begin_frame(uint32_t sample_index) {
   std::memcpy(params_.mapped(), &p, sizeof(p));
 }
 
-void RayTracingPasses::set_slice(uint32_t first_row, uint32_t sampling) {
+void RtResources::set_slice(uint32_t first_row, uint32_t sampling) {
   params_cache_.frame.z = first_row;
   params_cache_.frame.w = sampling;
   std::memcpy(params_.mapped(), &params_cache_, sizeof(params_cache_));
 }
 
-glm::uvec2 RayTracingPasses::workgroups(Traced pass, uint32_t rays) const {
-  switch (pass) {
-    case Traced::shadows: return {(width_ + 7) / 8, (height_ + 7) / 8};
-    case Traced::consume: return {(rays + 63) / 64, 1u};
-    default: return {(grid_w_ + 7) / 8, (grid_h_ + 7) / 8};
-  }
-}
-
-void RayTracingPasses::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer, bool shadows,
-                                           bool reflections) {
-  descriptors_.write_buffer(HP_BIND_TRACE_RECORDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
-  if (options_.shadows && shadows && !shadow_traced_.handle()) {
-    shadow_traced_ = create_rt_pipeline(ctx, shadows_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
-  }
-  const bool compact = options_.reflections && reflections && options_.reflection_path == ReflectionPath::compact;
-  if (options_.reflections && reflections && !compact && !reflection_traced_.handle()) {
-    reflection_traced_ =
-        create_rt_pipeline(ctx, reflections_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
-  }
-  if (compact && sorter_) sorter_->attach_trace_buffer(ctx, trace_buffer);
-  if (compact && !compact_traced_.handle()) {
-    compact_traced_ = create_rt_pipeline(ctx, compact_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
-    consume_traced_ = create_rt_pipeline(ctx, consume_traced_comp, descriptors_.pipeline_layout(), scene_, flags_);
-  }
-}
-
-void RayTracingPasses::record_traced_slice(VkCommandBuffer cmd, Traced pass, uint32_t first_row, uint32_t rows) {
-  const vk::Pipeline* pipelines[] = {&shadow_traced_, &reflection_traced_, &compact_traced_, &consume_traced_};
-  const vk::Pipeline& p = *pipelines[int(pass)];
-  if (!p.handle()) throw std::logic_error("record_traced_slice: attach_trace_buffer first (pass enabled?)");
-  bind(cmd, p);
-  if (pass == Traced::consume) {
-    vkCmdDispatch(cmd, rows, 1, 1);  // a slice of the one row of consume groups, offset by frame.z
-  } else {
-    const glm::uvec2 wg = workgroups(pass);
-    vkCmdDispatch(cmd, wg.x, std::min(rows, wg.y - first_row), 1);
-  }
-  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT | VK_PIPELINE_STAGE_2_HOST_BIT,
-                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
-                         VK_ACCESS_2_TRANSFER_READ_BIT | VK_ACCESS_2_HOST_READ_BIT);
-}
-
-void RayTracingPasses::record_prepare(VkCommandBuffer cmd) {
+void RtResources::record_prepare(VkCommandBuffer cmd) {
   // The accumulation image keeps its contents between frames: only its first use starts from UNDEFINED.
   const VkImageLayout from = images_initialised_ ? VK_IMAGE_LAYOUT_GENERAL : VK_IMAGE_LAYOUT_UNDEFINED;
   for (const vk::Image* img : {&shadow_mask_, &reflection_}) {
@@ -282,7 +232,7 @@ void copy_whole(VkCommandBuffer cmd, const vk::Image& from, const vk::Image& to)
 }
 }  // namespace
 
-void RayTracingPasses::save_accumulation(vk::Context& ctx) {
+void RtResources::save_accumulation(vk::Context& ctx) {
   if (!images_initialised_) return;  // nothing accumulated yet: the next frame starts from UNDEFINED anyway
   ctx.submit_and_wait([&](VkCommandBuffer cmd) {
     if (accum_saved_.handle() == VK_NULL_HANDLE) {
@@ -296,18 +246,18 @@ void RayTracingPasses::save_accumulation(vk::Context& ctx) {
   });
 }
 
-void RayTracingPasses::restore_accumulation(vk::Context& ctx) {
+void RtResources::restore_accumulation(vk::Context& ctx) {
   if (accum_saved_.handle() == VK_NULL_HANDLE || !images_initialised_) return;
   ctx.submit_and_wait([&](VkCommandBuffer cmd) { copy_whole(cmd, accum_saved_, accum_); });
 }
 
-void RayTracingPasses::bind(VkCommandBuffer cmd, const vk::Pipeline& p) const {
+void RtResources::bind(VkCommandBuffer cmd, const vk::Pipeline& p) const {
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.handle());
   VkDescriptorSet set = descriptors_.set();
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
 }
 
-void RayTracingPasses::dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h,
+void RtResources::dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h,
                                 bool then_barrier) const {
   bind(cmd, p);
   vkCmdDispatch(cmd, (w + 7) / 8, (h + 7) / 8, 1);
@@ -318,82 +268,24 @@ void RayTracingPasses::dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint
                          VK_ACCESS_2_TRANSFER_READ_BIT);
 }
 
-void RayTracingPasses::record_shadows(VkCommandBuffer cmd, bool then_barrier) const {
-  const uint32_t rows = options_.inject_shadow_fraction > 0.0f
-                            ? std::min(height_, uint32_t(std::ceil(height_ * options_.inject_shadow_fraction)))
-                            : 0u;
-  // The injected re-trace writes the same texels: a barrier between the two dispatches.
-  dispatch(cmd, shadow_pipeline_, width_, height_, then_barrier || rows > 0);
-  if (rows > 0) dispatch(cmd, shadow_pipeline_, width_, rows, then_barrier);
-}
-
-void RayTracingPasses::record_reflections(VkCommandBuffer cmd) const {
-  dispatch(cmd, reflection_pipeline_, grid_w_, grid_h_);
-}
-
-void RayTracingPasses::record_accumulate(VkCommandBuffer cmd) const {
-  dispatch(cmd, accumulate_pipeline_, grid_w_, grid_h_);
-}
-
-void RayTracingPasses::record_compact(VkCommandBuffer cmd) const {
-  vkCmdFillBuffer(cmd, ray_count_.handle(), 0, VK_WHOLE_SIZE, 0);
-  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
-                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
-  dispatch(cmd, compact_pipeline_, grid_w_, grid_h_);
-  record_args(cmd);
-}
-
-void RayTracingPasses::record_args(VkCommandBuffer cmd) const {
-  bind(cmd, args_pipeline_);
-  vkCmdDispatch(cmd, 1, 1, 1);
-  // Read as indirect arguments (the frame), by shaders and by a host readback (the capture).
+void RtResources::dispatch_traced(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t gx, uint32_t gy) const {
+  bind(cmd, p);
+  vkCmdDispatch(cmd, gx, gy, 1);
   vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                     VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT |
-                         VK_PIPELINE_STAGE_2_COPY_BIT,
-                     VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_READ_BIT |
-                         VK_ACCESS_2_TRANSFER_READ_BIT);
-}
-
-std::vector<RadixSort::Step> RayTracingPasses::sort_steps() const {
-  return sorter_ ? sorter_->steps(sort_key_bits(options_.sort)) : std::vector<RadixSort::Step>{};
-}
-
-void RayTracingPasses::record_traced_sort_step(VkCommandBuffer cmd, const RadixSort::Step& step, uint32_t first_group,
-                                               uint32_t groups, uint32_t sampling) {
-  sorter_->record_traced_step(cmd, step, sort_keys_, sort_values_, ray_count_, sort_key_bits(options_.sort), first_group,
-                              groups, sampling);
-}
-
-void RayTracingPasses::record_reset_count(VkCommandBuffer cmd, uint32_t count) const {
-  vkCmdUpdateBuffer(cmd, ray_count_.handle(), 0, sizeof(count), &count);
-  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COPY_BIT | VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
-                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                     VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
-}
-
-void RayTracingPasses::record_sort(VkCommandBuffer cmd) {
-  if (!sorter_) return;
-  sorter_->record(cmd, sort_keys_, sort_values_, ray_count_, sort_key_bits(options_.sort));
-}
-
-void RayTracingPasses::record_consume(VkCommandBuffer cmd) const {
-  bind(cmd, consume_pipeline_);
-  vkCmdDispatchIndirect(cmd, ray_count_.handle(), 4);  // consume_groups_x/y/z follow the count
-  vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
+                     VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT |
+                         VK_PIPELINE_STAGE_2_HOST_BIT,
                      VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
-                         VK_ACCESS_2_TRANSFER_READ_BIT);
+                         VK_ACCESS_2_TRANSFER_READ_BIT | VK_ACCESS_2_HOST_READ_BIT);
 }
 
-uint32_t RayTracingPasses::read_compacted_count(vk::Context& ctx) const {
+uint32_t RtResources::read_compacted_count(vk::Context& ctx) const {
   const auto bytes = vk::read_buffer(ctx, ray_count_);
   uint32_t n = 0;
   std::memcpy(&n, bytes.data(), 4);
   return n;
 }
 
-RayCounters RayTracingPasses::read_counters(vk::Context& ctx) const {
+RayCounters RtResources::read_counters(vk::Context& ctx) const {
   const auto bytes = vk::read_buffer(ctx, counters_);
   uint32_t w[HP_COUNTER_WORDS];
   std::memcpy(w, bytes.data(), sizeof(w));
@@ -436,10 +328,10 @@ std::vector<gpu::RayDump> read_dump(vk::Context& ctx, const vk::Buffer& b, bool 
 }
 }  // namespace
 
-std::vector<gpu::RayDump> RayTracingPasses::read_shadow_dump(vk::Context& ctx) const {
+std::vector<gpu::RayDump> RtResources::read_shadow_dump(vk::Context& ctx) const {
   return read_dump(ctx, shadow_dump_, options_.dump_rays);
 }
-std::vector<gpu::RayDump> RayTracingPasses::read_reflection_dump(vk::Context& ctx) const {
+std::vector<gpu::RayDump> RtResources::read_reflection_dump(vk::Context& ctx) const {
   return read_dump(ctx, reflection_dump_, options_.dump_rays);
 }
 
