@@ -1,23 +1,30 @@
 // One hybrid frame on the GPU: owns the scene's GPU copies, the render targets and the passes, records a
 // frame's command buffer with a timestamp pair around every pass, submits it and reads the timings back.
 //   gbuffer (raster) -> shadows (compute) -> reflections (compute) -> accumulate -> composite
-// A pass the settings do not ask for is neither compiled nor recorded, and no BVH is built when no ray is
-// traced.
+// The frame is a list of passes (frame_pass.hpp) built once from the settings (frame_passes.cpp): rendering,
+// host timing, timestamps, the captured pass names and the capture (capture.cpp) all iterate it. A pass the
+// settings do not ask for is neither compiled nor recorded, and no BVH is built when no ray is traced.
 #pragma once
 
 #include "bvh/bvh.hpp"
 #include "frame_settings.hpp"
 #include "gpu_scene.hpp"
 #include "image/image.hpp"
+#include "frame_pass.hpp"
+#include "passes/accumulate_pass.hpp"
+#include "passes/compaction_path.hpp"
 #include "passes/composite.hpp"
 #include "passes/gbuffer.hpp"
-#include "passes/raytrace.hpp"
+#include "passes/reflection_pass.hpp"
+#include "passes/rt_resources.hpp"
+#include "passes/shadow_pass.hpp"
 #include "rt_scene.hpp"
 #include "trace_format.hpp"
 #include "view.hpp"
 #include "vk/pipeline_stats.hpp"
 #include "vk/timestamps.hpp"
 
+#include <chrono>
 #include <memory>
 #include <optional>
 #include <string>
@@ -107,9 +114,9 @@ class Frame {
   /// simulator, both) before the next slice runs (bounded memory). A slice that overflows is re-run with fewer workgroup rows; a single row that
   /// does not fit is an InputError naming the limit. The image equals the untraced one.
   std::vector<CapturedPass> render_captured(const CaptureOptions& options, trace::TraceSink& sink);
-  /// The passes render_captured(options) traces, in its order: "shadows"; "reflections", or on the compaction
-  /// path "compact", the sort's steps (RadixSort::Step::name) and "consume". Known before the capture, so
-  /// a command can check a pass name before any work.
+  /// The passes render_captured(options) traces, in its order (the traced steps of passes()): "shadows";
+  /// "reflections", or on the compaction path "compact", the sort's steps (RadixSort::Step::name) and
+  /// "consume". Known before the capture, so a command can check a pass name before any work.
   std::vector<std::string> captured_pass_names(const CaptureOptions& options) const;
   /// The trace file header for this frame: image size and the buffer table (ids of trace_buffers.h,
   /// consecutive 4 KiB-aligned synthetic base addresses, image layouts).
@@ -124,7 +131,10 @@ class Frame {
   const FrameSettings& settings() const { return settings_; }
   /// The BVH and leaf-order geometry (when rays are traced), for CPU reference checks.
   const RtGeometry* rt_geometry() const { return rt_geometry_ ? &*rt_geometry_ : nullptr; }
-  const RayTracingPasses* rt_passes() const { return rt_passes_.get(); }
+  /// What the ray-tracing passes share: output images, counters, dumps (nullptr without ray-traced passes).
+  const RtResources* rt_passes() const { return rt_.get(); }
+  /// The frame's passes in order, as every way of running it sees them.
+  const std::vector<FramePass>& passes() const { return passes_; }
   /// The uploaded ray-tracing scene (nullptr without ray-traced passes).
   const RtScene* rt_scene() const { return rt_scene_.get(); }
   uint32_t samples_accumulated() const { return sample_index_; }
@@ -150,6 +160,9 @@ class Frame {
  private:
   void upload_uniforms();
   void record_passes(VkCommandBuffer cmd, FrameQueries queries);
+  void render_host_timed(FrameTiming& timing, std::chrono::steady_clock::time_point t0);
+  std::vector<FramePass> build_passes();  // frame_passes.cpp
+  void add_compaction_passes(std::vector<FramePass>& out);
   std::optional<FrameQueries> first_queries_;
 
   vk::Context& ctx_;
@@ -165,13 +178,20 @@ class Frame {
   vk::Sampler sampler_;
   std::optional<RtGeometry> rt_geometry_;
   std::unique_ptr<RtScene> rt_scene_;
-  std::unique_ptr<RayTracingPasses> rt_passes_;
+  std::unique_ptr<RtResources> rt_;
+  // The ray-tracing passes the settings ask for (each null otherwise); they record against rt_.
+  std::unique_ptr<ShadowPass> shadows_;
+  std::unique_ptr<ReflectionPass> reflections_;
+  std::unique_ptr<CompactionPath> compaction_;
+  std::unique_ptr<AccumulatePass> accumulate_;
   vk::Image dummy_shadow_, dummy_reflection_;  // bound by the composite when no ray is traced
   GBufferPass gbuffer_pass_;
   std::unique_ptr<CompositePass> composite_pass_;
   vk::TimestampQueries timestamps_;
   vk::ComputeInvocationQueries invocations_;
+  std::vector<FramePass> passes_;  // built last: its entries point at the passes above
   std::unique_ptr<vk::Buffer> trace_buffer_;
+  uint32_t compact_saved_ = 0;     // the capture's compacted count before a slice (restored on overflow)
   uint32_t frame_index_ = 0;
   uint32_t sample_index_ = 0;
 };

@@ -2,6 +2,7 @@
 
 #include "gpu/shared_types.h"
 #include "error.hpp"
+#include "gpu/bindings.h"
 
 #include <algorithm>
 
@@ -111,7 +112,7 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   normals_ = upload(ctx, normals, uploaded_bytes_, texel_usage);
   soup_normals_ = upload(ctx, soup_normals, uploaded_bytes_, texel_usage);
   slot_scene_ = upload(ctx, slot_map ? leaf.scene_index : std::vector<uint32_t>{}, uploaded_bytes_, texel_usage);
-  // Without texels, bindings 29-36 still need valid views: any small texel buffer does (never read).
+  // Without texels, the texel bindings (HP_BIND_RT_*_TEXELS) still need valid views: any small texel buffer does (never read).
   if (!geometry_texels_) texel_dummy_ = vk::Buffer(ctx, 48, VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);
   const auto view = [&](const vk::Buffer& b, VkFormat f) {
     return vk::BufferView(ctx, geometry_texels_ ? b : texel_dummy_, f);
@@ -140,8 +141,12 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
 
 void RtScene::add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& b) {
   const VkShaderStageFlags cs = VK_SHADER_STAGE_COMPUTE_BIT;
-  for (uint32_t i = 3; i <= 7; ++i) b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, cs, nullptr});
-  for (uint32_t i : {26u, 29u, 30u, 31u, 34u}) {
+  for (uint32_t i : {HP_BIND_RT_POSITIONS, HP_BIND_RT_INDICES, HP_BIND_RT_SOUP, HP_BIND_RT_OBJECT_FIRST,
+                     HP_BIND_RT_SLOT_SCENE}) {
+    b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, cs, nullptr});
+  }
+  for (uint32_t i : {HP_BIND_RT_NODE_TEXELS, HP_BIND_RT_POSITION_TEXELS, HP_BIND_RT_INDEX_TEXELS,
+                     HP_BIND_RT_SOUP_TEXELS, HP_BIND_RT_SLOT_SCENE_TEXELS}) {
     b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, cs, nullptr});
   }
 }
@@ -149,16 +154,16 @@ void RtScene::add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& 
 void RtScene::write_traversal_bindings(vk::DescriptorSet& ds) const {
   const VkDescriptorType sb = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   const VkDescriptorType tb = VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
-  ds.write_buffer(3, sb, positions_.handle());
-  ds.write_buffer(4, sb, indices_.handle());
-  ds.write_buffer(5, sb, soup_.handle());
-  ds.write_buffer(6, sb, object_first_.handle());
-  ds.write_buffer(7, sb, slot_scene_.handle());
-  ds.write_texel_buffer(26, tb, node_texels());
-  ds.write_texel_buffer(29, tb, position_texels());
-  ds.write_texel_buffer(30, tb, index_texels());
-  ds.write_texel_buffer(31, tb, soup_texels());
-  ds.write_texel_buffer(34, tb, slot_scene_texels());
+  ds.write_buffer(HP_BIND_RT_POSITIONS, sb, positions_.handle());
+  ds.write_buffer(HP_BIND_RT_INDICES, sb, indices_.handle());
+  ds.write_buffer(HP_BIND_RT_SOUP, sb, soup_.handle());
+  ds.write_buffer(HP_BIND_RT_OBJECT_FIRST, sb, object_first_.handle());
+  ds.write_buffer(HP_BIND_RT_SLOT_SCENE, sb, slot_scene_.handle());
+  ds.write_texel_buffer(HP_BIND_RT_NODE_TEXELS, tb, node_texels());
+  ds.write_texel_buffer(HP_BIND_RT_POSITION_TEXELS, tb, position_texels());
+  ds.write_texel_buffer(HP_BIND_RT_INDEX_TEXELS, tb, index_texels());
+  ds.write_texel_buffer(HP_BIND_RT_SOUP_TEXELS, tb, soup_texels());
+  ds.write_texel_buffer(HP_BIND_RT_SLOT_SCENE_TEXELS, tb, slot_scene_texels());
 }
 
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,

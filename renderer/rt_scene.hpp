@@ -57,8 +57,8 @@ class RtScene {
   const vk::Buffer& soup_normals() const { return soup_normals_; }
   const vk::Buffer& slot_material() const { return slot_material_; }
   const vk::Buffer& materials() const { return materials_; }
-  /// The bindings the traversal reads (shaders/common/traversal.glsl: storage buffers 3-7, texel views 26,
-  /// 29-31 and 34): their layout entries (compute stage), and writing this scene's buffers into them.
+  /// The bindings the traversal reads (shaders/common/traversal.glsl; gpu::kTraversalBindings of
+  /// core/gpu/bindings.h): their layout entries (compute stage), and writing this scene's buffers into them.
   static void add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& bindings);
   void write_traversal_bindings(vk::DescriptorSet& ds) const;
   /// Bytes uploaded for the traversal and shading (dummies excluded).

@@ -1,21 +1,19 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
 #include "gpu/shared_types.h"
+#include "gpu/bindings.h"
 #include "common/brdf.glsl"
 
 // One thread per pixel, 8x8 tiles; a ragged right/bottom edge is covered by the dispatch and skipped here.
 layout(local_size_x = 8, local_size_y = 8) in;
 
-layout(set = 0, binding = 0) uniform Frame { FrameUniforms frame; };
-layout(set = 0, binding = 1) uniform sampler2D g_depth;
-layout(set = 0, binding = 2) uniform sampler2D g_normal_roughness;
-layout(set = 0, binding = 3) uniform sampler2D g_albedo_metal;
-layout(set = 0, binding = 4, rgba32f) uniform writeonly image2D out_color;
-layout(set = 0, binding = 5, r32f) uniform readonly image2D shadow_mask;
-layout(set = 0, binding = 6, rgba32f) uniform readonly image2D reflection_accum;
-
-#define HP_COMPOSITE_SHADOWS 1u
-#define HP_COMPOSITE_REFLECTIONS 2u
+layout(set = 0, binding = HP_BIND_COMPOSITE_FRAME) uniform Frame { FrameUniforms frame; };
+layout(set = 0, binding = HP_BIND_COMPOSITE_GBUF_DEPTH) uniform sampler2D g_depth;
+layout(set = 0, binding = HP_BIND_COMPOSITE_GBUF_NORMAL) uniform sampler2D g_normal_roughness;
+layout(set = 0, binding = HP_BIND_COMPOSITE_GBUF_ALBEDO) uniform sampler2D g_albedo_metal;
+layout(set = 0, binding = HP_BIND_COMPOSITE_OUTPUT, rgba32f) uniform writeonly image2D out_color;
+layout(set = 0, binding = HP_BIND_COMPOSITE_SHADOW_MASK, r32f) uniform readonly image2D shadow_mask;
+layout(set = 0, binding = HP_BIND_COMPOSITE_REFLECTION, rgba32f) uniform readonly image2D reflection_accum;
 
 // Relative to the camera (inv_view_proj is camera-relative, view.hpp).
 vec3 relative_position(ivec2 p, float depth) {

@@ -1,11 +1,12 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
 #include "gpu/shared_types.h"
+#include "gpu/bindings.h"
 
 layout(location = 0) in vec3 v_rel_pos;  // position relative to the camera
 layout(location = 1) in vec3 v_normal;
 
-layout(set = 0, binding = 0) uniform Frame { FrameUniforms frame; };
+layout(set = 0, binding = HP_BIND_GBUFFER_FRAME) uniform Frame { FrameUniforms frame; };
 layout(push_constant) uniform Push { GBufferPush pc; };
 
 layout(location = 0) out vec4 out_normal_roughness;  // world normal facing the camera, roughness

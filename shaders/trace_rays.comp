@@ -4,11 +4,12 @@
 // generation and no shading. Tests check it against the C++ reference on arbitrary rays (hard cases
 // included); the frame benchmark times it on the rays a pass cast.
 #include "common/traversal.glsl"
+#include "gpu/bindings.h"
 
 layout(local_size_x = 64) in;  // HP_TRAVERSAL_MAX_GROUP: the traversal stack's shared columns
 
-layout(std430, set = 0, binding = 27) readonly buffer BatchRays { BatchRay batch_rays[]; };
-layout(std430, set = 0, binding = 28) writeonly buffer BatchResults { BatchResult batch_results[]; };
+layout(std430, set = 0, binding = HP_BIND_BATCH_RAYS) readonly buffer BatchRays { BatchRay batch_rays[]; };
+layout(std430, set = 0, binding = HP_BIND_BATCH_RESULTS) writeonly buffer BatchResults { BatchResult batch_results[]; };
 layout(push_constant) uniform BatchParams {
   uint count;
   uint any_hit;

@@ -57,13 +57,16 @@ struct FrameUniforms {
   vec4 light_dir;        // xyz toward the light (normalised), w = intensity
   vec4 light_color;      // rgb, a unused
   vec4 sky_color;        // rgb, a unused
-  uvec4 extent;          // width, height, frame index, flags
+  uvec4 extent;          // width, height, frame index, flags (HP_COMPOSITE_*)
   vec4 params;           // x = reversed-Z (1/0), y = near, z = far, w unused
 };
 HP_CHECK_SIZE(FrameUniforms, 224);
 HP_CHECK_LAYOUT(FrameUniforms, inv_view_proj, 64);
 HP_CHECK_LAYOUT(FrameUniforms, camera_pos, 128);
 HP_CHECK_LAYOUT(FrameUniforms, extent, 192);
+// FrameUniforms.extent.w: which ray-traced results the composite reads (Frame::upload_uniforms, composite.comp).
+#define HP_COMPOSITE_SHADOWS 1u
+#define HP_COMPOSITE_REFLECTIONS 2u
 
 // Per-draw push constants of the G-buffer pass: exactly the 128 bytes every Vulkan device guarantees.
 struct GBufferPush {

@@ -1,5 +1,6 @@
 #include "passes/composite.hpp"
 
+#include "gpu/bindings.h"
 #include "shaders/composite_comp.h"
 
 namespace hp {
@@ -9,22 +10,22 @@ CompositePass::CompositePass(vk::Context& ctx, const vk::Buffer& frame_uniforms,
                              const vk::Image& reflection) {
   const VkShaderStageFlags cs = VK_SHADER_STAGE_COMPUTE_BIT;
   descriptors_ = vk::DescriptorSet(ctx,
-                                   {{0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, cs, nullptr},
-                                    {1, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
-                                    {2, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
-                                    {3, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
-                                    {4, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr},
-                                    {5, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr},
-                                    {6, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr}},
+                                   {{HP_BIND_COMPOSITE_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, cs, nullptr},
+                                    {HP_BIND_COMPOSITE_GBUF_DEPTH, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
+                                    {HP_BIND_COMPOSITE_GBUF_NORMAL, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
+                                    {HP_BIND_COMPOSITE_GBUF_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
+                                    {HP_BIND_COMPOSITE_OUTPUT, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr},
+                                    {HP_BIND_COMPOSITE_SHADOW_MASK, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr},
+                                    {HP_BIND_COMPOSITE_REFLECTION, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr}},
                                    0, 0);
   const VkImageLayout ro = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
-  descriptors_.write_buffer(0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
-  descriptors_.write_image(1, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.depth.view(), ro, sampler);
-  descriptors_.write_image(2, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.normal_roughness.view(), ro, sampler);
-  descriptors_.write_image(3, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.albedo_metal.view(), ro, sampler);
-  descriptors_.write_image(4, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, output.view(), VK_IMAGE_LAYOUT_GENERAL);
-  descriptors_.write_image(5, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, shadow_mask.view(), VK_IMAGE_LAYOUT_GENERAL);
-  descriptors_.write_image(6, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, reflection.view(), VK_IMAGE_LAYOUT_GENERAL);
+  descriptors_.write_buffer(HP_BIND_COMPOSITE_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
+  descriptors_.write_image(HP_BIND_COMPOSITE_GBUF_DEPTH, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.depth.view(), ro, sampler);
+  descriptors_.write_image(HP_BIND_COMPOSITE_GBUF_NORMAL, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.normal_roughness.view(), ro, sampler);
+  descriptors_.write_image(HP_BIND_COMPOSITE_GBUF_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.albedo_metal.view(), ro, sampler);
+  descriptors_.write_image(HP_BIND_COMPOSITE_OUTPUT, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, output.view(), VK_IMAGE_LAYOUT_GENERAL);
+  descriptors_.write_image(HP_BIND_COMPOSITE_SHADOW_MASK, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, shadow_mask.view(), VK_IMAGE_LAYOUT_GENERAL);
+  descriptors_.write_image(HP_BIND_COMPOSITE_REFLECTION, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, reflection.view(), VK_IMAGE_LAYOUT_GENERAL);
   pipeline_ = vk::create_compute_pipeline(ctx, composite_comp, descriptors_.pipeline_layout());
 }
 

@@ -1,6 +1,7 @@
 #include "passes/gbuffer.hpp"
 
 #include "vk/check.hpp"
+#include "gpu/bindings.h"
 
 #include "shaders/gbuffer_frag.h"
 #include "shaders/gbuffer_vert.h"
@@ -22,9 +23,9 @@ GBufferPass::GBufferPass(vk::Context& ctx, const vk::Buffer& frame_uniforms, boo
     : reversed_z_(reversed_z) {
   descriptors_ = vk::DescriptorSet(
       ctx,
-      {{0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr}},
+      {{HP_BIND_GBUFFER_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr}},
       sizeof(gpu::GBufferPush), VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
-  descriptors_.write_buffer(0, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
+  descriptors_.write_buffer(HP_BIND_GBUFFER_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
 
   VkDevice dev = ctx.device();
   VkShaderModule vs = vk::create_shader_module(dev, gbuffer_vert);

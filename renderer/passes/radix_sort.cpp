@@ -1,6 +1,7 @@
 #include "passes/radix_sort.hpp"
 
 #include "error.hpp"
+#include "gpu/bindings.h"
 #include "shaders/sort_radix_copy_comp.h"
 #include "shaders/sort_radix_copy_traced_comp.h"
 #include "shaders/sort_radix_histogram_comp.h"
@@ -28,10 +29,10 @@ struct RadixPush {
   uint32_t to_caller = 0;    ///< the set reads the scratch buffers (trace buffer ids)
 };
 
-// 0-5 the kernels' buffers, 21 the trace buffer of the instrumented variants (common/trace_capture.glsl).
+// The kernels' buffers, and the trace buffer of the instrumented variants (common/trace_capture.glsl).
 std::vector<VkDescriptorSetLayoutBinding> sort_bindings() {
   std::vector<VkDescriptorSetLayoutBinding> b;
-  for (uint32_t i : {0u, 1u, 2u, 3u, 4u, 5u, 21u})
+  for (uint32_t i : gpu::kSortSetBindings)
     b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
   return b;
 }
@@ -92,7 +93,9 @@ RadixSort::RadixSort(vk::Context& ctx, uint32_t capacity) : capacity_(capacity) 
   scatter_ = vk::create_compute_pipeline(ctx, sort_radix_scatter_comp, layout);
   copy_ = vk::create_compute_pipeline(ctx, sort_radix_copy_comp, layout);
   no_trace_ = vk::Buffer(ctx, 16, usage, false);
-  for (vk::DescriptorSet* set : {&to_scratch_, &to_caller_}) set->write_buffer(21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, no_trace_.handle());
+  for (vk::DescriptorSet* set : {&to_scratch_, &to_caller_}) {
+    set->write_buffer(HP_BIND_TRACE_RECORDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, no_trace_.handle());
+  }
 }
 
 std::vector<RadixSort::Step> RadixSort::steps(uint32_t key_bits) const {
@@ -109,7 +112,9 @@ std::vector<RadixSort::Step> RadixSort::steps(uint32_t key_bits) const {
 }
 
 void RadixSort::attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer) {
-  for (vk::DescriptorSet* set : {&to_scratch_, &to_caller_}) set->write_buffer(21, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
+  for (vk::DescriptorSet* set : {&to_scratch_, &to_caller_}) {
+    set->write_buffer(HP_BIND_TRACE_RECORDS, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, trace_buffer.handle());
+  }
   if (histogram_traced_.handle()) return;
   const VkPipelineLayout layout = to_scratch_.pipeline_layout();
   histogram_traced_ = vk::create_compute_pipeline(ctx, sort_radix_histogram_traced_comp, layout);

@@ -52,7 +52,7 @@ class RadixSort {
   };
   /// The dispatches record() makes for `key_bits`, in order.
   std::vector<Step> steps(uint32_t key_bits) const;
-  /// Binds the trace buffer (binding 21) and builds the instrumented variants of the kernels.
+  /// Binds the trace buffer (HP_BIND_TRACE_RECORDS) and builds the instrumented variants of the kernels.
   void attach_trace_buffer(vk::Context& ctx, const vk::Buffer& trace_buffer);
   /// Records workgroups [first_group, first_group + groups) of one step with its instrumented variant, with
   /// the workgroup sampling word of the capture, between barriers (each step is its own submission).

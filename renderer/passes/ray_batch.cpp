@@ -2,6 +2,7 @@
 
 #include "gpu/shared_types.h"
 #include "error.hpp"
+#include "gpu/bindings.h"
 
 #include "shaders/trace_rays_comp.h"
 
@@ -64,13 +65,13 @@ RayBatchTracer::RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   std::vector<VkDescriptorSetLayoutBinding> b;
   RtScene::add_traversal_bindings(b);
-  b.push_back({27, SB, 1, kCS, nullptr});
-  b.push_back({28, SB, 1, kCS, nullptr});
+  b.push_back({HP_BIND_BATCH_RAYS, SB, 1, kCS, nullptr});
+  b.push_back({HP_BIND_BATCH_RESULTS, SB, 1, kCS, nullptr});
   descriptors_ = vk::DescriptorSet(ctx, b, sizeof(BatchParams), kCS);
   auto& ds = descriptors_;
   scene.write_traversal_bindings(ds);
-  ds.write_buffer(27, SB, rays_.handle());
-  ds.write_buffer(28, SB, results_.handle());
+  ds.write_buffer(HP_BIND_BATCH_RAYS, SB, rays_.handle());
+  ds.write_buffer(HP_BIND_BATCH_RESULTS, SB, results_.handle());
   pipeline_ = create_rt_pipeline(ctx, trace_rays_comp, ds.pipeline_layout(), scene);
 }
 

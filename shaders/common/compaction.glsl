@@ -3,12 +3,13 @@
 #define HP_COMPACTION_GLSL
 
 #include "gpu/shared_types.h"
+#include "gpu/bindings.h"
 
-layout(std430, set = 0, binding = 22) buffer CompactRayBuffer { CompactRay compact_rays[]; };
-layout(std430, set = 0, binding = 23) buffer SortKeyBuffer { uint sort_keys[]; };
-layout(std430, set = 0, binding = 24) buffer SortValueBuffer { uint sort_values[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_COMPACT_RAYS) buffer CompactRayBuffer { CompactRay compact_rays[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_SORT_KEYS) buffer SortKeyBuffer { uint sort_keys[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_SORT_VALUES) buffer SortValueBuffer { uint sort_values[]; };
 // The live ray count (appended atomically) and the indirect dispatch of the consume pass.
-layout(std430, set = 0, binding = 25) buffer RayCountBuffer {
+layout(std430, set = 0, binding = HP_BIND_RT_RAY_COUNT) buffer RayCountBuffer {
   uint ray_count;
   uint consume_groups_x, consume_groups_y, consume_groups_z;
 };

@@ -5,6 +5,7 @@
 #define HP_REFLECTION_COMMON_GLSL
 
 #include "common/traversal.glsl"
+#include "gpu/bindings.h"
 #include "common/ray_offset.glsl"
 #include "common/sampling.glsl"
 #include "common/brdf.glsl"
@@ -13,10 +14,10 @@ const float HP_FLT_MAX = 3.402823466e+38;
 
 // The shading data seen as texels (RtScene::geometry_texels), like the positions: normals as R32G32B32_UINT,
 // material ids and materials.
-layout(set = 0, binding = 32) uniform utextureBuffer normal_texels;
-layout(set = 0, binding = 33) uniform utextureBuffer soup_normal_texels;
-layout(set = 0, binding = 35) uniform utextureBuffer slot_material_texels;  // R32_UINT
-layout(set = 0, binding = 36) uniform utextureBuffer material_texels;       // RGBA32_UINT, two per material
+layout(set = 0, binding = HP_BIND_RT_NORMAL_TEXELS) uniform utextureBuffer normal_texels;
+layout(set = 0, binding = HP_BIND_RT_SOUP_NORMAL_TEXELS) uniform utextureBuffer soup_normal_texels;
+layout(set = 0, binding = HP_BIND_RT_SLOT_MATERIAL_TEXELS) uniform utextureBuffer slot_material_texels;  // R32_UINT
+layout(set = 0, binding = HP_BIND_RT_MATERIAL_TEXELS) uniform utextureBuffer material_texels;
 
 vec3 hit_normal(uint slot, float u, float v) {
   vec3 n0, n1, n2;

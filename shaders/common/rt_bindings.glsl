@@ -5,6 +5,7 @@
 #define HP_RT_BINDINGS_GLSL
 
 #include "gpu/shared_types.h"
+#include "gpu/bindings.h"
 #include "common/ray_offset.glsl"
 
 // Geometry layout: 0 = "indexed" (EBO: vertex positions + an index buffer in leaf order),
@@ -21,27 +22,29 @@ layout(constant_id = 2) const uint HP_GEOMETRY_TEXELS = 0;
 // a second traversal, and both offset (or jitter) modes would be computed.
 layout(constant_id = 3) const uint HP_RT_FLAGS = 0;
 
-layout(set = 0, binding = 0) uniform FrameBlock { FrameUniforms frame; };
-layout(set = 0, binding = 1) uniform RayBlock { RayParams rt; };
-layout(std430, set = 0, binding = 2) readonly buffer NodeBuffer { BvhNode nodes[]; };  // also binding 26 (texels)
-layout(std430, set = 0, binding = 3) readonly buffer PositionBuffer { float positions[]; };      // 3 per vertex
-layout(std430, set = 0, binding = 4) readonly buffer IndexBuffer { uint indices[]; };           // 3 per slot
-layout(std430, set = 0, binding = 5) readonly buffer SoupBuffer { float soup[]; };              // 9 per slot
-layout(std430, set = 0, binding = 6) readonly buffer ObjectBuffer { uint object_first[]; };     // object leaves
-layout(std430, set = 0, binding = 7) readonly buffer SlotSceneBuffer { uint slot_scene[]; };    // slot -> scene tri
-layout(std430, set = 0, binding = 8) readonly buffer NormalBuffer { float normals[]; };         // 3 per vertex
-layout(std430, set = 0, binding = 9) readonly buffer SoupNormalBuffer { float soup_normals[]; };// 9 per slot
-layout(std430, set = 0, binding = 10) readonly buffer SlotMaterialBuffer { uint slot_material[]; };
-layout(std430, set = 0, binding = 11) readonly buffer MaterialBuffer { GpuMaterial materials[]; };
-layout(std430, set = 0, binding = 12) coherent buffer CounterBuffer { uint counters[]; };
-layout(std430, set = 0, binding = 13) writeonly buffer ShadowDumpBuffer { RayDump shadow_dump[]; };
-layout(std430, set = 0, binding = 14) writeonly buffer ReflectionDumpBuffer { RayDump reflection_dump[]; };
-layout(set = 0, binding = 15) uniform sampler2D g_depth;
-layout(set = 0, binding = 16) uniform sampler2D g_normal_roughness;
-layout(set = 0, binding = 17) uniform sampler2D g_albedo_metal;
-layout(set = 0, binding = 18, r32f) uniform image2D shadow_mask;
-layout(set = 0, binding = 19, rgba32f) uniform image2D reflection_image;
-layout(set = 0, binding = 20, rgba32f) uniform image2D reflection_accum;
+layout(set = 0, binding = HP_BIND_RT_FRAME) uniform FrameBlock { FrameUniforms frame; };
+layout(set = 0, binding = HP_BIND_RT_PARAMS) uniform RayBlock { RayParams rt; };
+layout(std430, set = 0, binding = HP_BIND_RT_NODES) readonly buffer NodeBuffer { BvhNode nodes[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_POSITIONS) readonly buffer PositionBuffer { float positions[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_INDICES) readonly buffer IndexBuffer { uint indices[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_SOUP) readonly buffer SoupBuffer { float soup[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_OBJECT_FIRST) readonly buffer ObjectBuffer { uint object_first[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_SLOT_SCENE) readonly buffer SlotSceneBuffer { uint slot_scene[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_NORMALS) readonly buffer NormalBuffer { float normals[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_SOUP_NORMALS) readonly buffer SoupNormalBuffer { float soup_normals[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_SLOT_MATERIAL) readonly buffer SlotMaterialBuffer
+    { uint slot_material[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_MATERIALS) readonly buffer MaterialBuffer { GpuMaterial materials[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_COUNTERS) coherent buffer CounterBuffer { uint counters[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_SHADOW_DUMP) writeonly buffer ShadowDumpBuffer { RayDump shadow_dump[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_REFLECTION_DUMP) writeonly buffer ReflectionDumpBuffer
+    { RayDump reflection_dump[]; };
+layout(set = 0, binding = HP_BIND_RT_GBUF_DEPTH) uniform sampler2D g_depth;
+layout(set = 0, binding = HP_BIND_RT_GBUF_NORMAL) uniform sampler2D g_normal_roughness;
+layout(set = 0, binding = HP_BIND_RT_GBUF_ALBEDO) uniform sampler2D g_albedo_metal;
+layout(set = 0, binding = HP_BIND_RT_SHADOW_MASK, r32f) uniform image2D shadow_mask;
+layout(set = 0, binding = HP_BIND_RT_REFLECTION, rgba32f) uniform image2D reflection_image;
+layout(set = 0, binding = HP_BIND_RT_REFLECTION_ACCUM, rgba32f) uniform image2D reflection_accum;
 
 // Adds `v` to the 64-bit counter at word `at` (low word, high word); the carry is exact under concurrency:
 // the one add that wraps the low word is the one that sees old + v overflow.

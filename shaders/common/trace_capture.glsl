@@ -4,10 +4,11 @@
 #define HP_TRACE_CAPTURE_GLSL
 
 #include "gpu/trace_buffers.h"
+#include "gpu/bindings.h"
 #include "gpu/trace_record.h"
 
 #ifdef HP_TRACE
-layout(std430, set = 0, binding = 21) coherent buffer TraceBuffer {
+layout(std430, set = 0, binding = HP_BIND_TRACE_RECORDS) coherent buffer TraceBuffer {
   TraceBufferHeader trace_head;
   TraceRecord trace_records[];
 };

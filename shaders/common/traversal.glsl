@@ -13,6 +13,7 @@
 // type (UNIFORM_TEXEL_BUFFER) and the generated fetch are the same.
 #extension GL_EXT_samplerless_texture_functions : require
 
+#include "gpu/bindings.h"
 #include "common/rt_bindings.glsl"
 #include "common/trace_capture.glsl"
 
@@ -21,21 +22,21 @@
 // check, scalar load), and a texel fetch into a branch-free gather. Measured against four 64-bit storage
 // loads on pica 1280x720: shadows 1.3-1.6x, reflections 1.2-1.4x faster, the same rays and hits; the other
 // glTF scenes within noise (README).
-layout(set = 0, binding = 26) uniform utextureBuffer node_texels;
+layout(set = 0, binding = HP_BIND_RT_NODE_TEXELS) uniform utextureBuffer node_texels;
 // The geometry buffers (bindings 3, 4, 5) seen as R32G32B32_UINT texels (bindings 29, 30, 31): a vertex, or
 // a slot's three indices, per texel; read where HP_GEOMETRY_TEXELS is set (2-8% faster passes on lavapipe,
 // README). 12-byte texels need no padding, and UINT moves the float bits unchanged.
-layout(set = 0, binding = 29) uniform utextureBuffer position_texels;
-layout(set = 0, binding = 30) uniform utextureBuffer index_texels;
-layout(set = 0, binding = 31) uniform utextureBuffer soup_texels;
-layout(set = 0, binding = 34) uniform utextureBuffer slot_scene_texels;  // R32_UINT: slot -> scene triangle
+layout(set = 0, binding = HP_BIND_RT_POSITION_TEXELS) uniform utextureBuffer position_texels;
+layout(set = 0, binding = HP_BIND_RT_INDEX_TEXELS) uniform utextureBuffer index_texels;
+layout(set = 0, binding = HP_BIND_RT_SOUP_TEXELS) uniform utextureBuffer soup_texels;
+layout(set = 0, binding = HP_BIND_RT_SLOT_SCENE_TEXELS) uniform utextureBuffer slot_scene_texels;
 // Otherwise the geometry (bindings 3, 4, 5) seen as 64-bit words: a 32-bit triple at index b is one 64-bit
 // word and one 32-bit load (which one depends on the parity of b), nine floats are four words and one
 // float; a word is never read past the triple, so it never straddles the end of a buffer. Only bits move
 // (unpackDouble2x32): no arithmetic is done on these doubles.
-layout(std430, set = 0, binding = 3) readonly buffer PositionWords { double position_words[]; };
-layout(std430, set = 0, binding = 4) readonly buffer IndexWords { double index_words[]; };
-layout(std430, set = 0, binding = 5) readonly buffer SoupWords { double soup_words[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_POSITIONS) readonly buffer PositionWords { double position_words[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_INDICES) readonly buffer IndexWords { double index_words[]; };
+layout(std430, set = 0, binding = HP_BIND_RT_SOUP) readonly buffer SoupWords { double soup_words[]; };
 
 // 1 + 2 gamma(3) and 1 - 2 gamma(3), eps = 2^-24, rounded away from 1 (as the C++ constants).
 const float HP_FAR_UP = 1.0000004768371582;    // 1 + 4 ulp

@@ -4,6 +4,7 @@
 #define HP_SORT_RADIX_COMMON_GLSL
 
 #include "gpu/radix_config.h"
+#include "gpu/bindings.h"
 #include "common/trace_capture.glsl"
 
 layout(push_constant) uniform RadixPush {
@@ -15,16 +16,16 @@ layout(push_constant) uniform RadixPush {
   uint to_caller;    // the bound set reads the scratch buffers and writes the caller's (trace buffer ids)
 } pc;
 
-layout(set = 0, binding = 0, std430) readonly buffer KeysIn { uint keys_in[]; };
-layout(set = 0, binding = 1, std430) readonly buffer ValuesIn { uint values_in[]; };
-layout(set = 0, binding = 2, std430) writeonly buffer KeysOut { uint keys_out[]; };
-layout(set = 0, binding = 3, std430) writeonly buffer ValuesOut { uint values_out[]; };
+layout(set = 0, binding = HP_BIND_SORT_KEYS_IN, std430) readonly buffer KeysIn { uint keys_in[]; };
+layout(set = 0, binding = HP_BIND_SORT_VALUES_IN, std430) readonly buffer ValuesIn { uint values_in[]; };
+layout(set = 0, binding = HP_BIND_SORT_KEYS_OUT, std430) writeonly buffer KeysOut { uint keys_out[]; };
+layout(set = 0, binding = HP_BIND_SORT_VALUES_OUT, std430) writeonly buffer ValuesOut { uint values_out[]; };
 // Per block, RADIX_DIGITS counters (block-major: [block][digit]); the scan turns them into global
 // output offsets in place.
-layout(set = 0, binding = 4, std430) buffer Histograms { uint histograms[]; };
+layout(set = 0, binding = HP_BIND_SORT_HISTOGRAMS, std430) buffer Histograms { uint histograms[]; };
 // The live element count, written by the GPU (an atomic counter) or the host; read by every kernel so the
 // dispatches can be sized for the capacity without a CPU readback.
-layout(set = 0, binding = 5, std430) readonly buffer Count { uint live_count; };
+layout(set = 0, binding = HP_BIND_SORT_COUNT, std430) readonly buffer Count { uint live_count; };
 
 // The workgroup's block in the whole dispatch (a traced slice starts at first_group). RADIX_TRACE_BEGIN
 // starts the traced variants' recording; a macro, since it needs gl_WorkGroupSize, which a kernel may use

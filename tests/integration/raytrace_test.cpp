@@ -191,7 +191,7 @@ TEST(RayTrace, AShadowOnlyFrameHoldsNothingForReflections) {
   s.rt.shadows = true;
   Frame frame(*ctx, scene, scene.camera, s);
   frame.render();
-  const RayTracingPasses& rt = *frame.rt_passes();
+  const RtResources& rt = *frame.rt_passes();
   EXPECT_EQ(rt.shadow_mask().width(), 64u);
   EXPECT_EQ(rt.reflection_accum().width(), 1u);
   EXPECT_EQ(rt.reflection_accum().height(), 1u);

@@ -1,0 +1,234 @@
+// The memory-trace capture of a frame (Frame::render_captured): the frame's pass list run once, the passes
+// the options select as their instrumented variants, dispatched slice by slice into a trace::TraceSink; and
+// the trace file's buffer table (Frame::trace_header).
+#include "frame.hpp"
+
+#include "error.hpp"
+#include "gpu/trace_buffers.h"
+
+#include <algorithm>
+#include <bit>
+#include <span>
+
+namespace hp {
+
+namespace {
+
+bool selected(const TracedVariant& t, const CaptureOptions& o) {
+  switch (t.selected_by) {
+    case TracedVariant::Switch::shadows: return o.shadows;
+    case TracedVariant::Switch::reflections: return o.reflections;
+    default: return false;
+  }
+}
+
+// The workgroup sampling word of the traced variants: k | log2(burst) << 20.
+uint32_t checked_sampling(const CaptureOptions& o) {
+  if (o.sample_every == 0 || o.sample_every > 0xFFFFFu) {
+    throw InputError("trace: --sample-every must be in 1.." + std::to_string(0xFFFFFu));
+  }
+  if (o.sample_block == 0 || o.sample_block > 2048 || (o.sample_block & (o.sample_block - 1)) != 0) {
+    throw InputError("trace: --sample-block " + std::to_string(o.sample_block) + " must be a power of two in 1..2048");
+  }
+  return o.sample_every | (uint32_t(std::countr_zero(o.sample_block)) << 20);
+}
+
+uint64_t checked_buffer_bytes(const CaptureOptions& o, const vk::Context& ctx) {
+  const uint64_t limit = ctx.properties().limits.maxStorageBufferRange;
+  const uint64_t bytes = o.buffer_bytes ? o.buffer_bytes : std::min<uint64_t>(64ull << 20, limit);
+  if (bytes > limit) {
+    throw InputError("trace: a trace buffer of " + std::to_string(bytes >> 20) + " MiB exceeds this device's " +
+                     "maxStorageBufferRange of " + std::to_string(limit >> 20) + " MiB");
+  }
+  if (bytes < sizeof(gpu::TraceBufferHeader) + 64 * sizeof(gpu::TraceRecord)) {
+    throw InputError("trace: a trace buffer of " + std::to_string(bytes) + " bytes cannot hold one record per lane");
+  }
+  return bytes;
+}
+
+// The mapped trace buffer and what one capture writes into it.
+struct Slicer {
+  vk::Context& ctx;
+  trace::TraceSink& sink;
+  gpu::TraceBufferHeader* head;
+  uint32_t capacity;
+  uint32_t sampling;
+  const CaptureOptions& options;
+
+  // Captures one dispatch in slices: of workgroup rows for a 2D pass, of groups for a 1D one (the consume
+  // pass, the sort kernels). The whole dispatch is tried first; a slice that overflows is re-run halved.
+  CapturedPass capture(const TracedStep& step) const {
+    const glm::uvec2 wg = step.workgroups();
+    trace::PassInfo info;
+    info.name = step.name;
+    info.dispatch.workgroup_size[0] = step.group_size.x;
+    info.dispatch.workgroup_size[1] = step.group_size.y;
+    info.dispatch.workgroup_count[0] = wg.x;
+    info.dispatch.workgroup_count[1] = wg.y;
+    const uint32_t pass_index = sink.begin_pass(info);
+    CapturedPass cp;
+    cp.pass = step.name;
+    cp.workgroups = uint64_t(wg.x) * wg.y;
+    const uint32_t block_log2 = uint32_t(std::countr_zero(options.sample_block));
+    for (uint64_t w = 0; w < cp.workgroups; ++w) {
+      cp.sampled_workgroups += ((w >> block_log2) % options.sample_every) == 0;
+    }
+    const auto* recs = reinterpret_cast<const gpu::TraceRecord*>(head + 1);
+    const uint32_t units = step.one_d ? wg.x : wg.y;
+    const uint64_t groups_per_unit = step.one_d ? 1 : wg.x;
+    uint32_t n_max = units;  // first try: the whole pass in one slice
+    for (uint32_t unit = 0; unit < units;) {
+      const uint32_t n = std::min(n_max, units - unit);
+      if (step.save) step.save();
+      head->count = 0;
+      head->capacity = capacity;
+      head->pass_id = pass_index;
+      ctx.submit_and_wait([&](VkCommandBuffer cmd) { step.record_slice(cmd, unit, n, sampling); });
+      const uint32_t count = head->count;
+      if (count > capacity) {
+        if (n == 1) {
+          throw InputError(std::string("trace: one workgroup ") + (step.one_d ? "" : "row ") + "of the " + step.name +
+                           " pass makes " + std::to_string(count) + " records, over the trace buffer's capacity of " +
+                           std::to_string(capacity) + " (raise the trace buffer size, or sample workgroups)");
+        }
+        if (step.restore) step.restore();
+        n_max = std::max(1u, n / 2);  // re-run this slice smaller
+        ++cp.reruns;
+        continue;
+      }
+      sink.write_records(pass_index, std::span<const gpu::TraceRecord>(recs, count), unit * groups_per_unit,
+                         (unit + n) * groups_per_unit);
+      cp.records += count;
+      ++cp.slices;
+      unit += n;
+    }
+    if (step.finish) step.finish();
+    return cp;
+  }
+};
+
+}  // namespace
+
+std::vector<std::string> Frame::captured_pass_names(const CaptureOptions& o) const {
+  std::vector<std::string> names;
+  for (const FramePass& pass : passes_) {
+    if (!selected(pass.traced, o)) continue;
+    for (const TracedStep& step : pass.traced.steps) names.push_back(step.name);
+  }
+  return names;
+}
+
+std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace::TraceSink& sink) {
+  if (!rt_) throw InputError("trace: no ray-tracing pass is enabled, nothing to trace");
+  const uint32_t sampling = checked_sampling(o);
+  const uint64_t bytes = checked_buffer_bytes(o, ctx_);
+  if (!trace_buffer_ || trace_buffer_->size() != bytes) {
+    trace_buffer_ = std::make_unique<vk::Buffer>(ctx_, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  }
+  rt_->attach_trace_buffer(*trace_buffer_);
+  for (const FramePass& pass : passes_) {
+    if (selected(pass.traced, o) && pass.traced.attach) pass.traced.attach(ctx_, *trace_buffer_);
+  }
+  const uint32_t capacity = uint32_t((bytes - sizeof(gpu::TraceBufferHeader)) / sizeof(gpu::TraceRecord));
+  const Slicer slicer{ctx_, sink, static_cast<gpu::TraceBufferHeader*>(trace_buffer_->mapped()), capacity,
+                      sampling, o};
+
+  upload_uniforms();
+  rt_->begin_frame(sample_index_);
+  std::vector<CapturedPass> out;
+  for (const FramePass& pass : passes_) {
+    if (selected(pass.traced, o)) {
+      const TracedVariant& t = pass.traced;
+      if (t.before) ctx_.submit_and_wait(t.before);
+      for (const TracedStep& step : t.steps) out.push_back(slicer.capture(step));
+      if (t.after) ctx_.submit_and_wait(t.after);
+    } else if (pass.capture_always || o.final_image) {
+      ctx_.submit_and_wait([&](VkCommandBuffer cmd) { pass.record(cmd, true); });
+    }
+  }
+  ++frame_index_;
+  ++sample_index_;
+  return out;
+}
+
+namespace {
+
+// The trace file's buffer table: consecutive 4 KiB-aligned synthetic base addresses, in the order added.
+struct BufferTable {
+  trace::TraceHeader& h;
+  bool tiled;
+  uint64_t next = 0x10000;  // synthetic device addresses: consecutive, 4 KiB aligned, never 0
+
+  void place(trace::BufferInfo b, uint64_t footprint_bytes) {
+    b.base_address = next;
+    next += (footprint_bytes + 4095) / 4096 * 4096;
+    h.buffers.push_back(std::move(b));
+  }
+  void add(uint32_t id, const char* name, uint64_t size) {
+    trace::BufferInfo b;
+    b.id = id;
+    b.name = name;
+    b.size_bytes = std::max<uint64_t>(size, 4);
+    place(std::move(b), std::max<uint64_t>(size, 4));
+  }
+  void add_image(uint32_t id, const char* name, uint32_t w, uint32_t hh, uint32_t texel) {
+    trace::BufferInfo b;
+    b.id = id;
+    b.name = name;
+    b.texel_bytes = texel;
+    b.width = w;
+    b.height = hh;
+    b.size_bytes = uint64_t(w) * hh * texel;
+    uint64_t footprint = b.size_bytes;
+    if (tiled) {  // whole 8x8 tiles are stored, ragged edges included
+      b.kind = trace::BufferKind::image_tiled;
+      b.tile_width = b.tile_height = 8;
+      footprint = uint64_t((w + 7) / 8) * ((hh + 7) / 8) * 64 * texel;
+    } else {
+      b.kind = trace::BufferKind::image_linear;
+      b.row_pitch_bytes = w * texel;
+    }
+    place(std::move(b), footprint);
+  }
+};
+
+}  // namespace
+
+trace::TraceHeader Frame::trace_header(bool tiled) const {
+  trace::TraceHeader h;
+  h.image_width = settings_.width;
+  h.image_height = settings_.height;
+  BufferTable t{h, tiled};
+  if (rt_scene_) {
+    const RtScene& r = *rt_scene_;
+    t.add(HP_TBUF_NODES, "bvh_nodes", r.nodes().size());
+    t.add(HP_TBUF_POSITIONS, "positions", r.positions().size());
+    t.add(HP_TBUF_INDICES, "indices", r.indices().size());
+    t.add(HP_TBUF_SOUP, "soup", r.soup().size());
+    t.add(HP_TBUF_OBJECT_FIRST, "object_first", r.object_first().size());
+    t.add(HP_TBUF_SLOT_SCENE, "slot_scene", r.slot_scene().size());
+    t.add(HP_TBUF_NORMALS, "normals", r.normals().size());
+    t.add(HP_TBUF_SOUP_NORMALS, "soup_normals", r.soup_normals().size());
+    t.add(HP_TBUF_SLOT_MATERIAL, "slot_material", r.slot_material().size());
+    t.add(HP_TBUF_MATERIALS, "materials", r.materials().size());
+  }
+  if (compaction_) {
+    const uint64_t cells = uint64_t(rt_->grid_width()) * rt_->grid_height();
+    t.add(HP_TBUF_COMPACT_RAYS, "compact_rays", cells * sizeof(gpu::CompactRay));
+    t.add(HP_TBUF_SORT_KEYS, "sort_keys", cells * 4);
+    t.add(HP_TBUF_SORT_VALUES, "sort_values", cells * 4);
+    t.add(HP_TBUF_RAY_COUNT, "ray_count", 16);
+    if (const RadixSort* sorter = compaction_->sorter()) {
+      t.add(HP_TBUF_SORT_SCRATCH_KEYS, "sort_scratch_keys", sorter->scratch_bytes());
+      t.add(HP_TBUF_SORT_SCRATCH_VALUES, "sort_scratch_values", sorter->scratch_bytes());
+      t.add(HP_TBUF_SORT_HISTOGRAMS, "sort_histograms", sorter->histogram_bytes());
+    }
+  }
+  t.add_image(HP_TBUF_GBUF_DEPTH, "gbuffer_depth", settings_.width, settings_.height, 4);
+  t.add_image(HP_TBUF_GBUF_NORMAL, "gbuffer_normal_roughness", settings_.width, settings_.height, 8);
+  t.add_image(HP_TBUF_SHADOW_MASK, "shadow_mask", settings_.width, settings_.height, 4);
+  if (rt_) t.add_image(HP_TBUF_REFLECTION, "reflection", rt_->grid_width(), rt_->grid_height(), 16);
+  return h;
+}
+
+}  // namespace hp

@@ -1,0 +1,32 @@
+#include "passes/reflection_pass.hpp"
+
+#include "shaders/reflections_comp.h"
+#include "shaders/reflections_traced_comp.h"
+
+#include <algorithm>
+#include <stdexcept>
+
+namespace hp {
+
+ReflectionPass::ReflectionPass(vk::Context& ctx, RtResources& rt)
+    : rt_(rt), pipeline_(rt.create_pipeline(ctx, reflections_comp)) {}
+
+void ReflectionPass::record(VkCommandBuffer cmd) const {
+  rt_.dispatch(cmd, pipeline_, rt_.grid_width(), rt_.grid_height());
+}
+
+glm::uvec2 ReflectionPass::workgroups() const {
+  return {(rt_.grid_width() + 7) / 8, (rt_.grid_height() + 7) / 8};
+}
+
+void ReflectionPass::attach_trace(vk::Context& ctx) {
+  if (!traced_.handle()) traced_ = rt_.create_pipeline(ctx, reflections_traced_comp);
+}
+
+void ReflectionPass::record_traced_slice(VkCommandBuffer cmd, uint32_t first_row, uint32_t rows) const {
+  if (!traced_.handle()) throw std::logic_error("ReflectionPass::record_traced_slice: attach_trace first");
+  const glm::uvec2 wg = workgroups();
+  rt_.dispatch_traced(cmd, traced_, wg.x, std::min(rows, wg.y - first_row));
+}
+
+}  // namespace hp
