@@ -2,6 +2,7 @@
 #include "apps/commands.hpp"
 #include "error.hpp"
 #include "runner.hpp"
+#include "scenario_keys.hpp"
 
 #include <cstdio>
 #include <cstdlib>
@@ -23,6 +24,14 @@ void add_run_command(CLI::App& app) {
   cmd->add_option("--device", a->device, "Vulkan device: index or name substring");
   cmd->add_flag("--validate", a->validate, "Khronos validation layer; any message fails");
   cmd->add_flag("--list", a->list, "print the expanded cells (id and axis values) and exit");
+  // Handled as the flag is parsed (as --help is), so it needs no scenario file.
+  cmd->add_flag_callback(
+      "--list-keys",
+      [] {
+        std::fputs(scenario_keys_markdown().c_str(), stdout);
+        throw CLI::Success();
+      },
+      "print every scenario key (type, range, default, meaning) as a markdown table and exit");
   cmd->add_option("--filter", a->filters,
                   "only the cells with this id, or with AXIS=VALUE (e.g. geometry=soup, resolution=128x72); "
                   "repeat to narrow");

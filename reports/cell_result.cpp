@@ -1,4 +1,5 @@
 #include "cell_result.hpp"
+#include "cell_record.hpp"
 
 #include <cstdio>
 
@@ -16,55 +17,22 @@ using json = nlohmann::json;
 namespace fs = std::filesystem;
 
 CellResult parse_cell(const json& line, const std::string& where) {
-  if (!line.is_object() || line.value("schema", "") != "hybridprof.cell") {
-    throw InputError(where + ": not a hybridprof cell (field 'schema' is not \"hybridprof.cell\")");
-  }
-  if (!line.contains("result")) throw InputError(where + ": field 'result' missing");
-  auto timing = [&] {
-    try {
-      return parse_timing_result(line["result"]);
-    } catch (const InputError& e) {
-      throw InputError(where + ": result: " + e.what());
-    }
-  };
-  CellResult c(timing());
+  CellRecord r = parse_cell_record(line, where);
+  if (r.result.timings.measured().empty()) throw InputError(where + ": result: no measured frames");
+  CellResult c(std::move(r.result));
   c.where = where;
-  auto str = [&](const char* key) {
-    const auto it = line.find(key);
-    if (it == line.end() || !it->is_string()) throw InputError(where + ": field '" + key + "' missing or not a string");
-    return it->get<std::string>();
-  };
-  c.id = str("id");
-  c.matrix = line.value("matrix", "");
-  c.name = line.value("name", "");
-  if (line.contains("axes")) {
-    if (!line["axes"].is_object()) throw InputError(where + ": field 'axes' is not an object");
-    c.axes = line["axes"];
-  }
-  if (line.contains("config")) c.config = line["config"];
-  if (c.timing.timings.measured().empty()) throw InputError(where + ": result: no measured frames");
-  if (line.contains("scene") && line["scene"].contains("triangles")) {
-    const json& t = line["scene"]["triangles"];
-    if (!t.is_number_unsigned()) throw InputError(where + ": field 'scene.triangles' is not a count");
-    c.triangles = t.get<std::uint64_t>();
-  }
-  if (line.contains("bvh") && !line["bvh"].is_null()) {
-    if (!line["bvh"].is_object()) throw InputError(where + ": field 'bvh' is not an object");
-    c.bvh = line["bvh"];
-  }
-  if (line.contains("images")) c.images = line["images"];
-  if (line.contains("cache") && !line["cache"].is_null()) {
-    if (!line["cache"].is_object()) throw InputError(where + ": field 'cache' is not an object");
-    c.cache = line["cache"];
-  }
-  if (line.contains("report") && !line["report"].is_null()) {
-    if (!line["report"].is_object()) throw InputError(where + ": field 'report' is not an object");
-    c.report = line["report"];
-  }
-  if (line.contains("error") && !line["error"].is_null()) {
-    if (!line["error"].is_object()) throw InputError(where + ": field 'error' is not an object");
-    c.error = line["error"];
-  }
+  c.id = std::move(r.id);
+  c.matrix = std::move(r.matrix);
+  c.name = std::move(r.name);
+  c.axes = std::move(r.axes);
+  c.config = std::move(r.config);
+  c.triangles = r.triangles;
+  if (r.bvh) c.bvh = *r.bvh;
+  c.images = r.images;
+  c.cache = std::move(r.cache);
+  c.report = std::move(r.report);
+  c.error = std::move(r.error);
+  // The line as it was read (not re-serialized), so JSON-pointer metrics see every key it holds.
   c.line = line;
   c.line.erase("result");
   return c;

@@ -2,6 +2,7 @@
 
 #include "atomic_file.hpp"
 #include "cache_analysis.hpp"
+#include "cell_record.hpp"
 #include "error.hpp"
 #include "input_file.hpp"
 #include "json_depth.hpp"
@@ -188,9 +189,9 @@ CellScene prepare_cell_scene(const Scenario& s, const Scene& loaded) {
   return c;
 }
 
-std::vector<std::string> unmet_expectations(const json& line, const json& expect) {
+std::vector<std::string> unmet_expectations(const CellRecord& cell, const json& expect) {
   std::vector<std::string> unmet;
-  const json& e = line.contains("error") ? line["error"] : json();
+  const json& e = cell.error;
   const auto number = [&](const json::json_pointer& p) -> std::optional<double> {
     if (!e.is_object() || !e.contains(p) || !e[p].is_number()) return std::nullopt;
     return e[p].get<double>();
@@ -251,17 +252,19 @@ std::vector<json> read_results(const std::string& out_dir) {
 }
 
 
-RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
-  RunSummary sum;
-  sum.cells = m.cells.size();
-  const fs::path out(o.out_dir);
-  const fs::path results = out / kResults;
+namespace {
 
-  // One matrix per folder: a folder that records another matrix is refused; one from before folders
-  // recorded their matrix must hold only this matrix's cells.
-  std::vector<std::string> cell_ids;  // each cell's id, computed once (it hashes the canonical config)
-  for (const Scenario& c : m.cells) cell_ids.push_back(c.id());
-  const json identity = folder_identity(m.name, cell_ids);
+// The finished lines of a results folder, by id, and their order in the file.
+struct FinishedCells {
+  std::map<std::string, json> lines;
+  std::vector<std::string> file_order;
+};
+
+// Reads OUT for a run of `m`: a folder that records another matrix is refused, and one from before folders
+// recorded their matrix must hold only this matrix's cells. A partial last line is cut off so appends stay
+// aligned.
+FinishedCells read_finished(const RunOptions& o, const std::vector<std::string>& cell_ids, const json& identity) {
+  const fs::path out(o.out_dir);
   check_folder_matrix(out, read_folder_identity(out), identity, ": choose another --out");
   const std::set<std::string> ids(cell_ids.begin(), cell_ids.end());
   std::vector<json> lines = read_results(o.out_dir);
@@ -272,14 +275,12 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
                        ": choose another --out");
     }
   }
-
-  // Resume: cells already in the file are done. A partial last line is cut off so appends stay aligned.
-  std::map<std::string, json> done;
-  std::vector<std::string> file_order;
+  FinishedCells done;
   for (json& r : lines) {
-    file_order.push_back(r["id"].get<std::string>());
-    done[file_order.back()] = std::move(r);
+    done.file_order.push_back(r["id"].get<std::string>());
+    done.lines[done.file_order.back()] = std::move(r);
   }
+  const fs::path results = out / kResults;
   if (fs::exists(results)) {
     std::ifstream in(results, std::ios::binary);
     std::string content((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -287,6 +288,146 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     const size_t keep = last == std::string::npos ? 0 : last + 1;
     if (keep != content.size()) fs::resize_file(results, keep);
   }
+  return done;
+}
+
+// Removes the stale cells' lines (rewriting the file with the others' lines as they were) and folders.
+void remove_stale(const RunOptions& o, FinishedCells& done, const std::vector<std::string>& stale,
+                  const std::string& now) {
+  std::fprintf(stderr, "hybridprof run: %zu cell(s) in %s were measured by %s, not %s: running them again\n",
+               stale.size(), o.out_dir.c_str(), measured_by(done.lines[stale.front()]).c_str(), now.c_str());
+  std::string kept;
+  for (const std::string& id : done.file_order)
+    if (std::find(stale.begin(), stale.end(), id) == stale.end()) kept += done.lines[id].dump() + "\n";
+  const fs::path out(o.out_dir);
+  write_file_atomically(out / kResults, kept);
+  for (const std::string& id : stale) {
+    std::error_code ignore;
+    fs::remove_all(out / "cells" / id, ignore);
+  }
+}
+
+// One more frame, traced (the timed frames ran uninstrumented), then the cache simulator: the cell's
+// "cache" tables, file names relative to OUT.
+json capture_cache(Frame& frame, const Scenario& s, const fs::path& out, const fs::path& cell_dir) {
+  CaptureOptions co;
+  co.shadows = std::find(s.trace_passes.begin(), s.trace_passes.end(), "shadows") != s.trace_passes.end();
+  co.reflections = std::find(s.trace_passes.begin(), s.trace_passes.end(), "reflections") != s.trace_passes.end();
+  co.sample_every = s.trace_sample_every;
+  co.sample_block = s.trace_sample_block;
+  co.tiled_images = s.trace_tiled_images;
+  co.final_image = false;  // the cell's images come from the timed frames: only the traced passes run
+  const fs::path trace_path = cell_dir / "trace.hptrace";
+  CacheAnalysisOptions ao;
+  ao.preset = s.cache_preset;
+  if (s.trace_scale_model) ao.scale_for_sampling = s.trace_sample_every;  // 1 for a full trace
+  ao.heatmap_dir = cell_dir.string();
+  // The capture streams each slice into the simulator (and into a trace file only when the scenario
+  // keeps one): memory stays bounded by a couple of slices whatever the resolution.
+  const trace::TraceHeader header = frame.trace_header(co.tiled_images);
+  CacheAnalysis analysis(header, ao);
+  std::vector<CapturedPass> captured;
+  if (s.trace_keep) {
+    trace::TraceWriter writer(trace_path, header);
+    trace::TeeSink both(writer, analysis);
+    captured = frame.render_captured(co, both);
+    writer.finish();
+  } else {
+    captured = frame.render_captured(co, analysis);
+  }
+  json cache = analysis.finish();
+  for (auto& p : cache["passes"]) {
+    for (auto& [k, v] : p["heatmaps"].items()) {
+      v = fs::relative(fs::path(v.get<std::string>()), out).string();
+    }
+    for (const CapturedPass& c : captured) {
+      if (c.pass == p["pass"]) {
+        p["capture"] = {{"workgroups", c.workgroups}, {"sampled_workgroups", c.sampled_workgroups},
+                        {"sample_every", s.trace_sample_every}, {"sample_block", s.trace_sample_block},
+                        {"slices", c.slices}, {"reruns", c.reruns}};
+      }
+    }
+  }
+  if (s.trace_keep) cache["trace_file"] = fs::relative(trace_path, out).string();
+  return cache;
+}
+
+// What every cell of a run shares: the device, its environment, the scenes loaded so far.
+struct RunContext {
+  vk::Context& ctx;
+  const Environment& env;
+  const fs::path& out;
+  std::map<std::string, Scene> scenes;
+};
+
+// Renders, times and measures cell `i` (images written into OUT/cells/<id>/) into its record.
+CellRecord run_cell(RunContext& run, const Matrix& m, size_t i, const std::string& id) {
+  const Scenario& s = m.cells[i];
+  const auto t_cell = std::chrono::steady_clock::now();
+  auto it = run.scenes.find(s.scene);
+  if (it == run.scenes.end()) it = run.scenes.emplace(s.scene, load_scene(s.scene)).first;
+  const CellScene cs = prepare_cell_scene(s, it->second);
+  Frame frame(run.ctx, cs.scene, cs.camera, s.frame);
+  ProfileOptions po;
+  po.warmup = s.warmup;
+  po.frames = s.frames;
+  po.measure_query_overhead = s.query_overhead;
+  po.measure_overlap = s.overlap;
+  // The environment as the cell starts (its date and the machine's load), and the load once its timed
+  // frames are done: a cell timed while other work loads the cores says so.
+  const Environment cell_env = capture_environment(run.env.device);
+  FrameTimings timings = profile_frames(frame, po);
+  const std::optional<double> load_end = read_load_1min();
+  const fs::path cell_dir = run.out / "cells" / id;
+  fs::create_directories(cell_dir);
+  json images = json::object();
+  write_image((cell_dir / "color.png").string(), frame.read_color());
+  images["color"] = "cells/" + id + "/color.png";
+  if (s.frame.rt.shadows) {
+    write_image((cell_dir / "shadow.png").string(), frame.read_aov(Aov::shadow));
+    images["shadow"] = "cells/" + id + "/shadow.png";
+  }
+  if (run.ctx.validation_enabled() && run.ctx.validation_message_count() > 0) {
+    throw std::runtime_error("cell " + id + ": validation messages; last: " + run.ctx.last_validation_message());
+  }
+  TimingSummary summary = timings.summarize();
+  Counters counters = timings.total_counters();
+  CellRecord rec(TimingResult{cell_env, std::move(timings), std::move(summary), std::move(counters)});
+  rec.id = id;
+  rec.matrix = m.name;
+  rec.name = s.name;
+  rec.axes = m.cell_axis_values[i];
+  rec.config = s.canonical();
+  rec.load_1min = CellLoad{cell_env.load_1min, load_end};
+  rec.triangles = triangle_count(cs.scene);
+  if (const RtGeometry* g = frame.rt_geometry()) {
+    const bvh::BvhStats st = bvh::bvh_stats(g->bvh);
+    rec.bvh = CellBvh{g->build_ms, st.nodes, st.leaves, st.max_depth, st.sah_cost};
+  }
+  if (!s.trace_passes.empty()) rec.cache = capture_cache(frame, s, run.out, cell_dir);
+  if (s.error) {
+    rec.error = measure_error(frame, s, cs.reference_scene, cs.reference_camera, run.out, cell_dir, images, id);
+  }
+  rec.report = m.report;
+  if (m.expect.is_object() && m.cell_axis_values[i].contains("case")) {
+    const std::string name = m.cell_axis_values[i]["case"].get<std::string>();
+    if (m.expect.contains(name)) rec.expect = CellExpect{m.expect[name], unmet_expectations(rec, m.expect[name])};
+  }
+  for (const auto& [k, v] : images.items()) rec.images[k] = v.get<std::string>();
+  rec.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cell).count();
+  return rec;
+}
+
+}  // namespace
+
+RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
+  RunSummary sum;
+  sum.cells = m.cells.size();
+  const fs::path out(o.out_dir);
+  std::vector<std::string> cell_ids;  // each cell's id, computed once (it hashes the canonical config)
+  for (const Scenario& c : m.cells) cell_ids.push_back(c.id());
+  const json identity = folder_identity(m.name, cell_ids);
+  FinishedCells done = read_finished(o, cell_ids, identity);
 
   const std::vector<bool> selected = select_cells(m, o.filters);
   std::vector<size_t> shard_cells;
@@ -306,45 +447,33 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   std::vector<std::string> stale;
   std::vector<size_t> todo;
   for (size_t i : shard_cells) {
-    const auto it = done.find(cell_ids[i]);
-    if (it != done.end() && measured_by(it->second) == now) {
+    const auto it = done.lines.find(cell_ids[i]);
+    if (it != done.lines.end() && measured_by(it->second) == now) {
       ++sum.already_done;
       continue;
     }
-    if (it != done.end()) stale.push_back(it->first);
+    if (it != done.lines.end()) stale.push_back(it->first);
     todo.push_back(i);
   }
-  if (!stale.empty()) {
-    std::fprintf(stderr, "hybridprof run: %zu cell(s) in %s were measured by %s, not %s: running them again\n",
-                 stale.size(), o.out_dir.c_str(), measured_by(done[stale.front()]).c_str(), now.c_str());
-    std::string kept;
-    for (const std::string& id : file_order)
-      if (std::find(stale.begin(), stale.end(), id) == stale.end()) kept += done[id].dump() + "\n";
-    write_file_atomically(results, kept);
-    for (const std::string& id : stale) {
-      std::error_code ignore;
-      fs::remove_all(out / "cells" / id, ignore);
-    }
-    sum.stale = stale.size();
-  }
+  if (!stale.empty()) remove_stale(o, done, stale, now);
+  sum.stale = stale.size();
   if (todo.empty()) return sum;
   // Created once there is work and a device for it: a failed start leaves no empty folder behind.
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) throw InputError(o.out_dir + ": cannot create the output folder: " + ec.message());
   write_json_atomically(out / kFolderFile, identity);
-  std::map<std::string, Scene> scenes;
+  RunContext run{ctx, env, out, {}};
   const bool tty = o.progress && ::isatty(::fileno(stderr));
   const auto t_start = std::chrono::steady_clock::now();
   for (size_t k = 0; k < todo.size(); ++k) {
     const size_t i = todo[k];
-    const Scenario& s = m.cells[i];
     const std::string& id = cell_ids[i];
     if (tty) {
       const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
       const std::string left = k == 0 ? "?" : eta(el / double(k) * double(todo.size() - k));
-      std::fprintf(stderr, "\r[%zu/%zu] %s %s  ETA %s   ", k + 1, todo.size(), id.c_str(), m.cell_axis_values[i].dump().c_str(),
-                   left.c_str());
+      std::fprintf(stderr, "\r[%zu/%zu] %s %s  ETA %s   ", k + 1, todo.size(), id.c_str(),
+                   m.cell_axis_values[i].dump().c_str(), left.c_str());
       std::fflush(stderr);
     }
     // A cell that fails takes its half-written folder with it: only cells with a results line keep files.
@@ -356,107 +485,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
         if (!keep) fs::remove_all(dir, e);
       }
     } cell_guard{out / "cells" / id};
-    const auto t_cell = std::chrono::steady_clock::now();
-    auto it = scenes.find(s.scene);
-    if (it == scenes.end()) it = scenes.emplace(s.scene, load_scene(s.scene)).first;
-    CellScene cs = prepare_cell_scene(s, it->second);
-    const Scene& scene = cs.scene;
-    const Camera& camera = cs.camera;
-    const Scene& ref_scene = cs.reference_scene;
-    const Camera& ref_camera = cs.reference_camera;
-    Frame frame(ctx, scene, camera, s.frame);
-    ProfileOptions po;
-    po.warmup = s.warmup;
-    po.frames = s.frames;
-    po.measure_query_overhead = s.query_overhead;
-    po.measure_overlap = s.overlap;
-    // The environment as the cell starts (its date and the machine's load), and the load once its timed
-    // frames are done: a cell timed while other work loads the cores says so.
-    const Environment cell_env = capture_environment(env.device);
-    const FrameTimings timings = profile_frames(frame, po);
-    const std::optional<double> load_end = read_load_1min();
-    const fs::path cell_dir = out / "cells" / id;
-    fs::create_directories(cell_dir);
-    json images = json::object();
-    write_image((cell_dir / "color.png").string(), frame.read_color());
-    images["color"] = "cells/" + id + "/color.png";
-    if (s.frame.rt.shadows) {
-      write_image((cell_dir / "shadow.png").string(), frame.read_aov(Aov::shadow));
-      images["shadow"] = "cells/" + id + "/shadow.png";
-    }
-    if (ctx.validation_enabled() && ctx.validation_message_count() > 0) {
-      throw std::runtime_error("cell " + id + ": validation messages; last: " + ctx.last_validation_message());
-    }
-    json line;
-    line["schema"] = "hybridprof.cell";
-    line["version"] = 1;
-    line["id"] = id;
-    line["matrix"] = m.name;
-    line["name"] = s.name;
-    line["axes"] = m.cell_axis_values[i];
-    line["config"] = s.canonical();
-    line["result"] = timing_result_json(cell_env, timings);
-    line["load_1min"] = {{"start", cell_env.load_1min ? json(*cell_env.load_1min) : json(nullptr)},
-                         {"end", load_end ? json(*load_end) : json(nullptr)}};
-    line["scene"] = {{"triangles", triangle_count(scene)}};
-    if (const RtGeometry* g = frame.rt_geometry()) {
-      const bvh::BvhStats st = bvh::bvh_stats(g->bvh);
-      line["bvh"] = {{"build_ms", g->build_ms}, {"nodes", st.nodes},        {"leaves", st.leaves},
-                     {"max_depth", st.max_depth}, {"sah_cost", st.sah_cost}};
-    }
-    if (!s.trace_passes.empty()) {
-      // One more frame, traced (the timed frames ran uninstrumented), then the cache simulator.
-      CaptureOptions co;
-      co.shadows = std::find(s.trace_passes.begin(), s.trace_passes.end(), "shadows") != s.trace_passes.end();
-      co.reflections = std::find(s.trace_passes.begin(), s.trace_passes.end(), "reflections") != s.trace_passes.end();
-      co.sample_every = s.trace_sample_every;
-      co.sample_block = s.trace_sample_block;
-      co.tiled_images = s.trace_tiled_images;
-      co.final_image = false;  // the cell's images come from the timed frames: only the traced passes run
-      const fs::path trace_path = cell_dir / "trace.hptrace";
-      CacheAnalysisOptions ao;
-      ao.preset = s.cache_preset;
-      if (s.trace_scale_model) ao.scale_for_sampling = s.trace_sample_every;  // 1 for a full trace
-      ao.heatmap_dir = cell_dir.string();
-      // The capture streams each slice into the simulator (and into a trace file only when the scenario
-      // keeps one): memory stays bounded by a couple of slices whatever the resolution.
-      const trace::TraceHeader header = frame.trace_header(co.tiled_images);
-      CacheAnalysis analysis(header, ao);
-      std::vector<CapturedPass> captured;
-      if (s.trace_keep) {
-        trace::TraceWriter writer(trace_path, header);
-        trace::TeeSink both(writer, analysis);
-        captured = frame.render_captured(co, both);
-        writer.finish();
-      } else {
-        captured = frame.render_captured(co, analysis);
-      }
-      json cache = analysis.finish();
-      for (auto& p : cache["passes"]) {
-        for (auto& [k, v] : p["heatmaps"].items()) {
-          v = fs::relative(fs::path(v.get<std::string>()), out).string();
-        }
-        for (const CapturedPass& c : captured) {
-          if (c.pass == p["pass"]) {
-            p["capture"] = {{"workgroups", c.workgroups}, {"sampled_workgroups", c.sampled_workgroups},
-                            {"sample_every", s.trace_sample_every}, {"sample_block", s.trace_sample_block}, {"slices", c.slices}, {"reruns", c.reruns}};
-          }
-        }
-      }
-      if (s.trace_keep) cache["trace_file"] = fs::relative(trace_path, out).string();
-      line["cache"] = cache;
-    }
-    if (s.error) line["error"] = measure_error(frame, s, ref_scene, ref_camera, out, cell_dir, images, id);
-    if (!m.report.is_null()) line["report"] = m.report;
-    if (m.expect.is_object() && m.cell_axis_values[i].contains("case")) {
-      const std::string name = m.cell_axis_values[i]["case"].get<std::string>();
-      if (m.expect.contains(name)) {
-        line["expect"] = {{"spec", m.expect[name]}, {"unmet", unmet_expectations(line, m.expect[name])}};
-      }
-    }
-    line["images"] = images;
-    line["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cell).count();
-    append_line(results, line.dump());
+    append_line(out / kResults, to_json(run_cell(run, m, i, id)).dump());
     cell_guard.keep = true;
     ++sum.ran;
   }

@@ -5,6 +5,7 @@
 // commit) or device and driver is removed and run again.
 #pragma once
 
+#include "cell_record.hpp"
 #include "scenario.hpp"
 #include "scene/scene.hpp"
 
@@ -47,11 +48,11 @@ struct CellScene {
 };
 CellScene prepare_cell_scene(const Scenario& s, const Scene& loaded);
 
-/// Checks one result line against a cell's expectations (a matrix's "expect" entry): max_non_finite,
-/// max_acne_fraction and max_leak_fraction (of the compared pixels), max_coverage_mismatch_fraction (of all
-/// pixels), max_relmse, max_depth_rel. One sentence per unmet expectation; a missing measurement is unmet.
+/// Checks one cell's measurements (its record's "error") against its expectations (a matrix's "expect"
+/// entry): max_non_finite, max_acne_fraction and max_leak_fraction (of the compared pixels),
+/// max_coverage_mismatch_fraction (of all pixels), max_relmse, max_depth_rel. One sentence per unmet expectation; a missing measurement is unmet.
 /// "gpu_equals_cpu" is checked by the hard-case test (it needs the rays the shaders cast), not here.
-std::vector<std::string> unmet_expectations(const nlohmann::json& line, const nlohmann::json& expect);
+std::vector<std::string> unmet_expectations(const CellRecord& cell, const nlohmann::json& expect);
 
 /// Reads OUT/results.jsonl: one JSON object per complete line (a partial last line from an interrupted
 /// write is ignored). Throws InputError naming the file and line for a corrupt line.

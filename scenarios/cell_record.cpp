@@ -1,0 +1,164 @@
+#include "cell_record.hpp"
+
+#include "error.hpp"
+
+namespace hp {
+
+using json = nlohmann::json;
+
+namespace {
+
+constexpr const char* kSchema = "hybridprof.cell";
+constexpr int kVersion = 1;
+
+json optional_number(const std::optional<double>& v) { return v ? json(*v) : json(nullptr); }
+
+// The line's fields, read with errors that name the line and the field.
+struct LineReader {
+  const json& line;
+  const std::string& where;
+
+  [[noreturn]] void fail(const std::string& why) const { throw InputError(where + ": " + why); }
+  // A member that is present and not null.
+  const json* get(const char* key) const {
+    const auto it = line.find(key);
+    return it == line.end() || it->is_null() ? nullptr : &*it;
+  }
+  std::string optional_string(const char* key) const {
+    const json* v = get(key);
+    if (!v) return "";
+    if (!v->is_string()) fail(std::string("field '") + key + "' is not a string");
+    return v->get<std::string>();
+  }
+  const json* object(const char* key) const {
+    const json* v = get(key);
+    if (v && !v->is_object()) fail(std::string("field '") + key + "' is not an object");
+    return v;
+  }
+  double number(const json& j, const std::string& field) const {
+    if (!j.is_number()) fail("field '" + field + "' missing or not a number");
+    return j.get<double>();
+  }
+  std::uint64_t count(const json& j, const std::string& field) const {
+    // A line read from text holds counts as unsigned; one built in memory may hold a non-negative int.
+    if (!j.is_number_integer() || (!j.is_number_unsigned() && j.get<std::int64_t>() < 0)) {
+      fail("field '" + field + "' is not a count");
+    }
+    return j.get<std::uint64_t>();
+  }
+  std::optional<double> nullable_number(const json& obj, const char* key, const std::string& field) const {
+    if (!obj.contains(key) || obj[key].is_null()) return std::nullopt;
+    return number(obj[key], field);
+  }
+};
+
+CellBvh parse_bvh(const LineReader& r, const json& b) {
+  const auto member = [&](const char* key) -> const json& {
+    static const json missing;
+    return b.contains(key) ? b[key] : missing;
+  };
+  CellBvh out;
+  out.build_ms = r.number(member("build_ms"), "bvh.build_ms");
+  out.nodes = r.count(member("nodes"), "bvh.nodes");
+  out.leaves = r.count(member("leaves"), "bvh.leaves");
+  out.max_depth = int(r.count(member("max_depth"), "bvh.max_depth"));
+  out.sah_cost = r.number(member("sah_cost"), "bvh.sah_cost");
+  return out;
+}
+
+CellExpect parse_expect(const LineReader& r, const json& e) {
+  CellExpect out;
+  out.spec = e.contains("spec") ? e["spec"] : json();
+  if (!out.spec.is_object()) r.fail("field 'expect.spec' missing or not an object");
+  if (!e.contains("unmet") || !e["unmet"].is_array()) r.fail("field 'expect.unmet' missing or not a list");
+  for (const json& u : e["unmet"]) {
+    if (!u.is_string()) r.fail("field 'expect.unmet' holds a non-string");
+    out.unmet.push_back(u.get<std::string>());
+  }
+  return out;
+}
+
+}  // namespace
+
+void to_json(json& j, const CellBvh& b) {
+  j = {{"build_ms", b.build_ms}, {"nodes", b.nodes}, {"leaves", b.leaves}, {"max_depth", b.max_depth},
+       {"sah_cost", b.sah_cost}};
+}
+
+bool operator==(const CellRecord& a, const CellRecord& b) {
+  const auto same_timing = [](const TimingResult& x, const TimingResult& y) {
+    return x.environment == y.environment && x.timings == y.timings && x.summary == y.summary &&
+           x.counters == y.counters;
+  };
+  return a.id == b.id && a.matrix == b.matrix && a.name == b.name && a.axes == b.axes && a.config == b.config &&
+         same_timing(a.result, b.result) && a.load_1min == b.load_1min && a.triangles == b.triangles &&
+         a.bvh == b.bvh && a.cache == b.cache && a.error == b.error && a.report == b.report &&
+         a.expect == b.expect && a.images == b.images && a.wall_s == b.wall_s;
+}
+
+json to_json(const CellRecord& r) {
+  json line;
+  line["schema"] = kSchema;
+  line["version"] = kVersion;
+  line["id"] = r.id;
+  line["matrix"] = r.matrix;
+  line["name"] = r.name;
+  line["axes"] = r.axes;
+  line["config"] = r.config;
+  line["result"] = timing_result_json(r.result.environment, r.result.timings);
+  if (r.load_1min) line["load_1min"] = {{"start", optional_number(r.load_1min->start)},
+                                        {"end", optional_number(r.load_1min->end)}};
+  if (r.triangles) line["scene"] = {{"triangles", *r.triangles}};
+  if (r.bvh) line["bvh"] = *r.bvh;
+  if (!r.cache.is_null()) line["cache"] = r.cache;
+  if (!r.error.is_null()) line["error"] = r.error;
+  if (!r.report.is_null()) line["report"] = r.report;
+  if (r.expect) line["expect"] = {{"spec", r.expect->spec}, {"unmet", r.expect->unmet}};
+  line["images"] = r.images;
+  line["wall_s"] = r.wall_s;
+  return line;
+}
+
+CellRecord parse_cell_record(const json& line, const std::string& where) {
+  if (!line.is_object() || line.value("schema", json()) != kSchema) {
+    throw InputError(where + ": not a hybridprof cell (field 'schema' is not \"hybridprof.cell\")");
+  }
+  const LineReader r{line, where};
+  if (!line.contains("result")) r.fail("field 'result' missing");
+  const auto timing = [&] {
+    try {
+      return parse_timing_result(line["result"]);
+    } catch (const InputError& e) {
+      r.fail(std::string("result: ") + e.what());
+    }
+  };
+  CellRecord c(timing());
+  if (!line.contains("id") || !line["id"].is_string()) r.fail("field 'id' missing or not a string");
+  c.id = line["id"].get<std::string>();
+  c.matrix = r.optional_string("matrix");
+  c.name = r.optional_string("name");
+  if (const json* a = r.object("axes")) c.axes = *a;
+  if (line.contains("config")) c.config = line["config"];
+  if (const json* l = r.object("load_1min")) {
+    c.load_1min = CellLoad{r.nullable_number(*l, "start", "load_1min.start"),
+                           r.nullable_number(*l, "end", "load_1min.end")};
+  }
+  if (const json* s = r.object("scene"); s && s->contains("triangles")) {
+    c.triangles = r.count((*s)["triangles"], "scene.triangles");
+  }
+  if (const json* b = r.object("bvh")) c.bvh = parse_bvh(r, *b);
+  if (const json* v = r.object("cache")) c.cache = *v;
+  if (const json* v = r.object("report")) c.report = *v;
+  if (const json* v = r.object("error")) c.error = *v;
+  if (const json* e = r.object("expect")) c.expect = parse_expect(r, *e);
+  if (const json* im = r.object("images")) {
+    for (const auto& [k, v] : im->items()) {
+      if (!v.is_string()) r.fail("field 'images." + k + "' is not a string (a path)");
+      c.images[k] = v.get<std::string>();
+    }
+  }
+  if (const json* w = r.get("wall_s")) c.wall_s = r.number(*w, "wall_s");
+  return c;
+}
+
+}  // namespace hp

@@ -1,0 +1,90 @@
+// One line of OUT/results.jsonl: what the runner measured for one matrix cell, as the runner writes it
+// (to_json) and as the reports read it back (parse_cell_record). One struct, one writer, one reader, so
+// the two sides cannot disagree about a field.
+//
+// The line ("schema": "hybridprof.cell", "version": 1; keys sorted, as nlohmann::json dumps them):
+//   id, matrix, name, axes: {axis key path: value}, config: canonical scenario (Scenario::canonical),
+//   result: timing result (profiler/timing/result_json.hpp), load_1min: {start, end} (null: unreadable;
+//   absent in lines written before it existed), scene: {triangles}, bvh?: {build_ms, nodes, leaves,
+//   max_depth, sah_cost} (absent: no ray traced), cache?: cache-simulator tables, error?: error against the
+//   CPU reference, report?: the matrix's "report" object, expect?: {spec, unmet: [sentences]},
+//   images: {name: "cells/<id>/<file>.png"}, wall_s.
+#pragma once
+
+#include "timing/result_json.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace hp {
+
+/// The machine's 1-minute load average as the cell started and once its timed frames were done.
+struct CellLoad {
+  std::optional<double> start, end;  ///< null in the line: unreadable
+  bool operator==(const CellLoad&) const = default;
+};
+
+/// The BVH the ray-tracing passes traversed (bvh::bvh_stats and the build time).
+struct CellBvh {
+  double build_ms = 0.0;
+  std::uint64_t nodes = 0, leaves = 0;
+  int max_depth = 0;
+  double sah_cost = 0.0;
+  bool operator==(const CellBvh&) const = default;
+};
+void to_json(nlohmann::json& j, const CellBvh& b);  ///< {build_ms, nodes, leaves, max_depth, sah_cost}
+
+/// A matrix's expectations of one "cells" case and the sentences of those the cell did not meet.
+struct CellExpect {
+  nlohmann::json spec;  ///< the matrix's "expect" entry, as the matrix file states it (checked there)
+  std::vector<std::string> unmet;
+  bool operator==(const CellExpect&) const = default;
+};
+
+struct CellRecord {
+  explicit CellRecord(TimingResult r) : result(std::move(r)) {}
+
+  std::string id, matrix, name;
+  /// {axis key path: value}. JSON: an axis value is any value the scenario key takes (string, number,
+  /// list, object).
+  nlohmann::json axes = nlohmann::json::object();
+  /// The canonical scenario (Scenario::canonical()), whose dump the id hashes. JSON: it is compared and
+  /// hashed as JSON (reports' match keys), and lines written by older builds hold older key sets.
+  nlohmann::json config = nlohmann::json::object();
+  /// The timed frames. Written through timing_result_json, which derives the summary from the frames;
+  /// read back with the summary as stored.
+  TimingResult result;
+  std::optional<CellLoad> load_1min;       ///< absent in lines written before it existed
+  std::optional<std::uint64_t> triangles;  ///< "scene": {"triangles"}
+  std::optional<CellBvh> bvh;              ///< absent when no ray was traced
+  /// Cache-simulator tables (CacheAnalysis::finish, plus each pass's "capture" and "trace_file"). JSON:
+  /// written by hp_cache_analysis, whose tables grow with the model (buffers, heatmaps, curves).
+  nlohmann::json cache;
+  /// Error against the CPU reference (compare_with_reference, plus "frames" and "reference"). JSON: written
+  /// by hp_reference, its sections depend on the passes compared (shadow?, depth?, flip_mean?).
+  nlohmann::json error;
+  /// The matrix's "report" object (trade-off sections), copied into every line. JSON: its shape is checked
+  /// by parse_matrix and its metric names by the report (reports/tradeoff.cpp), which knows them.
+  nlohmann::json report;
+  std::optional<CellExpect> expect;
+  std::map<std::string, std::string> images;  ///< {"color": "cells/<id>/color.png", ...}
+  double wall_s = 0.0;                         ///< the cell's wall time, scene load to last image
+};
+
+bool operator==(const CellRecord& a, const CellRecord& b);
+
+/// The results.jsonl line of a record (one object; dump() it for the line).
+nlohmann::json to_json(const CellRecord& record);
+
+/// Parses one results.jsonl line. Throws InputError starting with `where` and naming the field
+/// ("WHERE: field 'id' missing or not a string", "WHERE: result: field 'frames' ..."). Keys it does not
+/// know are ignored, so a line from a newer build still reads.
+CellRecord parse_cell_record(const nlohmann::json& line, const std::string& where);
+
+}  // namespace hp
