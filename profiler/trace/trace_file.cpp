@@ -50,6 +50,9 @@ struct BufferEntry {
   uint32_t id, kind;
   uint64_t base_address, size_bytes;
   uint32_t texel_bytes, width, height, row_pitch_bytes, tile_width, tile_height, name_bytes;
+  // The alignment padding, named so that it is written as zeros: left implicit, it carried whatever the
+  // stack held, and two captures of one frame differed in those bytes. Readers ignore it.
+  uint32_t reserved;
 };
 static_assert(sizeof(BufferEntry) == 56);
 
@@ -126,7 +129,7 @@ TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header)
   append(&count, 4);
   for (const BufferInfo& b : header.buffers) {
     BufferEntry e{b.id, uint32_t(b.kind), b.base_address, b.size_bytes, b.texel_bytes, b.width, b.height,
-                  b.row_pitch_bytes, b.tile_width, b.tile_height, uint32_t(b.name.size())};
+                  b.row_pitch_bytes, b.tile_width, b.tile_height, uint32_t(b.name.size()), 0};
     append(&e, sizeof e);
     append(b.name.data(), b.name.size());
     payload.resize(payload.size() + pad8(b.name.size()), 0);

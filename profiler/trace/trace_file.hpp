@@ -7,7 +7,7 @@
 //   then chunks, each a 16-byte ChunkHeader {u32 tag, u32 reserved, u64 payload_bytes} and its payload:
 //   'BUFS'  exactly once, before any pass: u32 count, then per buffer
 //           u32 id, u32 kind, u64 base_address, u64 size_bytes, u32 texel_bytes, u32 width, u32 height,
-//           u32 row_pitch_bytes, u32 tile_width, u32 tile_height, u32 name_bytes, name (no NUL),
+//           u32 row_pitch_bytes, u32 tile_width, u32 tile_height, u32 name_bytes, u32 reserved (0), name (no NUL),
 //           padded with zeros to 8 bytes
 //   'PASS'  u32 pass index (0, 1, ... in order), u32 workgroup_size[3], u32 workgroup_count[3],
 //           u32 name_bytes, name, padded to 8 bytes
