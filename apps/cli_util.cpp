@@ -96,7 +96,9 @@ void FrameOptions::add_to(CLI::App* cmd) {
   cmd->add_flag("--no-reflection-shadows", no_reflection_shadows, "shade reflection hits without a shadow ray");
   cmd->add_option("--granularity", granularity, "BVH leaves: triangle, or object (the study's Unity BVH)")
       ->capture_default_str();
-  cmd->add_option("--buckets", buckets, "SAH buckets of the BVH build")->check(CLI::Range(2, 1024))->capture_default_str();
+  cmd->add_option("--buckets", buckets, "SAH buckets of the BVH build")
+      ->check(CLI::Range(2, 1024))
+      ->capture_default_str();
   cmd->add_option("--leaf-size", leaf_size, "largest BVH leaf")->check(CLI::Range(1, 1 << 20))->capture_default_str();
   cmd->add_option("--seed", seed, "seed of the reflection jitter")->capture_default_str();
   cmd->add_option("--reflection-path", reflection_path,
@@ -149,7 +151,8 @@ FrameSettings FrameOptions::settings() const {
   s.rt.reflection_path = parse_reflection_path(reflection_path);
   s.rt.sort = parse_sort_key(sort);
   s.rt.writeback = parse_writeback(writeback);
-  if (s.rt.reflection_path == ReflectionPath::direct && (s.rt.sort != SortKey::none || s.rt.writeback != Writeback::index)) {
+  if (s.rt.reflection_path == ReflectionPath::direct &&
+      (s.rt.sort != SortKey::none || s.rt.writeback != Writeback::index)) {
     throw InputError("--sort/--writeback apply to --reflection-path compact only");
   }
   return s;

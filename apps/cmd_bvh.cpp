@@ -19,11 +19,11 @@
 #include "scene/scene.hpp"
 
 #include <algorithm>
-#include <optional>
 #include <chrono>
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace hp::cli {
@@ -52,7 +52,8 @@ double ms_since(std::chrono::steady_clock::time_point start) {
 }
 
 // What `bvh` prints of the build: time and rate, method, node counts, SAH cost, the leaf-size histogram.
-void print_build(const BvhArgs& a, const bvh::BuildOptions& o, const bvh::Bvh& tree, size_t triangles, double build_ms) {
+void print_build(const BvhArgs& a, const bvh::BuildOptions& o, const bvh::Bvh& tree, size_t triangles,
+                 double build_ms) {
   const bvh::BvhStats s = bvh::bvh_stats(tree);
   std::string method = a.full_sweep ? std::string("full-sweep SAH (3 axes)")
                                     : "binned SAH, " + std::to_string(a.buckets) + " buckets, " +
@@ -160,8 +161,8 @@ void run_bvh(const BvhArgs& a) {
   o.max_leaf_size = a.leaf_size;
   o.threads = a.threads;
   o.granularity = a.granularity == "object" ? bvh::Granularity::object : bvh::Granularity::triangle;
-  const std::span<const uint32_t> objects =
-      o.granularity == bvh::Granularity::object ? std::span<const uint32_t>(world.instance_first_triangle)
+  const std::span<const uint32_t> objects = o.granularity == bvh::Granularity::object
+                                                ? std::span<const uint32_t>(world.instance_first_triangle)
                                                 : std::span<const uint32_t>();
 
   const auto build_start = std::chrono::steady_clock::now();
@@ -206,8 +207,8 @@ void add_bvh_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--export-triangles", args->export_triangles,
                   "write world-space triangles in scene order (float32 x 9 each, little-endian, no header)");
-  auto* rays = cmd->add_option("--rays", args->rays,
-                               "cast rays from this file (float32 x 8 each: ox oy oz tmin dx dy dz tmax)");
+  auto* rays =
+      cmd->add_option("--rays", args->rays, "cast rays from this file (float32 x 8 each: ox oy oz tmin dx dy dz tmax)");
   auto* hits = cmd->add_option("--hits", args->hits,
                                "write one hit per ray (int32 prim or -1, float32 t u v) in scene triangle order");
   rays->needs(hits);

@@ -10,20 +10,20 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
-#include <nlohmann/json.hpp>
 #include <string>
 
-#include "cachesim/din_replay.hpp"
+#include "apps/cli_util.hpp"
 #include "atomic_file.hpp"
+#include "cachesim/din_replay.hpp"
 #include "cachesim/preset.hpp"
 #include "cachesim/simulator.hpp"
-#include "apps/cli_util.hpp"
 #include "commands.hpp"
-#include "report.hpp"
 #include "error.hpp"
 #include "output_path.hpp"
+#include "report.hpp"
 #include "trace/din.hpp"
 #include "trace/trace_file.hpp"
 
@@ -55,10 +55,14 @@ void print_level(const char* name, const LevelStats& s) {
 }
 
 nlohmann::json level_json(const LevelStats& s) {
-  return {{"requests", s.requests},       {"hits", s.hits},
-          {"misses", s.misses},           {"hit_rate", s.hit_rate()},
-          {"line_hits", s.line_hits},     {"line_misses", s.line_misses},
-          {"sectors", s.sectors},         {"sector_hits", s.sector_hits},
+  return {{"requests", s.requests},
+          {"hits", s.hits},
+          {"misses", s.misses},
+          {"hit_rate", s.hit_rate()},
+          {"line_hits", s.line_hits},
+          {"line_misses", s.line_misses},
+          {"sectors", s.sectors},
+          {"sector_hits", s.sector_hits},
           {"sector_misses", s.sector_misses}};
 }
 
@@ -80,10 +84,11 @@ void check_outputs(const CachesimArgs& a) {
 nlohmann::json report_pass(const PassResult& r, const trace::TraceHeader& header, const SimOptions& opt,
                            bool per_invocation, std::string& csv) {
   const auto& s = r.stats;
-  std::printf("\npass '%s': %llu lane accesses, %llu workgroups, %llu wavefront steps, %u slice(s) (at most %llu "
-              "records held at once)\n",
-              r.name.c_str(), (unsigned long long)r.lane_accesses, (unsigned long long)r.workgroups,
-              (unsigned long long)r.wave_steps, r.slices, (unsigned long long)r.peak_resident_records);
+  std::printf(
+      "\npass '%s': %llu lane accesses, %llu workgroups, %llu wavefront steps, %u slice(s) (at most %llu "
+      "records held at once)\n",
+      r.name.c_str(), (unsigned long long)r.lane_accesses, (unsigned long long)r.workgroups,
+      (unsigned long long)r.wave_steps, r.slices, (unsigned long long)r.peak_resident_records);
   std::printf("  %-3s %14s %14s %14s %9s %14s %14s\n", "", "requests", "hits", "misses", "hit rate", "sectors",
               "sector misses");
   print_level("L1", s.l1);
@@ -103,9 +108,13 @@ nlohmann::json report_pass(const PassResult& r, const trace::TraceHeader& header
                 pct(bs.l1_misses, bs.l1_requests).c_str(), (unsigned long long)bs.l2_requests,
                 (unsigned long long)bs.l2_misses, pct(bs.l2_misses, bs.l2_requests).c_str(),
                 (unsigned long long)bs.dram_read_bytes);
-    buffers.push_back({{"id", b.id}, {"name", b.name}, {"l1_requests", bs.l1_requests},
-                       {"l1_misses", bs.l1_misses}, {"l2_requests", bs.l2_requests},
-                       {"l2_misses", bs.l2_misses}, {"dram_read_bytes", bs.dram_read_bytes}});
+    buffers.push_back({{"id", b.id},
+                       {"name", b.name},
+                       {"l1_requests", bs.l1_requests},
+                       {"l1_misses", bs.l1_misses},
+                       {"l2_requests", bs.l2_requests},
+                       {"l2_misses", bs.l2_misses},
+                       {"dram_read_bytes", bs.dram_read_bytes}});
   }
   nlohmann::json pj = {{"name", r.name},
                        {"lane_accesses", r.lane_accesses},
@@ -142,8 +151,8 @@ void run_trace(const CachesimArgs& a) {
   trace::TraceReader reader(a.trace_path);
   const auto& header = reader.header();
   if (!a.export_din_path.empty()) {
-    if (!a.export_pass.empty() &&
-        std::none_of(reader.passes().begin(), reader.passes().end(), [&](const auto& p) { return p.name == a.export_pass; }))
+    if (!a.export_pass.empty() && std::none_of(reader.passes().begin(), reader.passes().end(),
+                                               [&](const auto& p) { return p.name == a.export_pass; }))
       throw InputError("--export-pass: no pass named '" + a.export_pass + "' in " + a.trace_path);
     if (a.export_cu >= preset.compute_units)
       throw InputError("--export-cu: compute unit " + std::to_string(a.export_cu) + " does not exist (preset '" +
@@ -181,8 +190,8 @@ void run_trace(const CachesimArgs& a) {
     if (export_here) {
       sim.set_observer(nullptr);
       din->commit();
-      std::printf("exported %llu L1 requests of CU %u in pass '%s' to %s\n", (unsigned long long)din_lines,
-                  a.export_cu, pass.name.c_str(), a.export_din_path.c_str());
+      std::printf("exported %llu L1 requests of CU %u in pass '%s' to %s\n", (unsigned long long)din_lines, a.export_cu,
+                  pass.name.c_str(), a.export_din_path.c_str());
       exported = true;
     }
     out["passes"].push_back(report_pass(r, header, opt, a.per_invocation, csv));
@@ -196,11 +205,12 @@ void run_trace(const CachesimArgs& a) {
 }
 
 void print_din_level(const char* name, const DinLevelStats& s) {
-  std::printf("%s\n  demand fetches %14llu   (read %llu, write %llu)\n  demand misses  %14llu   (read %llu, write %llu)\n"
-              "  miss ratio     %14.6f\n",
-              name, (unsigned long long)s.fetches, (unsigned long long)s.read_fetches,
-              (unsigned long long)s.write_fetches, (unsigned long long)s.misses, (unsigned long long)s.read_misses,
-              (unsigned long long)s.write_misses, s.miss_ratio());
+  std::printf(
+      "%s\n  demand fetches %14llu   (read %llu, write %llu)\n  demand misses  %14llu   (read %llu, write %llu)\n"
+      "  miss ratio     %14.6f\n",
+      name, (unsigned long long)s.fetches, (unsigned long long)s.read_fetches, (unsigned long long)s.write_fetches,
+      (unsigned long long)s.misses, (unsigned long long)s.read_misses, (unsigned long long)s.write_misses,
+      s.miss_ratio());
 }
 
 void run_din(const CachesimArgs& a) {
@@ -235,17 +245,23 @@ void add_cachesim_command(CLI::App& app) {
   // Options of one mode given in the other are errors, not silently ignored.
   auto* preset = cmd->add_option("--preset", args->preset, "GPU preset name (vega56, ga102, h100) or JSON file")
                      ->capture_default_str();
-  auto* out = cmd->add_option("--out", args->out_path, "Write per-pass and per-buffer results, with the miss-ratio curves, as JSON (trace files)");
+  auto* out =
+      cmd->add_option("--out", args->out_path,
+                      "Write per-pass and per-buffer results, with the miss-ratio curves, as JSON (trace files)");
   cmd->add_option("--mrc", args->mrc_path, "Write L1/L2 miss-ratio curves (CSV)");
   auto* shards = cmd->add_option("--shards", args->shards, "Sample miss-ratio curves at this rate (SHARDS), 1 = exact")
                      ->check(finite_range(1e-6, 1.0));
-  auto* per_inv = cmd->add_flag("--per-invocation", args->per_invocation, "Include per-invocation L1/L2 miss counts in --out")
-                      ->needs(out);
-  auto* scale = cmd->add_option("--scale-model", args->scale_model,
-                                "The trace records 1 in K workgroups (trace --sample-every K): replay it on 1/K of the CUs and L2")
-                    ->check(CLI::Range(1u, 0xFFFFFu))
-                    ->capture_default_str();
-  auto* export_din = cmd->add_option("--export-din", args->export_din_path, "Write one CU's coalesced L1 load stream as Dinero text");
+  auto* per_inv =
+      cmd->add_flag("--per-invocation", args->per_invocation, "Include per-invocation L1/L2 miss counts in --out")
+          ->needs(out);
+  auto* scale =
+      cmd->add_option(
+             "--scale-model", args->scale_model,
+             "The trace records 1 in K workgroups (trace --sample-every K): replay it on 1/K of the CUs and L2")
+          ->check(CLI::Range(1u, 0xFFFFFu))
+          ->capture_default_str();
+  auto* export_din =
+      cmd->add_option("--export-din", args->export_din_path, "Write one CU's coalesced L1 load stream as Dinero text");
   cmd->add_option("--export-pass", args->export_pass, "Pass to export (default: the first)")->needs(export_din);
   cmd->add_option("--export-cu", args->export_cu, "Compute unit to export")->capture_default_str()->needs(export_din);
   auto* l1 = cmd->add_option("--l1", args->l1, "Dinero replay L1 as SIZE:LINE:ASSOC")->capture_default_str();

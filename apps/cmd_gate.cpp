@@ -18,11 +18,13 @@ void add_gate_command(CLI::App& app) {
     bool ab = false, keep = false, deterministic_only = false, verbose = false;
   };
   auto a = std::make_shared<Args>();
-  CLI::App* cmd = app.add_subcommand("gate", "regression gate: exit 0 pass, 1 regression, 2 cannot compare, 4 inconclusive (too few samples to fail)");
+  CLI::App* cmd = app.add_subcommand(
+      "gate", "regression gate: exit 0 pass, 1 regression, 2 cannot compare, 4 inconclusive (too few samples to fail)");
   cmd->add_option("--baseline", a->baseline, "baseline run folder (results.jsonl)");
   cmd->add_option("--candidate", a->candidate, "candidate run folder");
   cmd->add_option("--policy", a->policy, "policy JSON: threshold, warn, alpha, tolerances {metric: fraction}");
-  cmd->add_option("--threshold", a->threshold, "fail above this significant slowdown (0.10 = 10%)")->capture_default_str();
+  cmd->add_option("--threshold", a->threshold, "fail above this significant slowdown (0.10 = 10%)")
+      ->capture_default_str();
   cmd->add_option("--warn", a->warn, "warn above this significant slowdown")->capture_default_str();
   cmd->add_option("--alpha", a->alpha, "family-wise level of the Holm-corrected U tests")->capture_default_str();
   cmd->add_flag("--deterministic-only", a->deterministic_only,
@@ -30,7 +32,8 @@ void add_gate_command(CLI::App& app) {
   cmd->add_flag("--verbose", a->verbose, "list identical deterministic metrics too");
   auto* ab = cmd->add_flag("--ab", a->ab, "run both commands alternately in fresh processes and compare those runs");
   // The --ab options without --ab would be ignored: they are errors instead.
-  cmd->add_option("--baseline-cmd", a->baseline_cmd, "--ab: baseline hybridprof command (run as `CMD run FILE --out DIR`)")
+  cmd->add_option("--baseline-cmd", a->baseline_cmd,
+                  "--ab: baseline hybridprof command (run as `CMD run FILE --out DIR`)")
       ->needs(ab);
   cmd->add_option("--candidate-cmd", a->candidate_cmd, "--ab: candidate hybridprof command")->needs(ab);
   cmd->add_option("--scenario", a->scenario, "--ab: scenario or matrix file both commands run")->needs(ab);

@@ -2,13 +2,13 @@
 #include "apps/cli_util.hpp"
 #include "apps/commands.hpp"
 #include "error.hpp"
-#include "output_path.hpp"
 #include "frame.hpp"
 #include "frame_profiler.hpp"
+#include "output_path.hpp"
 #include "reference/reference.hpp"
+#include "scene/load.hpp"
 #include "timing/result_json.hpp"
 #include "timing/timeline.hpp"
-#include "scene/load.hpp"
 #include "vk/context.hpp"
 
 #include <algorithm>
@@ -76,8 +76,10 @@ void run_reference(const RenderArgs& a) {
 void print_overlap(const OverlapSummary& o, TimingSource source) {
   auto ci = [](const MedianCi& c, double scale, const char* unit) {
     char b[96];
-    if (c.valid) std::snprintf(b, sizeof b, " [%.3f%s, %.3f%s]", c.low * scale, unit, c.high * scale, unit);
-    else std::snprintf(b, sizeof b, " (too few pairs for a 95%% CI)");
+    if (c.valid)
+      std::snprintf(b, sizeof b, " [%.3f%s, %.3f%s]", c.low * scale, unit, c.high * scale, unit);
+    else
+      std::snprintf(b, sizeof b, " (too few pairs for a 95%% CI)");
     return std::string(b);
   };
   std::printf("  frame as recorded (passes free to overlap, %s): %.3f ms%s; serialized passes sum %.3f ms\n",
@@ -85,8 +87,8 @@ void print_overlap(const OverlapSummary& o, TimingSource source) {
               o.overlapped_frame_ns.median * 1e-6, ci(o.overlapped_frame_ns.median_ci, 1e-6, "").c_str(),
               o.serialized_sum_ns.median * 1e-6);
   if (o.saving_ns && o.saving_fraction) {
-    std::printf("  overlap saves %.3f ms%s, %.2f%%%s of the serialized sum (paired over %u frames)\n", *o.saving_ns * 1e-6,
-                ci(o.saving_ns_ci, 1e-6, "").c_str(), *o.saving_fraction * 100.0,
+    std::printf("  overlap saves %.3f ms%s, %.2f%%%s of the serialized sum (paired over %u frames)\n",
+                *o.saving_ns * 1e-6, ci(o.saving_ns_ci, 1e-6, "").c_str(), *o.saving_fraction * 100.0,
                 ci(o.saving_fraction_ci, 100.0, "%").c_str(), o.frames);
   }
 }
@@ -102,7 +104,8 @@ void run_render(const RenderArgs& a) {
   const Camera camera = a.frame.view.camera_for(scene, float(settings.width) / float(settings.height));
   vk::Context ctx({a.frame.device, a.frame.validate, true});
   Frame frame(ctx, scene, camera, settings);
-  if (!frame.timestamps_supported()) std::fprintf(stderr, "hybridprof: %s\n", host_timing_note(settings.host_timing).c_str());
+  if (!frame.timestamps_supported())
+    std::fprintf(stderr, "hybridprof: %s\n", host_timing_note(settings.host_timing).c_str());
   const auto t0 = std::chrono::steady_clock::now();
   ProfileOptions po;
   po.warmup = a.warmup;
@@ -123,12 +126,13 @@ void run_render(const RenderArgs& a) {
     throw std::runtime_error(std::to_string(ctx.validation_message_count()) +
                              " validation message(s); last: " + ctx.last_validation_message());
   }
-  std::printf("%s: %zu triangles, %ux%u on %s (%s), %u frame(s) in %.1f ms (CPU wall) -> %s\n",
-              scene.name.c_str(), triangle_count(scene), settings.width, settings.height, ctx.info().name.c_str(),
+  std::printf("%s: %zu triangles, %ux%u on %s (%s), %u frame(s) in %.1f ms (CPU wall) -> %s\n", scene.name.c_str(),
+              triangle_count(scene), settings.width, settings.height, ctx.info().name.c_str(),
               ctx.info().driver_info.c_str(), a.frames, ms, a.out.c_str());
-  std::printf("%u warm-up + %u measured frames (%s), passes %s, %u samples accumulated; per pass: median [95%% CI] ms\n",
-              a.warmup, a.frames, std::string(to_string(summary.source)).c_str(),
-              std::string(to_string(summary.pass_isolation)).c_str(), frame.samples_accumulated());
+  std::printf(
+      "%u warm-up + %u measured frames (%s), passes %s, %u samples accumulated; per pass: median [95%% CI] ms\n",
+      a.warmup, a.frames, std::string(to_string(summary.source)).c_str(),
+      std::string(to_string(summary.pass_isolation)).c_str(), frame.samples_accumulated());
   for (const auto& p : summary.passes) {
     std::printf("  %-12s %8.3f [%8.3f, %8.3f]%s\n", p.pass.c_str(), p.duration_ns.median * 1e-6,
                 p.duration_ns.median_ci.low * 1e-6, p.duration_ns.median_ci.high * 1e-6,
@@ -177,7 +181,8 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--aov", args->aov,
                   "what to write: color, depth, normal, albedo, roughness, metallic, shadow, reflection")
       ->capture_default_str();
-  cmd->add_option("--frames", args->frames, "measured frames (accumulated; the last one is written; with --timings, as many frames without "
+  cmd->add_option("--frames", args->frames,
+                  "measured frames (accumulated; the last one is written; with --timings, as many frames without "
                   "queries are interleaved and accumulate too; frames timed for --overlap repeat a measured frame's "
                   "sample and leave the accumulation unchanged)")
       ->check(CLI::Range(1u, 100000u))
@@ -189,7 +194,8 @@ void add_render_command(CLI::App& app) {
                                   "write the timing result (JSON: environment, statistics, raw samples)");
   auto* timeline = cmd->add_option("--timeline", args->timeline_path,
                                    "write a Chrome Trace Event timeline (opens in ui.perfetto.dev)");
-  auto* counters = cmd->add_flag("--counters", args->counters, "count rays, BVH nodes visited and triangles tested (deterministic)");
+  auto* counters =
+      cmd->add_flag("--counters", args->counters, "count rays, BVH nodes visited and triangles tested (deterministic)");
   auto* overlap = cmd->add_flag("--overlap", args->overlap,
                                 "also time, beside each measured frame, the same frame without the dependencies that "
                                 "serialize the timed passes (on with --timings or --timeline)");
@@ -208,14 +214,16 @@ void add_devices_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("devices", "list the Vulkan devices and the facts hybridprof records");
   cmd->callback([] {
     const auto devices = vk::list_devices();
-    if (devices.empty()) throw DeviceError("no Vulkan device found; install lavapipe (apt-get install mesa-vulkan-drivers)");
+    if (devices.empty())
+      throw DeviceError("no Vulkan device found; install lavapipe (apt-get install mesa-vulkan-drivers)");
     for (size_t i = 0; i < devices.size(); ++i) {
       const auto& d = devices[i];
-      std::printf("%zu: %s [%s] driver %s %s (%s), Vulkan %s, subgroup %u, timestamp period %.3f ns (%u valid bits), "
-                  "max storage buffer %llu MiB\n",
-                  i, d.name.c_str(), d.type.c_str(), d.driver_name.c_str(), d.driver_version.c_str(), d.driver_info.c_str(),
-                  d.api_version.c_str(), d.subgroup_size, d.timestamp_period_ns, d.timestamp_valid_bits,
-                  static_cast<unsigned long long>(d.max_storage_buffer_range >> 20));
+      std::printf(
+          "%zu: %s [%s] driver %s %s (%s), Vulkan %s, subgroup %u, timestamp period %.3f ns (%u valid bits), "
+          "max storage buffer %llu MiB\n",
+          i, d.name.c_str(), d.type.c_str(), d.driver_name.c_str(), d.driver_version.c_str(), d.driver_info.c_str(),
+          d.api_version.c_str(), d.subgroup_size, d.timestamp_period_ns, d.timestamp_valid_bits,
+          static_cast<unsigned long long>(d.max_storage_buffer_range >> 20));
     }
   });
 }

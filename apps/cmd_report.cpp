@@ -15,7 +15,8 @@ void add_report_command(CLI::App& app) {
     std::string dir, format = "markdown", output, time_unit = "ms";
   };
   auto a = std::make_shared<Args>();
-  CLI::App* cmd = app.add_subcommand("report", "write OUT/report.md (tables, charts, comparisons) from OUT/results.jsonl");
+  CLI::App* cmd =
+      app.add_subcommand("report", "write OUT/report.md (tables, charts, comparisons) from OUT/results.jsonl");
   cmd->add_option("dir", a->dir, "output folder of `hybridprof run`")->required();
   cmd->add_option("--format", a->format, "markdown (report.md + charts/) or gbench (Google Benchmark JSON)")
       ->capture_default_str();

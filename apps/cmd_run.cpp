@@ -55,11 +55,12 @@ void add_run_command(CLI::App& app) {
     o.validate = a->validate;
     o.filters = a->filters;
     const RunSummary s = run_matrix(m, o);
-    std::printf("%s: %zu cells, %zu in shard %u/%u%s, %zu already done, %zu run%s -> %s/results.jsonl\n", a->file.c_str(),
-                s.cells, s.in_shard, shard.index, shard.count, a->filters.empty() ? "" : " selected by --filter",
-                s.already_done, s.ran,
-                s.stale ? (" (" + std::to_string(s.stale) + " of them again: measured by another build or driver)").c_str()
-                        : "",
+    std::printf("%s: %zu cells, %zu in shard %u/%u%s, %zu already done, %zu run%s -> %s/results.jsonl\n",
+                a->file.c_str(), s.cells, s.in_shard, shard.index, shard.count,
+                a->filters.empty() ? "" : " selected by --filter", s.already_done, s.ran,
+                s.stale
+                    ? (" (" + std::to_string(s.stale) + " of them again: measured by another build or driver)").c_str()
+                    : "",
                 a->out.c_str());
     // Cells with expectations (a matrix's "expect", e.g. hard_cases.json): every unmet one is reported,
     // resumed cells included, and the exit code is 1, as the gate's for a regression.

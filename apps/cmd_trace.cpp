@@ -2,24 +2,24 @@
 // memory access they make to a trace file (streamed slice by slice), optionally exporting one compute
 // unit's coalesced request stream in Dinero IV format.
 #include "apps/cli_util.hpp"
-#include "atomic_file.hpp"
 #include "apps/commands.hpp"
+#include "atomic_file.hpp"
 #include "cachesim/preset.hpp"
 #include "cachesim/simulator.hpp"
 #include "error.hpp"
-#include "output_path.hpp"
 #include "frame.hpp"
+#include "output_path.hpp"
 #include "scene/load.hpp"
 #include "vk/context.hpp"
 
 #include <algorithm>
-#include <vector>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
 namespace hp::cli {
 
@@ -47,9 +47,12 @@ void run_trace(const TraceArgs& a) {
   std::stringstream ss(a.passes);
   std::string p;
   while (std::getline(ss, p, ',')) {
-    if (p == "shadows") co.shadows = true;
-    else if (p == "reflections") co.reflections = true;
-    else throw InputError("--passes: unknown pass '" + p + "' (choose shadows, reflections)");
+    if (p == "shadows")
+      co.shadows = true;
+    else if (p == "reflections")
+      co.reflections = true;
+    else
+      throw InputError("--passes: unknown pass '" + p + "' (choose shadows, reflections)");
   }
   if (co.shadows && !settings.rt.shadows) {
     throw InputError("--passes " + a.passes + ": names the shadow pass, which --no-shadows turns off");
@@ -87,7 +90,8 @@ void run_trace(const TraceArgs& a) {
   vk::Context ctx({a.frame.device, a.frame.validate, true});
   Frame frame(ctx, scene, camera, settings);
   const std::vector<std::string> traced = frame.captured_pass_names(co);
-  if (!a.din_out.empty() && !a.din_pass.empty() && std::find(traced.begin(), traced.end(), a.din_pass) == traced.end()) {
+  if (!a.din_out.empty() && !a.din_pass.empty() &&
+      std::find(traced.begin(), traced.end(), a.din_pass) == traced.end()) {
     std::string names;
     for (const std::string& n : traced) names += (names.empty() ? "" : ", ") + n;
     throw InputError("--din-pass " + a.din_pass + ": not a traced pass (traced: " + names + ")");
@@ -104,16 +108,18 @@ void run_trace(const TraceArgs& a) {
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!a.image_out.empty()) write_image(a.image_out, frame.read_color());
   for (const CapturedPass& c : captured) {
-    std::printf("%s: %llu records from %llu of %llu workgroups (every %u-th), %u slice(s), %u re-run(s) after overflow\n",
-                c.pass.c_str(), (unsigned long long)c.records, (unsigned long long)c.sampled_workgroups,
-                (unsigned long long)c.workgroups, a.sample_every, c.slices, c.reruns);
+    std::printf(
+        "%s: %llu records from %llu of %llu workgroups (every %u-th), %u slice(s), %u re-run(s) after overflow\n",
+        c.pass.c_str(), (unsigned long long)c.records, (unsigned long long)c.sampled_workgroups,
+        (unsigned long long)c.workgroups, a.sample_every, c.slices, c.reruns);
   }
   std::printf("trace of %s %ux%u on %s in %.2f s -> %s\n", scene.name.c_str(), settings.width, settings.height,
               ctx.info().name.c_str(), s, a.out.c_str());
   if (!a.din_out.empty()) {
     trace::TraceReader reader(a.out);
     // The file's passes are captured_pass_names' (checked above): the named one, or the first.
-    const uint32_t pass = a.din_pass.empty() ? 0u : uint32_t(std::find(traced.begin(), traced.end(), a.din_pass) - traced.begin());
+    const uint32_t pass =
+        a.din_pass.empty() ? 0u : uint32_t(std::find(traced.begin(), traced.end(), a.din_pass) - traced.begin());
     if (pass >= reader.passes().size() || reader.passes()[pass].name != traced[pass]) {
       throw std::logic_error("trace: the capture's passes are not captured_pass_names'");
     }
@@ -134,7 +140,8 @@ void add_trace_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("trace", "record every memory access of the ray-tracing passes to a trace file");
   a->frame.add_to(cmd);
   cmd->add_option("--out", a->out, "trace file to write (binary, documented in README)");
-  cmd->add_option("--passes", a->passes, "passes to trace: shadows, reflections (comma-separated)")->capture_default_str();
+  cmd->add_option("--passes", a->passes, "passes to trace: shadows, reflections (comma-separated)")
+      ->capture_default_str();
   cmd->add_option("--sample-every", a->sample_every, "record every k-th workgroup burst (in dispatch order)")
       ->check(CLI::Range(1u, 0xFFFFFu))
       ->capture_default_str();

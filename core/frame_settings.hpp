@@ -41,19 +41,19 @@ struct RayTracingOptions {
   bool shadows = true;
   bool reflections = true;
   ShadowOffset offset = ShadowOffset::normal_bias;
-  float bias = 0.1f;                 ///< world units, for ShadowOffset::normal_bias (the study's 0.1)
+  float bias = 0.1f;  ///< world units, for ShadowOffset::normal_bias (the study's 0.1)
   JitterMode jitter = JitterMode::per_thread;
-  uint32_t reflection_divisor = 1;   ///< 1, 2 or 4: reflection grid = ceil(extent / divisor) per axis
-  float roughness_threshold = 0.35f; ///< reflective where roughness < this
-  bool reflection_shadows = true;    ///< shadow rays from reflection hits
-  bool counters = false;             ///< count rays, nodes visited, triangles tested (deterministic)
-  bool dump_rays = false;            ///< record every ray and its result (tests, cross-checks)
+  uint32_t reflection_divisor = 1;    ///< 1, 2 or 4: reflection grid = ceil(extent / divisor) per axis
+  float roughness_threshold = 0.35f;  ///< reflective where roughness < this
+  bool reflection_shadows = true;     ///< shadow rays from reflection hits
+  bool counters = false;              ///< count rays, nodes visited, triangles tested (deterministic)
+  bool dump_rays = false;             ///< record every ray and its result (tests, cross-checks)
   uint32_t seed = 1;
   /// Gate-validation knob: the shadow pass re-traces the first fraction of the image rows (same results,
   /// more work). 0 = off.
   float inject_shadow_fraction = 0.0f;
   ReflectionPath reflection_path = ReflectionPath::direct;
-  SortKey sort = SortKey::none;          ///< compact path only
+  SortKey sort = SortKey::none;            ///< compact path only
   Writeback writeback = Writeback::index;  ///< compact path only
 };
 

@@ -6,8 +6,7 @@ namespace hp::trace {
 
 uint64_t BufferInfo::address(uint32_t offset) const {
   switch (kind) {
-    case BufferKind::buffer:
-      return base_address + offset;
+    case BufferKind::buffer: return base_address + offset;
     case BufferKind::image_linear: {
       uint32_t texel = offset / texel_bytes, byte = offset % texel_bytes;
       uint32_t x = texel % width, y = texel / width;

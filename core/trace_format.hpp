@@ -25,7 +25,7 @@ struct BufferInfo {
   BufferKind kind = BufferKind::buffer;
   uint32_t texel_bytes = 0;  // images only
   uint32_t width = 0, height = 0;
-  uint32_t row_pitch_bytes = 0;  // image_linear: >= width * texel_bytes
+  uint32_t row_pitch_bytes = 0;              // image_linear: >= width * texel_bytes
   uint32_t tile_width = 0, tile_height = 0;  // image_tiled
 
   // Byte address of a record's offset: buffers add the base; images apply the declared layout.

@@ -18,8 +18,8 @@ using json = nlohmann::json;
 namespace {
 
 json level_json(const cachesim::LevelStats& l) {
-  return {{"requests", l.requests}, {"hits", l.hits},       {"misses", l.misses},
-          {"hit_rate", l.hit_rate()}, {"sectors", l.sectors}, {"sector_hits", l.sector_hits},
+  return {{"requests", l.requests},          {"hits", l.hits},       {"misses", l.misses},
+          {"hit_rate", l.hit_rate()},        {"sectors", l.sectors}, {"sector_hits", l.sector_hits},
           {"sector_misses", l.sector_misses}};
 }
 
@@ -65,16 +65,18 @@ json curve_json(const cachesim::MissRatioCurve& c) {
     pts.push_back({bytes, c.miss_ratio(lines)});
     if (lines > foot * 2) break;
   }
-  return {{"line_bytes", c.line_bytes}, {"accesses", c.accesses}, {"cold", c.cold},
-          {"footprint_bytes", c.footprint_lines() * c.line_bytes}, {"points", pts}};
+  return {{"line_bytes", c.line_bytes},
+          {"accesses", c.accesses},
+          {"cold", c.cold},
+          {"footprint_bytes", c.footprint_lines() * c.line_bytes},
+          {"points", pts}};
 }
 
 }  // namespace
 
 CacheAnalysis::CacheAnalysis(const trace::TraceHeader& header, const CacheAnalysisOptions& o)
     : header_(header), options_(o) {
-  const cachesim::Preset preset =
-      cachesim::scale_for_sampling(cachesim::find_preset(o.preset), o.scale_for_sampling);
+  const cachesim::Preset preset = cachesim::scale_for_sampling(cachesim::find_preset(o.preset), o.scale_for_sampling);
   cachesim::SimOptions so;
   so.per_invocation = !o.heatmap_dir.empty();
   so.l1_mrc = so.l2_mrc = o.curves;
@@ -93,8 +95,8 @@ uint32_t CacheAnalysis::begin_pass(const trace::PassInfo& pass) {
   return uint32_t(passes_.size() - 1);
 }
 
-void CacheAnalysis::write_records(uint32_t pass, std::span<const trace::TraceRecord> records,
-                                  uint64_t first_workgroup, uint64_t end_workgroup) {
+void CacheAnalysis::write_records(uint32_t pass, std::span<const trace::TraceRecord> records, uint64_t first_workgroup,
+                                  uint64_t end_workgroup) {
   if (!in_pass_ || pass + 1 != passes_.size())
     throw std::logic_error("CacheAnalysis: records for a pass that is not the current one");
   // A capture hands over what the GPU wrote: check it as a trace file's records are checked.
@@ -132,8 +134,11 @@ void CacheAnalysis::end_pass() {
   for (const trace::BufferInfo& b : header_.buffers) {
     const cachesim::BufferStats& bs = r.buffers[b.id];
     if (bs.l1_requests == 0 && bs.l2_requests == 0) continue;
-    buffers[b.name] = {{"l1_requests", bs.l1_requests}, {"l1_misses", bs.l1_misses}, {"l2_requests", bs.l2_requests},
-                       {"l2_misses", bs.l2_misses},     {"dram_read_bytes", bs.dram_read_bytes}};
+    buffers[b.name] = {{"l1_requests", bs.l1_requests},
+                       {"l1_misses", bs.l1_misses},
+                       {"l2_requests", bs.l2_requests},
+                       {"l2_misses", bs.l2_misses},
+                       {"dram_read_bytes", bs.dram_read_bytes}};
   }
   pj["buffers"] = buffers;
   if (o.curves) pj["mrc"] = {{"l1", curve_json(r.l1_curve)}, {"l2", curve_json(r.l2_curve)}};
@@ -148,11 +153,10 @@ void CacheAnalysis::end_pass() {
       }
     }
     const std::filesystem::path dir(o.heatmap_dir);
-    pj["heatmaps"] = {
-        {"l1_misses",
-         write_heatmap(r.l1_misses, info, w, h, (dir / (o.heatmap_prefix + info.name + "_l1_misses.png")).string())},
-        {"l2_misses",
-         write_heatmap(r.l2_misses, info, w, h, (dir / (o.heatmap_prefix + info.name + "_l2_misses.png")).string())}};
+    pj["heatmaps"] = {{"l1_misses", write_heatmap(r.l1_misses, info, w, h,
+                                                  (dir / (o.heatmap_prefix + info.name + "_l1_misses.png")).string())},
+                      {"l2_misses", write_heatmap(r.l2_misses, info, w, h,
+                                                  (dir / (o.heatmap_prefix + info.name + "_l2_misses.png")).string())}};
   }
   out_["passes"].push_back(pj);
   seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

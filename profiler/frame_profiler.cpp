@@ -43,7 +43,8 @@ FrameSample to_frame_sample(const FrameTiming& timing, const RayCounters* c) {
 FrameTimings profile_frames(Frame& frame, const ProfileOptions& o) {
   const bool gpu = frame.timestamps_supported();
   FrameTimings timings(o.warmup, o.frames, gpu ? TimingSource::GpuTimestamps : TimingSource::CpuWall);
-  const bool counters = frame.settings().rt.counters && (frame.settings().rt.shadows || frame.settings().rt.reflections);
+  const bool counters =
+      frame.settings().rt.counters && (frame.settings().rt.shadows || frame.settings().rt.reflections);
   // The first frame records no query. On lavapipe (Mesa 22.3) timestamps or pipeline statistics in a
   // Frame's very first frame leave its G-buffer pass slower in every later frame, timed or not (19-24 ms
   // instead of 13-18 ms at 640x360; a 320x180 G-buffer + composite frame 20 ms instead of 10-13 ms:
@@ -64,7 +65,9 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o) {
   for (uint32_t i = 0; i < o.warmup; ++i) {
     const bool count = statistics && i > 0 && i + 1 == o.warmup;
     counted = counted || count;
-    timings.add(to_frame_sample(i == 0 ? frame.render(FrameQueries::none) : count ? count_invocations() : frame.render(),
+    timings.add(to_frame_sample(i == 0  ? frame.render(FrameQueries::none)
+                                : count ? count_invocations()
+                                        : frame.render(),
                                 nullptr));
   }
   if (statistics && !counted) count_invocations();

@@ -11,8 +11,8 @@
 namespace hp {
 
 struct ProfileOptions {
-  uint32_t warmup = 3;    ///< frames run and discarded first (lavapipe's first frames are 5-60% slower)
-  uint32_t frames = 10;   ///< measured frames
+  uint32_t warmup = 3;   ///< frames run and discarded first (lavapipe's first frames are 5-60% slower)
+  uint32_t frames = 10;  ///< measured frames
   /// Also run `frames` frames without queries, interleaved with the measured ones, and record the
   /// difference of the median CPU wall times as the query overhead.
   bool measure_query_overhead = true;

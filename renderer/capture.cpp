@@ -130,8 +130,7 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
     if (selected(pass.traced, o) && pass.traced.attach) pass.traced.attach(ctx_, *trace_buffer_);
   }
   const uint32_t capacity = uint32_t((bytes - sizeof(gpu::TraceBufferHeader)) / sizeof(gpu::TraceRecord));
-  const Slicer slicer{ctx_, sink, static_cast<gpu::TraceBufferHeader*>(trace_buffer_->mapped()), capacity,
-                      sampling, o};
+  const Slicer slicer{ctx_, sink, static_cast<gpu::TraceBufferHeader*>(trace_buffer_->mapped()), capacity, sampling, o};
 
   upload_uniforms();
   rt_->begin_frame(sample_index_);

@@ -10,10 +10,10 @@
 namespace hp {
 
 Aov parse_aov(const std::string& name) {
-  static const std::pair<const char*, Aov> kNames[] = {
-      {"color", Aov::color},         {"depth", Aov::depth},         {"normal", Aov::normal},
-      {"albedo", Aov::albedo},       {"roughness", Aov::roughness}, {"metallic", Aov::metallic},
-      {"shadow", Aov::shadow},       {"reflection", Aov::reflection}};
+  static const std::pair<const char*, Aov> kNames[] = {{"color", Aov::color},         {"depth", Aov::depth},
+                                                       {"normal", Aov::normal},       {"albedo", Aov::albedo},
+                                                       {"roughness", Aov::roughness}, {"metallic", Aov::metallic},
+                                                       {"shadow", Aov::shadow},       {"reflection", Aov::reflection}};
   for (const auto& [n, a] : kNames) {
     if (name == n) return a;
   }
@@ -67,8 +67,7 @@ Frame::Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const F
       bounds.min = rt_geometry_->bvh.nodes[0].bmin;
       bounds.max = rt_geometry_->bvh.nodes[0].bmax;
     }
-    rt_ = std::make_unique<RtResources>(ctx, *rt_scene_, gbuffer_, uniforms_, sampler_.handle(), settings.rt,
-                                        bounds);
+    rt_ = std::make_unique<RtResources>(ctx, *rt_scene_, gbuffer_, uniforms_, sampler_.handle(), settings.rt, bounds);
     // Only the pipelines the options ask for are compiled (lavapipe compiles each one with LLVM).
     if (settings.rt.shadows) shadows_ = std::make_unique<ShadowPass>(ctx, *rt_);
     if (rt_->compaction()) compaction_ = std::make_unique<CompactionPath>(ctx, *rt_);
@@ -168,7 +167,8 @@ FrameTiming Frame::render(FrameQueries queries) {
     timing.source = "cpu-wall";
     ctx_.submit_and_wait([&](VkCommandBuffer cmd) { record_passes(cmd, FrameQueries::none); });
     const auto e = std::chrono::steady_clock::now();
-    timing.span = FrameTiming::Pass{"frame", 0, uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(e - t0).count())};
+    timing.span =
+        FrameTiming::Pass{"frame", 0, uint64_t(std::chrono::duration_cast<std::chrono::nanoseconds>(e - t0).count())};
   } else if (queries != FrameQueries::timestamps) {
     timing.source = "none";
     ctx_.submit_and_wait([&](VkCommandBuffer cmd) { record_passes(cmd, queries); });
@@ -273,9 +273,7 @@ Image4f Frame::read_aov(Aov aov) const {
     const bool bg = depth[i] == background;
     px[3] = bg ? 0.0f : 1.0f;
     switch (aov) {
-      case Aov::depth:
-        px[0] = px[1] = px[2] = depth[i];
-        break;
+      case Aov::depth: px[0] = px[1] = px[2] = depth[i]; break;
       case Aov::normal:
       case Aov::roughness: {
         uint64_t h;
@@ -298,8 +296,7 @@ Image4f Frame::read_aov(Aov aov) const {
         }
         break;
       }
-      default:
-        break;
+      default: break;
     }
   }
   return img;

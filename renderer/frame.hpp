@@ -7,10 +7,10 @@
 #pragma once
 
 #include "bvh/bvh.hpp"
+#include "frame_pass.hpp"
 #include "frame_settings.hpp"
 #include "gpu_scene.hpp"
 #include "image/image.hpp"
-#include "frame_pass.hpp"
 #include "passes/accumulate_pass.hpp"
 #include "passes/compaction_path.hpp"
 #include "passes/composite.hpp"
@@ -40,7 +40,7 @@ Aov parse_aov(const std::string& name);  // throws InputError listing the choice
 /// queries around the compute passes added about 0.3% of a 640x360 frame to the timestamps' 0.4%, so the
 /// invocation counts, which do not change from frame to frame, are taken in a frame of their own.
 enum class FrameQueries {
-  none,                 ///< no query (cpu_wall_ns only): the other side of the query-overhead pairs
+  none,  ///< no query (cpu_wall_ns only): the other side of the query-overhead pairs
   /// A timestamp at each pass boundary, and before each boundary an execution dependency (ALL_COMMANDS ->
   /// ALL_COMMANDS) so that no pass starts before the previous one is done: each interval holds one pass
   /// (PassIsolation::Serialized). Without it a device that overlaps independent passes (Mesa 25 lavapipe,
@@ -72,15 +72,15 @@ struct FrameTiming {
 
 /// What a memory-trace capture records (Frame::render_captured).
 struct CaptureOptions {
-  bool shadows = true;          ///< trace the shadow pass (when it is enabled)
-  bool reflections = true;      ///< trace the reflection pass (when it is enabled)
-  uint32_t sample_every = 1;    ///< record every k-th burst of workgroups (dispatch order); 1 = all
+  bool shadows = true;        ///< trace the shadow pass (when it is enabled)
+  bool reflections = true;    ///< trace the reflection pass (when it is enabled)
+  uint32_t sample_every = 1;  ///< record every k-th burst of workgroups (dispatch order); 1 = all
   /// Workgroups per burst, a power of two up to 2048: consecutive workgroups are traced together, so the
   /// sampled trace keeps the sharing between neighbouring workgroups that the caches see (1 = single
   /// workgroups, the plain every-k-th sampling).
   uint32_t sample_block = 1;
-  uint64_t buffer_bytes = 0;    ///< trace buffer size; 0 = min(64 MiB, maxStorageBufferRange)
-  bool tiled_images = true;     ///< G-buffer and outputs laid out in 8x8-texel tiles (else linear rows)
+  uint64_t buffer_bytes = 0;  ///< trace buffer size; 0 = min(64 MiB, maxStorageBufferRange)
+  bool tiled_images = true;   ///< G-buffer and outputs laid out in 8x8-texel tiles (else linear rows)
   /// Also run the enabled passes that are not traced, then accumulate and composite, so that the frame's
   /// image is whole (`trace --image`). Off: only the G-buffer and the traced passes run.
   bool final_image = true;
@@ -89,8 +89,8 @@ struct CaptureOptions {
 struct CapturedPass {
   std::string pass;
   uint64_t records = 0;
-  uint32_t slices = 0;          ///< dispatches that produced records
-  uint32_t reruns = 0;          ///< slices that overflowed the buffer and were re-run smaller
+  uint32_t slices = 0;  ///< dispatches that produced records
+  uint32_t reruns = 0;  ///< slices that overflowed the buffer and were re-run smaller
   uint64_t workgroups = 0, sampled_workgroups = 0;
 };
 
@@ -191,7 +191,7 @@ class Frame {
   vk::ComputeInvocationQueries invocations_;
   std::vector<FramePass> passes_;  // built last: its entries point at the passes above
   std::unique_ptr<vk::Buffer> trace_buffer_;
-  uint32_t compact_saved_ = 0;     // the capture's compacted count before a slice (restored on overflow)
+  uint32_t compact_saved_ = 0;  // the capture's compacted count before a slice (restored on overflow)
   uint32_t frame_index_ = 0;
   uint32_t sample_index_ = 0;
 };

@@ -17,9 +17,9 @@ namespace hp {
 
 /// One dispatch as the capture traces it: one trace pass, dispatched in slices that fit the trace buffer.
 struct TracedStep {
-  std::string name;                  ///< the trace pass's name ("shadows", "sort_scatter_1")
-  glm::uvec2 group_size{8, 8};       ///< invocations per workgroup, x and y
-  bool one_d = false;                ///< sliced by workgroups of one row (else by rows of workgroups)
+  std::string name;             ///< the trace pass's name ("shadows", "sort_scatter_1")
+  glm::uvec2 group_size{8, 8};  ///< invocations per workgroup, x and y
+  bool one_d = false;           ///< sliced by workgroups of one row (else by rows of workgroups)
   /// The full dispatch's workgroups, called when the step is captured (the consume pass reads the count).
   std::function<glm::uvec2()> workgroups;
   /// Records units [first, first + n) (rows, or groups when one_d) with the instrumented pipeline; `sampling`
@@ -28,7 +28,7 @@ struct TracedStep {
   /// For writes that are not idempotent (the compaction's atomic append): `save` runs before each slice,
   /// `restore` after an overflow, before the slice is re-run smaller.
   std::function<void()> save, restore;
-  std::function<void()> finish;      ///< after the last slice (resets the slice parameters)
+  std::function<void()> finish;  ///< after the last slice (resets the slice parameters)
 };
 
 /// How the capture runs a pass instead of recording it plainly.
@@ -45,8 +45,8 @@ struct FramePass {
   /// The timed pass's name (FrameTiming, timestamps, pipeline statistics); empty: an untimed step between
   /// passes (image layouts, counter reset), recorded wherever the frame is.
   std::string name;
-  bool compute = true;               ///< counted by the pipeline-statistics queries
-  bool capture_always = false;       ///< the capture runs it even without CaptureOptions::final_image
+  bool compute = true;          ///< counted by the pipeline-statistics queries
+  bool capture_always = false;  ///< the capture runs it even without CaptureOptions::final_image
   /// Records the pass. `alone`: it is a submission of its own (host timing, capture) and ends with its
   /// barrier even where, in the frame, the next pass's barrier covers it.
   std::function<void(VkCommandBuffer cmd, bool alone)> record;

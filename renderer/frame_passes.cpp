@@ -37,10 +37,9 @@ void Frame::add_compaction_passes(std::vector<FramePass>& out) {
   // from the count saved before it.
   compact.traced.before = [&cp](VkCommandBuffer cmd) { cp.record_reset_count(cmd, 0); };
   compact.traced.after = [&cp](VkCommandBuffer cmd) { cp.record_args(cmd); };
-  TracedStep cs = rt_step(rt, "compact", [&cp] { return cp.compact_workgroups(); },
-                          [&cp](VkCommandBuffer cmd, uint32_t first, uint32_t n) {
-                            cp.record_traced_compact(cmd, first, n);
-                          });
+  TracedStep cs = rt_step(
+      rt, "compact", [&cp] { return cp.compact_workgroups(); },
+      [&cp](VkCommandBuffer cmd, uint32_t first, uint32_t n) { cp.record_traced_compact(cmd, first, n); });
   cs.save = [this, &rt] { compact_saved_ = rt.read_compacted_count(ctx_); };
   cs.restore = [this, &cp] {
     ctx_.submit_and_wait([&](VkCommandBuffer cmd) { cp.record_reset_count(cmd, compact_saved_); });
@@ -76,9 +75,9 @@ void Frame::add_compaction_passes(std::vector<FramePass>& out) {
   FramePass consume{"consume", true, false, [&cp](VkCommandBuffer cmd, bool) { cp.record_consume(cmd); }};
   consume.traced.selected_by = reflections;
   consume.traced.attach = [&cp](vk::Context& ctx, const vk::Buffer&) { cp.attach_trace_consume(ctx); };
-  TracedStep s = rt_step(rt, "consume",
-                         [this, &rt] { return CompactionPath::consume_workgroups(rt.read_compacted_count(ctx_)); },
-                         [&cp](VkCommandBuffer cmd, uint32_t, uint32_t n) { cp.record_traced_consume(cmd, n); });
+  TracedStep s = rt_step(
+      rt, "consume", [this, &rt] { return CompactionPath::consume_workgroups(rt.read_compacted_count(ctx_)); },
+      [&cp](VkCommandBuffer cmd, uint32_t, uint32_t n) { cp.record_traced_consume(cmd, n); });
   s.group_size = {64, 1};  // HP_CONSUME_GROUP (shaders/common/compaction.glsl)
   s.one_d = true;
   consume.traced.steps.push_back(std::move(s));
@@ -113,10 +112,9 @@ std::vector<FramePass> Frame::build_passes() {
                       [&sp, next_covers](VkCommandBuffer cmd, bool alone) { sp.record(cmd, alone || !next_covers); }};
     shadows.traced.selected_by = TracedVariant::Switch::shadows;
     shadows.traced.attach = [&sp](vk::Context& ctx, const vk::Buffer&) { sp.attach_trace(ctx); };
-    shadows.traced.steps.push_back(rt_step(*rt_, "shadows", [&sp] { return sp.workgroups(); },
-                                           [&sp](VkCommandBuffer cmd, uint32_t first, uint32_t n) {
-                                             sp.record_traced_slice(cmd, first, n);
-                                           }));
+    shadows.traced.steps.push_back(rt_step(
+        *rt_, "shadows", [&sp] { return sp.workgroups(); },
+        [&sp](VkCommandBuffer cmd, uint32_t first, uint32_t n) { sp.record_traced_slice(cmd, first, n); }));
     shadows.dispatch = "8x8 groups over the image (and over the injected rows again)";
     shadows.reads = "G-buffer, frame, ray params, BVH, geometry";
     shadows.writes = "shadow_mask, counters, shadow dump";
@@ -128,10 +126,9 @@ std::vector<FramePass> Frame::build_passes() {
     FramePass refl{"reflections", true, false, [&rp](VkCommandBuffer cmd, bool) { rp.record(cmd); }};
     refl.traced.selected_by = TracedVariant::Switch::reflections;
     refl.traced.attach = [&rp](vk::Context& ctx, const vk::Buffer&) { rp.attach_trace(ctx); };
-    refl.traced.steps.push_back(rt_step(*rt_, "reflections", [&rp] { return rp.workgroups(); },
-                                        [&rp](VkCommandBuffer cmd, uint32_t first, uint32_t n) {
-                                          rp.record_traced_slice(cmd, first, n);
-                                        }));
+    refl.traced.steps.push_back(rt_step(
+        *rt_, "reflections", [&rp] { return rp.workgroups(); },
+        [&rp](VkCommandBuffer cmd, uint32_t first, uint32_t n) { rp.record_traced_slice(cmd, first, n); }));
     refl.dispatch = "8x8 groups over the reflection grid";
     refl.reads = "G-buffer, frame, ray params, BVH, geometry, materials";
     refl.writes = "reflection, counters, reflection dump";

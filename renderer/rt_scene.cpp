@@ -1,8 +1,8 @@
 #include "rt_scene.hpp"
 
-#include "gpu/shared_types.h"
 #include "error.hpp"
 #include "gpu/bindings.h"
+#include "gpu/shared_types.h"
 
 #include <algorithm>
 
@@ -16,8 +16,7 @@ constexpr VkBufferUsageFlags kStorage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
 vk::Buffer dummy(vk::Context& ctx) { return vk::Buffer(ctx, 4, kStorage, false); }
 
 template <typename T>
-vk::Buffer upload(vk::Context& ctx, const std::vector<T>& v, uint64_t& total,
-                  VkBufferUsageFlags extra_usage = 0) {
+vk::Buffer upload(vk::Context& ctx, const std::vector<T>& v, uint64_t& total, VkBufferUsageFlags extra_usage = 0) {
   // A dummy seen as texels holds whole texels of every format used here (12 and 16 bytes: 48 bytes).
   if (v.empty()) return vk::Buffer(ctx, extra_usage ? 48 : 4, kStorage | extra_usage, false);
   total += v.size() * sizeof(T);
@@ -45,9 +44,9 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   // The traversal fetches nodes as texels (traversal.glsl says why): two 16-byte texels per node.
   const uint64_t max_texels = ctx.properties().limits.maxTexelBufferElements;
   if (g.bvh.nodes.size() * 2 > max_texels) {
-    throw InputError("scene '" + scene.name + "': the BVH's " + std::to_string(g.bvh.nodes.size()) +
-                     " nodes need " + std::to_string(g.bvh.nodes.size() * 2) +
-                     " texels, over this device's maxTexelBufferElements of " + std::to_string(max_texels));
+    throw InputError("scene '" + scene.name + "': the BVH's " + std::to_string(g.bvh.nodes.size()) + " nodes need " +
+                     std::to_string(g.bvh.nodes.size() * 2) + " texels, over this device's maxTexelBufferElements of " +
+                     std::to_string(max_texels));
   }
   uploaded_bytes_ += g.bvh.nodes.size() * sizeof(gpu::BvhNode);
   nodes_ = vk::upload_vector(ctx, g.bvh.nodes, kStorage | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT);
@@ -99,9 +98,9 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   VkFormatProperties triple{};
   vkGetPhysicalDeviceFormatProperties(ctx.physical_device(), kTriple, &triple);
   // Every buffer seen as texels stays within maxTexelBufferElements (R32_UINT: the slot map is 1 per slot).
-  const uint64_t most_texels = std::max({positions.size() / 3, indices.size() / 3, soup.size() / 3,
-                                         normals.size() / 3, soup_normals.size() / 3, uint64_t(slots),
-                                         uint64_t(scene.materials.size()) * 2});
+  const uint64_t most_texels =
+      std::max({positions.size() / 3, indices.size() / 3, soup.size() / 3, normals.size() / 3, soup_normals.size() / 3,
+                uint64_t(slots), uint64_t(scene.materials.size()) * 2});
   geometry_texels_ = allow_geometry_texels &&
                      (triple.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT) != 0 &&
                      most_texels <= max_texels;
@@ -141,8 +140,8 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
 
 void RtScene::add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& b) {
   const VkShaderStageFlags cs = VK_SHADER_STAGE_COMPUTE_BIT;
-  for (uint32_t i : {HP_BIND_RT_POSITIONS, HP_BIND_RT_INDICES, HP_BIND_RT_SOUP, HP_BIND_RT_OBJECT_FIRST,
-                     HP_BIND_RT_SLOT_SCENE}) {
+  for (uint32_t i :
+       {HP_BIND_RT_POSITIONS, HP_BIND_RT_INDICES, HP_BIND_RT_SOUP, HP_BIND_RT_OBJECT_FIRST, HP_BIND_RT_SLOT_SCENE}) {
     b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, cs, nullptr});
   }
   for (uint32_t i : {HP_BIND_RT_NODE_TEXELS, HP_BIND_RT_POSITION_TEXELS, HP_BIND_RT_INDEX_TEXELS,

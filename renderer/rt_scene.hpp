@@ -68,12 +68,12 @@ class RtScene {
   GeometryLayout layout_;
   bool object_leaves_;
   uint64_t uploaded_bytes_ = 0;
-  vk::Buffer nodes_, positions_, indices_, soup_, object_first_, slot_scene_, normals_, soup_normals_,
-      slot_material_, materials_, texel_dummy_;
+  vk::Buffer nodes_, positions_, indices_, soup_, object_first_, slot_scene_, normals_, soup_normals_, slot_material_,
+      materials_, texel_dummy_;
   bool geometry_texels_ = false;
   vk::BufferView node_texels_;  // after the buffers: destroyed before them
-  vk::BufferView position_texels_, index_texels_, soup_texels_, normal_texels_, soup_normal_texels_,
-      slot_scene_texels_, slot_material_texels_, material_texels_;
+  vk::BufferView position_texels_, index_texels_, soup_texels_, normal_texels_, soup_normal_texels_, slot_scene_texels_,
+      slot_material_texels_, material_texels_;
 };
 
 /// A ray-tracing compute pipeline specialized for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =

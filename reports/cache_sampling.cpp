@@ -74,7 +74,8 @@ Groups group_cells(const std::vector<CellResult>& cells) {
     if (c.cache.is_object()) traced.push_back(&c);
   std::map<std::string, const CellResult*> full;
   for (const CellResult* c : traced)
-    if (sample_every(*c).value_or(1.0) == 1.0 && !full.count(match_key_ignoring(*c, key_ignore))) full[match_key_ignoring(*c, key_ignore)] = c;
+    if (sample_every(*c).value_or(1.0) == 1.0 && !full.count(match_key_ignoring(*c, key_ignore)))
+      full[match_key_ignoring(*c, key_ignore)] = c;
   Groups out;
   std::vector<Group>& groups = out.groups;
   for (const CellResult* c : traced) {
@@ -87,7 +88,8 @@ Groups group_cells(const std::vector<CellResult>& cells) {
     }
     const double block = number_at(c->config["trace"], "sample_block").value_or(1.0);
     const std::string key = match_key_ignoring(*c, {"/trace/sample_every"});
-    auto g = std::find_if(groups.begin(), groups.end(), [&](const Group& x) { return x.full == it->second && x.key == key; });
+    auto g = std::find_if(groups.begin(), groups.end(),
+                          [&](const Group& x) { return x.full == it->second && x.key == key; });
     if (g == groups.end()) {
       groups.push_back({it->second, block, key, {}});
       g = groups.end() - 1;
@@ -98,11 +100,13 @@ Groups group_cells(const std::vector<CellResult>& cells) {
     out.cells.push_back(g.full);
     for (const auto& [k, c] : g.sampled) out.cells.push_back(c);
   }
-  for (Group& g : groups) std::stable_sort(g.sampled.begin(), g.sampled.end(), [](auto& a, auto& b) { return a.first < b.first; });
+  for (Group& g : groups)
+    std::stable_sort(g.sampled.begin(), g.sampled.end(), [](auto& a, auto& b) { return a.first < b.first; });
   for (const Group& g : groups)
     for (const auto& [k, c] : g.sampled)
       for (const auto& [pass, r] : cache_rates(*c))
-        if (std::find(out.pass_order.begin(), out.pass_order.end(), pass) == out.pass_order.end()) out.pass_order.push_back(pass);
+        if (std::find(out.pass_order.begin(), out.pass_order.end(), pass) == out.pass_order.end())
+          out.pass_order.push_back(pass);
   return out;
 }
 
@@ -113,8 +117,9 @@ std::optional<double> pp(const std::optional<double>& a, const std::optional<dou
 }
 
 std::string group_label(const Group& g, const Groups& all) {
-  std::string label = g.sampled.empty() ? std::string()
-                      : varying_label(*g.sampled.front().second, all.cells, {"sample_every", "sample_block"});
+  std::string label = g.sampled.empty()
+                          ? std::string()
+                          : varying_label(*g.sampled.front().second, all.cells, {"sample_every", "sample_block"});
   return (label.empty() || label == g.full->name ? "" : label + ", ") + "bursts of " + md::general(g.block) +
          (g.block == 1.0 ? " workgroup" : " workgroups");
 }
@@ -126,7 +131,8 @@ std::string pass_tables(const Groups& all, svg::LineChart& chart, size_t& zero_p
   auto ppt = [](const std::optional<double>& e) { return e ? fmt("%.3f", *e) : std::string("—"); };
   std::string s;
   for (const std::string& pass : all.pass_order) {
-    s += "#### " + md::escape(pass) + "\n\n| cell | k | L1 hit rate | L1 \\|error\\| (pp) | L2 hit rate | L2 \\|error\\| (pp) | "
+    s += "#### " + md::escape(pass) +
+         "\n\n| cell | k | L1 hit rate | L1 \\|error\\| (pp) | L2 hit rate | L2 \\|error\\| (pp) | "
          "max per-buffer L1 \\|error\\| (pp) | simulation (s) | speed-up |\n|---|---|---|---|---|---|---|---|---|\n";
     for (const Group& g : all.groups) {
       const auto fr = cache_rates(*g.full);
@@ -151,8 +157,8 @@ std::string pass_tables(const Groups& all, svg::LineChart& chart, size_t& zero_p
         }
         const auto sim = number_at(c->cache, "simulation_s");
         s += "| " + md::escape(label) + " | " + md::general(k) + " | " + pct(sp->second.l1) + " | " + ppt(e1) + " | " +
-             pct(sp->second.l2) + " | " + ppt(e2) + " | " + ppt(emax) + " | " + (sim ? fmt("%.2f", *sim) : "—") + " | " +
-             (sim && full_sim && *sim > 0 ? fmt("%.1f", *full_sim / *sim) + "×" : "—") + " |\n";
+             pct(sp->second.l2) + " | " + ppt(e2) + " | " + ppt(emax) + " | " + (sim ? fmt("%.2f", *sim) : "—") +
+             " | " + (sim && full_sim && *sim > 0 ? fmt("%.1f", *full_sim / *sim) + "×" : "—") + " |\n";
         for (auto [line, e] : {std::pair{&l1, e1}, std::pair{&l2, e2}}) {
           if (!e) continue;
           if (*e <= 0) {
@@ -181,7 +187,8 @@ std::string time_against_error(const Groups& all, std::vector<ReportFile>& chart
   std::vector<Summary> sums;
   for (const Group& g : all.groups) {
     const auto full_sim = number_at(g.full->cache, "simulation_s");
-    if (full_sim && std::none_of(sums.begin(), sums.end(), [&](const Summary& x) { return x.err == 0.0 && x.sim == *full_sim; })) {
+    if (full_sim &&
+        std::none_of(sums.begin(), sums.end(), [&](const Summary& x) { return x.err == 0.0 && x.sim == *full_sim; })) {
       sums.push_back({"full trace", *full_sim, 0.0});
     }
     const auto fr = cache_rates(*g.full);
@@ -222,12 +229,13 @@ std::string time_against_error(const Groups& all, std::vector<ReportFile>& chart
   sc.title = "Cache simulation: simulator time against the error of the sampled hit rates";
   sc.x_label = "simulator wall time, s";
   sc.y_label = "mean |hit-rate error| over passes and levels, pp";
-  std::string s = "Time against error: the simulator's wall time against the mean |hit-rate error| (L1 and L2 of every traced pass, "
-       "percentage points); the Pareto front (both lower is better) is marked.\n\n"
-       "| sampling | simulation (s) | mean \\|error\\| (pp) | Pareto |\n|---|---|---|---|\n";
+  std::string s =
+      "Time against error: the simulator's wall time against the mean |hit-rate error| (L1 and L2 of every traced pass, "
+      "percentage points); the Pareto front (both lower is better) is marked.\n\n"
+      "| sampling | simulation (s) | mean \\|error\\| (pp) | Pareto |\n|---|---|---|---|\n";
   for (size_t i : order) {
-    s += "| " + md::escape(sums[i].label) + " | " + fmt("%.3f", sums[i].sim) + " | " + fmt("%.3f", sums[i].err) + " | " +
-         (front[i] ? "**yes**" : "no") + " |\n";
+    s += "| " + md::escape(sums[i].label) + " | " + fmt("%.3f", sums[i].sim) + " | " + fmt("%.3f", sums[i].err) +
+         " | " + (front[i] ? "**yes**" : "no") + " |\n";
     sc.points.push_back({sums[i].sim, sums[i].err, sums[i].label, "", bool(front[i])});
   }
   charts.push_back({"charts/cache_sampling_tradeoff.svg", svg::render(sc)});
@@ -241,13 +249,15 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
   std::string s = "### Cache simulation on sampled traces\n\n";
   const Groups all = group_cells(cells);
   if (all.groups.empty() && all.orphans.empty()) {
-    return s + "No traced cell samples its trace (`trace.sample_every` > 1), so there is nothing to compare with the full trace.\n\n";
+    return s +
+           "No traced cell samples its trace (`trace.sample_every` > 1), so there is nothing to compare with the full trace.\n\n";
   }
-  s += "Each traced cell with `trace.sample_every` k > 1 (the memory accesses of every k-th burst of `trace.sample_block` "
-       "consecutive workgroups, in dispatch order, replayed through the caches) "
-       "against the cell with the same configuration traced in full (k = 1). |error| is the absolute difference of the hit "
-       "rates in percentage points; the per-buffer column is the largest such difference over the pass's buffers' L1 hit "
-       "rates. Simulation time is the cache simulator's wall time for the cell (all traced passes); speed-up = full / sampled.\n\n";
+  s +=
+      "Each traced cell with `trace.sample_every` k > 1 (the memory accesses of every k-th burst of `trace.sample_block` "
+      "consecutive workgroups, in dispatch order, replayed through the caches) "
+      "against the cell with the same configuration traced in full (k = 1). |error| is the absolute difference of the hit "
+      "rates in percentage points; the per-buffer column is the largest such difference over the pass's buffers' L1 hit "
+      "rates. Simulation time is the cache simulator's wall time for the cell (all traced passes); speed-up = full / sampled.\n\n";
   svg::LineChart chart;
   chart.title = "Hit-rate error of sampled cache traces against the full trace";
   chart.x_label = "sample_every k (log)";
@@ -265,8 +275,9 @@ std::string cache_sampling_section(const std::vector<CellResult>& cells, std::ve
   }
   s += time_against_error(all, charts);
   if (!all.orphans.empty()) {
-    s += "Without a full-trace partner (no cell with the same configuration and `trace.sample_every` 1), so not compared: " +
-         md::escape(md::list(all.orphans)) + ".\n\n";
+    s +=
+        "Without a full-trace partner (no cell with the same configuration and `trace.sample_every` 1), so not compared: " +
+        md::escape(md::list(all.orphans)) + ".\n\n";
   }
   return s;
 }

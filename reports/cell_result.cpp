@@ -74,13 +74,17 @@ PassSamples pass_samples(const TimingResult& timing) {
     std::vector<std::pair<std::string, double>> frame;  // this frame's sum per pass, in order
     for (const PassSample& p : f.passes) {
       auto it = std::find_if(frame.begin(), frame.end(), [&](auto& e) { return e.first == p.pass; });
-      if (it == frame.end()) frame.emplace_back(p.pass, double(p.duration_ns()));
-      else it->second += double(p.duration_ns());
+      if (it == frame.end())
+        frame.emplace_back(p.pass, double(p.duration_ns()));
+      else
+        it->second += double(p.duration_ns());
     }
     for (const auto& [pass, ns] : frame) {
       auto it = std::find_if(out.begin(), out.end(), [&](auto& e) { return e.first == pass; });
-      if (it == out.end()) out.push_back({pass, {ns}});
-      else it->second.push_back(ns);
+      if (it == out.end())
+        out.push_back({pass, {ns}});
+      else
+        it->second.push_back(ns);
     }
   }
   return out;

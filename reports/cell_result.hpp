@@ -21,8 +21,8 @@ struct CellResult {
   nlohmann::json axes = nlohmann::json::object();    ///< {axis key path: value}
   nlohmann::json config = nlohmann::json::object();  ///< canonical scenario
   TimingResult timing;
-  std::optional<std::uint64_t> triangles;            ///< scene.triangles
-  nlohmann::json bvh;     ///< {build_ms, nodes, leaves, max_depth, sah_cost} or null (no rays traced)
+  std::optional<std::uint64_t> triangles;  ///< scene.triangles
+  nlohmann::json bvh;                      ///< {build_ms, nodes, leaves, max_depth, sah_cost} or null (no rays traced)
   nlohmann::json images = nlohmann::json::object();  ///< {"color": "cells/<id>/color.png", ...}
   /// Cache-simulator tables, when the scenario traced passes (null otherwise), as analyse_trace
   /// writes them: {preset, passes: [{pass, l1: {requests, hits, misses, hit_rate, ...}, l2: {...},

@@ -123,8 +123,9 @@ GateSide side_from_runs(const std::vector<std::string>& dirs, const std::string&
         continue;
       }
       if (deterministic_metrics(c) != metrics[key])
-        s.problems.push_back(label + ": cell " + cell_label(c) + ": deterministic metrics differ between run 1 and run " +
-                             std::to_string(r + 1) + " (not deterministic)");
+        s.problems.push_back(label + ": cell " + cell_label(c) +
+                             ": deterministic metrics differ between run 1 and run " + std::to_string(r + 1) +
+                             " (not deterministic)");
       PassSamples& pooled = s.samples[key];
       for (const auto& [pass, frames] : pass_samples(c.timing)) {
         auto it = std::find_if(pooled.begin(), pooled.end(), [&](auto& e) { return e.first == pass; });
@@ -165,13 +166,17 @@ CellPairs pair_cells(const GateSide& base, const GateSide& cand, GateOutcome& ou
     const std::string key = match_key(b);
     if (!base_keys.insert(key).second) continue;
     auto it = cand_by_key.find(key);
-    if (it == cand_by_key.end()) only_base += (only_base.empty() ? "" : ", ") + cell_label(b) + " (" + b.id + ")";
-    else pairs.push_back({&b, it->second});
+    if (it == cand_by_key.end())
+      only_base += (only_base.empty() ? "" : ", ") + cell_label(b) + " (" + b.id + ")";
+    else
+      pairs.push_back({&b, it->second});
   }
   for (const CellResult& c : cand.cells)
-    if (!base_keys.count(match_key(c))) only_cand += (only_cand.empty() ? "" : ", ") + cell_label(c) + " (" + c.id + ")";
+    if (!base_keys.count(match_key(c)))
+      only_cand += (only_cand.empty() ? "" : ", ") + cell_label(c) + " (" + c.id + ")";
   if (!only_base.empty()) out.cannot_compare.push_back("cells only in the baseline (" + base.label + "): " + only_base);
-  if (!only_cand.empty()) out.cannot_compare.push_back("cells only in the candidate (" + cand.label + "): " + only_cand);
+  if (!only_cand.empty())
+    out.cannot_compare.push_back("cells only in the candidate (" + cand.label + "): " + only_cand);
   return pairs;
 }
 
@@ -214,7 +219,7 @@ void compare_deterministic(const CellPairs& pairs, const GateOptions& o, GateOut
 
 // Timings: one U test per (cell, pass), Holm across all of them.
 void compare_timings_of(const GateSide& base, const GateSide& cand, const CellPairs& pairs, const GateOptions& o,
-                     GateOutcome& out) {
+                        GateOutcome& out) {
   struct T {
     const CellResult* cell;
     std::string pass;
@@ -250,8 +255,14 @@ void compare_timings_of(const GateSide& base, const GateSide& cand, const CellPa
     const T& t = tests[i];
     const double ratio = t.mc / t.mb;
     const bool sig = adj[i] <= o.policy.alpha;
-    GateRow row{cell_label(*t.cell), "time " + t.pass + " (ms)", fmt("%.3f", t.mb / 1e6), fmt("%.3f", t.mc / 1e6),
-                change_text(t.mb, t.mc), raw[i], adj[i], "pass"};
+    GateRow row{cell_label(*t.cell),
+                "time " + t.pass + " (ms)",
+                fmt("%.3f", t.mb / 1e6),
+                fmt("%.3f", t.mc / 1e6),
+                change_text(t.mb, t.mc),
+                raw[i],
+                adj[i],
+                "pass"};
     // The two-sided test's significance counts only in the direction the medians moved: a bimodal
     // candidate can have a higher median while its frames are mostly faster (audit find).
     if (sig && t.slower && ratio > 1.0 + o.policy.threshold) {
@@ -298,8 +309,10 @@ GateOutcome run_gate(const GateSide& base, const GateSide& cand, const GateOptio
       if (std::find(env_diff.begin(), env_diff.end(), d) == env_diff.end()) env_diff.push_back(d);
   const bool compare_timings = !o.deterministic_only && env_diff.empty();
   for (const std::string& d : env_diff) {
-    if (o.deterministic_only) out.notes.push_back("environments differ (timings are not compared anyway): " + d);
-    else out.cannot_compare.push_back("timings not compared: the sides ran on different environments: " + d);
+    if (o.deterministic_only)
+      out.notes.push_back("environments differ (timings are not compared anyway): " + d);
+    else
+      out.cannot_compare.push_back("timings not compared: the sides ran on different environments: " + d);
   }
 
   compare_deterministic(pairs, o, out);
@@ -311,7 +324,8 @@ GateOutcome run_gate(const GateSide& base, const GateSide& cand, const GateOptio
 }
 
 std::string format_gate(const GateOutcome& o) {
-  std::vector<std::array<std::string, 7>> table = {{"cell", "metric", "baseline", "candidate", "change", "p (Holm)", "verdict"}};
+  std::vector<std::array<std::string, 7>> table = {
+      {"cell", "metric", "baseline", "candidate", "change", "p (Holm)", "verdict"}};
   for (const GateRow& r : o.rows) {
     std::string p = "—";
     if (r.p_holm) p = *r.p_holm < 0.0001 ? "<0.0001" : fmt("%.4f", *r.p_holm);
@@ -341,23 +355,30 @@ std::string format_gate(const GateOutcome& o) {
   s += o.rows.empty() ? "\n" : "; " + std::to_string(o.timing_comparisons) + " timing comparison(s)\n";
   for (const std::string& n : o.notes) s += "note: " + n + "\n";
   for (const std::string& c : o.cannot_compare) s += "cannot compare: " + c + "\n";
-  if (o.exit_code == 2) s += "result: CANNOT COMPARE (exit 2)\n";
-  else if (o.exit_code == 1) s += "result: REGRESSION: " + std::to_string(o.fails) + " failure(s) (exit 1)\n";
+  if (o.exit_code == 2)
+    s += "result: CANNOT COMPARE (exit 2)\n";
+  else if (o.exit_code == 1)
+    s += "result: REGRESSION: " + std::to_string(o.fails) + " failure(s) (exit 1)\n";
   else if (o.exit_code == 4)
-    s += "result: INCONCLUSIVE: " + std::to_string(o.cannot_fail) + " timing comparison(s) could not have failed (exit 4)\n";
-  else s += "result: PASS" + (o.warns ? " with " + std::to_string(o.warns) + " warning(s)" : std::string()) + " (exit 0)\n";
+    s += "result: INCONCLUSIVE: " + std::to_string(o.cannot_fail) +
+         " timing comparison(s) could not have failed (exit 4)\n";
+  else
+    s +=
+        "result: PASS" + (o.warns ? " with " + std::to_string(o.warns) + " warning(s)" : std::string()) + " (exit 0)\n";
   return s;
 }
 
 std::pair<GateSide, GateSide> run_ab(const AbOptions& o) {
   if (o.trials < 1) throw InputError("--trials: must be at least 1");
-  if (o.baseline_cmd.empty() || o.candidate_cmd.empty()) throw InputError("--ab needs --baseline-cmd and --candidate-cmd");
+  if (o.baseline_cmd.empty() || o.candidate_cmd.empty())
+    throw InputError("--ab needs --baseline-cmd and --candidate-cmd");
   if (o.scenario.empty()) throw InputError("--ab needs --scenario FILE");
   (void)load_matrix(o.scenario);  // a broken scenario fails here, once, not in every trial's log
   std::string work = o.work_dir;
   if (work.empty()) {
     std::string tmpl = (fs::temp_directory_path() / "hybridprof-gate-XXXXXX").string();
-    if (!::mkdtemp(tmpl.data())) throw InputError("cannot create a work folder under " + fs::temp_directory_path().string());
+    if (!::mkdtemp(tmpl.data()))
+      throw InputError("cannot create a work folder under " + fs::temp_directory_path().string());
     work = tmpl;
   }
   std::error_code ec;
@@ -385,8 +406,9 @@ std::pair<GateSide, GateSide> run_ab(const AbOptions& o) {
       dirs[side].push_back(dir);
     }
   }
-  auto result = std::make_pair(side_from_runs(dirs[0], "baseline (" + std::to_string(o.trials) + " runs of " + o.baseline_cmd + ")"),
-                               side_from_runs(dirs[1], "candidate (" + std::to_string(o.trials) + " runs of " + o.candidate_cmd + ")"));
+  auto result = std::make_pair(
+      side_from_runs(dirs[0], "baseline (" + std::to_string(o.trials) + " runs of " + o.baseline_cmd + ")"),
+      side_from_runs(dirs[1], "candidate (" + std::to_string(o.trials) + " runs of " + o.candidate_cmd + ")"));
   if (!o.keep && o.work_dir.empty()) fs::remove_all(work);
   return result;
 }

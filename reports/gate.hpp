@@ -46,10 +46,10 @@ void validate_policy(const GatePolicy& policy, const std::string& where);
 
 struct GateSide {
   std::string label;
-  std::vector<CellResult> cells;                 ///< one per cell (in --ab: the first run's)
-  std::map<std::string, PassSamples> samples;    ///< by match_key: per pass, the samples tested
-  std::string sample_kind = "frames";            ///< "frames" or "process medians"
-  std::vector<std::string> problems;             ///< reasons this side cannot be compared
+  std::vector<CellResult> cells;               ///< one per cell (in --ab: the first run's)
+  std::map<std::string, PassSamples> samples;  ///< by match_key: per pass, the samples tested
+  std::string sample_kind = "frames";          ///< "frames" or "process medians"
+  std::vector<std::string> problems;           ///< reasons this side cannot be compared
 };
 
 /// A run folder: samples are the raw frames of each cell.
@@ -90,10 +90,10 @@ std::string format_gate(const GateOutcome& outcome);
 struct AbOptions {
   std::string baseline_cmd, candidate_cmd;  ///< each run as `CMD run SCENARIO --out DIR` by /bin/sh
   std::string scenario;
-  int trials = 5;             ///< fresh processes per side
-  std::string work_dir;       ///< empty: a new folder under the system's temp folder
-  bool keep = false;          ///< keep the run folders (else removed after success)
-  bool progress = true;       ///< a line per process on stderr
+  int trials = 5;        ///< fresh processes per side
+  std::string work_dir;  ///< empty: a new folder under the system's temp folder
+  bool keep = false;     ///< keep the run folders (else removed after success)
+  bool progress = true;  ///< a line per process on stderr
 };
 
 /// Runs both commands alternately (A B B A A B ...: a drift in machine load hits both sides alike),

@@ -68,14 +68,9 @@ json gbench_export(const std::vector<CellResult>& cells, const std::string& time
       const std::string run_name = gbench_name(c, pass) + "/manual_time";
       const size_t n = samples.size();
       auto entry = [&](const std::string& name, const char* run_type) {
-        return json{{"name", name},
-                    {"family_index", family},
-                    {"per_family_instance_index", 0},
-                    {"run_name", run_name},
-                    {"run_type", run_type},
-                    {"repetitions", n},
-                    {"threads", 1},
-                    {"label", c.id}};
+        return json{{"name", name},         {"family_index", family}, {"per_family_instance_index", 0},
+                    {"run_name", run_name}, {"run_type", run_type},   {"repetitions", n},
+                    {"threads", 1},         {"label", c.id}};
       };
       for (size_t i = 0; i < n; ++i) {
         json e = entry(run_name, "iteration");

@@ -67,9 +67,8 @@ std::string environment_section(const std::vector<CellResult>& cells) {
       joined = values.front() + " … " + values.back();
     } else if (std::string(f.label).rfind("load", 0) == 0 && values.size() > 1) {
       // A range over the cells, numerically ("unknown" sorts first).
-      std::sort(values.begin(), values.end(), [](const std::string& a, const std::string& b) {
-        return std::atof(a.c_str()) < std::atof(b.c_str());
-      });
+      std::sort(values.begin(), values.end(),
+                [](const std::string& a, const std::string& b) { return std::atof(a.c_str()) < std::atof(b.c_str()); });
       joined = values.front() + " … " + values.back();
     } else {
       for (const std::string& v : values) joined += (joined.empty() ? "" : "; ") + v;
@@ -85,7 +84,8 @@ std::string environment_section(const std::vector<CellResult>& cells) {
          "show them.\n";
   }
   const TimingSummary& t = cells.front().timing.summary;
-  s += "\nTimes come from " + std::string(t.source == TimingSource::GpuTimestamps ? "GPU timestamps" : "CPU wall clocks") +
+  s += "\nTimes come from " +
+       std::string(t.source == TimingSource::GpuTimestamps ? "GPU timestamps" : "CPU wall clocks") +
        " around each pass, after discarded warm-up frames; raw results keep nanoseconds.\n";
   return s;
 }
@@ -133,34 +133,39 @@ std::string rate(double hits, double misses) {
 std::string cache_tables(const CellResult& c) {
   const std::vector<CachePass> passes = cache_passes(c);
   if (passes.empty()) return "";
-  std::string s = "\nCache simulation (preset " + c.cache.value("preset", std::string("?")) +
-                  ", one traced frame" +
-                  (c.cache.contains("simulation_s") && c.cache["simulation_s"].is_number()
-                       ? ", simulated in " + fmt("%.2f", c.cache["simulation_s"].get<double>()) + " s"
-                       : std::string()) +
-                  "), in the study's form:\n\n| pass | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate | L2 hit rate |\n|---|---|---|---|---|---|---|\n";
+  std::string s =
+      "\nCache simulation (preset " + c.cache.value("preset", std::string("?")) + ", one traced frame" +
+      (c.cache.contains("simulation_s") && c.cache["simulation_s"].is_number()
+           ? ", simulated in " + fmt("%.2f", c.cache["simulation_s"].get<double>()) + " s"
+           : std::string()) +
+      "), in the study's form:\n\n| pass | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate | L2 hit rate |\n|---|---|---|---|---|---|---|\n";
   std::string buffers, heatmaps;
   for (const CachePass& p : passes) {
-    s += "| " + p.pass + " | " + md::count(p.l1_hits) + " | " + md::count(p.l1_misses) + " | " + md::count(p.l2_hits) + " | " +
-         md::count(p.l2_misses) + " | " + rate(p.l1_hits, p.l1_misses) + " | " + rate(p.l2_hits, p.l2_misses) + " |\n";
+    s += "| " + p.pass + " | " + md::count(p.l1_hits) + " | " + md::count(p.l1_misses) + " | " + md::count(p.l2_hits) +
+         " | " + md::count(p.l2_misses) + " | " + rate(p.l1_hits, p.l1_misses) + " | " + rate(p.l2_hits, p.l2_misses) +
+         " |\n";
     if (p.j->contains("buffers") && (*p.j)["buffers"].is_object()) {
       for (const auto& [buf, b] : (*p.j)["buffers"].items()) {
         const double l1r = num_or0(b, "l1_requests"), l1m = num_or0(b, "l1_misses");
         const double l2r = num_or0(b, "l2_requests"), l2m = num_or0(b, "l2_misses");
-        buffers += "| " + p.pass + " | " + buf + " | " + md::count(l1r) + " | " + md::count(l1m) + " | " + rate(l1r - l1m, l1m) +
-                   " | " + md::count(l2r) + " | " + md::count(l2m) + " | " + rate(l2r - l2m, l2m) + " |\n";
+        buffers += "| " + p.pass + " | " + buf + " | " + md::count(l1r) + " | " + md::count(l1m) + " | " +
+                   rate(l1r - l1m, l1m) + " | " + md::count(l2r) + " | " + md::count(l2m) + " | " +
+                   rate(l2r - l2m, l2m) + " |\n";
       }
     }
     if (p.j->contains("heatmaps") && (*p.j)["heatmaps"].is_object()) {
       for (const auto& [kind, path] : (*p.j)["heatmaps"].items()) {
         if (path.is_string())
-          heatmaps += "[![" + p.pass + " " + kind + "](" + path.get<std::string>() + ")](" + path.get<std::string>() + ") ";
+          heatmaps +=
+              "[![" + p.pass + " " + kind + "](" + path.get<std::string>() + ")](" + path.get<std::string>() + ") ";
       }
     }
   }
   if (!buffers.empty()) {
-    s += "\nPer buffer:\n\n| pass | buffer | L1 requests | L1 misses | L1 hit rate | L2 requests | L2 misses | L2 hit rate |\n"
-         "|---|---|---|---|---|---|---|---|\n" + buffers;
+    s +=
+        "\nPer buffer:\n\n| pass | buffer | L1 requests | L1 misses | L1 hit rate | L2 requests | L2 misses | L2 hit rate |\n"
+        "|---|---|---|---|---|---|---|---|\n" +
+        buffers;
   }
   if (!heatmaps.empty()) s += "\nMiss heatmaps (per pixel, log scale: black none, yellow most):\n\n" + heatmaps + "\n";
   return s;
@@ -219,8 +224,9 @@ std::string cell_section(const CellResult& c) {
   s += "| pass | median (ms) | 95% CI of the median (ms) | frames | CV |\n|---|---|---|---|---|\n";
   const std::vector<PassStat> stats = pass_stats(c);
   for (const PassStat& p : stats) {
-    s += "| " + p.pass + " | " + ms(p.summary.median) + " | " + ci_text(p.summary) + " | " + std::to_string(p.summary.count) +
-         " | " + (p.summary.cv ? fmt("%.1f%%", *p.summary.cv * 100.0) : std::string("—")) + " |\n";
+    s += "| " + p.pass + " | " + ms(p.summary.median) + " | " + ci_text(p.summary) + " | " +
+         std::to_string(p.summary.count) + " | " +
+         (p.summary.cv ? fmt("%.1f%%", *p.summary.cv * 100.0) : std::string("—")) + " |\n";
   }
   s += overlap_text(c.timing.summary);
   const Counters& k = c.timing.counters;
@@ -238,8 +244,8 @@ std::string cell_section(const CellResult& c) {
   }
   if (c.bvh.is_object()) {
     s += "\nBVH: " + md::count(c.bvh.value("nodes", 0.0)) + " nodes, " + md::count(c.bvh.value("leaves", 0.0)) +
-         " leaves, depth " + std::to_string(c.bvh.value("max_depth", 0)) + ", SAH cost " + fmt("%.3f", c.bvh.value("sah_cost", 0.0)) +
-         ", built in " + fmt("%.1f", c.bvh.value("build_ms", 0.0)) + " ms";
+         " leaves, depth " + std::to_string(c.bvh.value("max_depth", 0)) + ", SAH cost " +
+         fmt("%.3f", c.bvh.value("sah_cost", 0.0)) + ", built in " + fmt("%.1f", c.bvh.value("build_ms", 0.0)) + " ms";
     s += c.triangles ? " over " + md::count(double(*c.triangles)) + " triangles.\n" : ".\n";
   } else if (c.triangles) {
     s += "\nScene: " + md::count(double(*c.triangles)) + " triangles (no BVH: no rays traced).\n";
@@ -392,7 +398,8 @@ void charts_section(const std::vector<CellResult>& cells, Report& r, std::string
         svg::Line line;
         line.name = p.pass + " " + (std::string(level) == "l1" ? "L1" : "L2");
         for (const json& pt : curve["points"]) {
-          if (!pt.is_array() || pt.size() != 2 || !pt[0].is_number() || !pt[1].is_number() || pt[0].get<double>() <= 0) continue;
+          if (!pt.is_array() || pt.size() != 2 || !pt[0].is_number() || !pt[1].is_number() || pt[0].get<double>() <= 0)
+            continue;
           line.x.push_back(std::log2(pt[0].get<double>()));
           line.y.push_back(pt[1].get<double>());
         }
@@ -408,11 +415,13 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
   const std::string va = axis_value_text(a.axes[axis]), vb = axis_value_text(b.axes[axis]);
   const std::string leaf = axis_leaf(axis);
   const std::string others = others_text(a, axis);
-  std::string head = "#### " + md::escape(va) + " → " + md::escape(vb) + (others.empty() ? "" : " (" + md::escape(others) + ")") + "\n\n";
+  std::string head = "#### " + md::escape(va) + " → " + md::escape(vb) +
+                     (others.empty() ? "" : " (" + md::escape(others) + ")") + "\n\n";
 
   const std::vector<PassStat> sa = pass_stats(a), sb = pass_stats(b);
-  std::string table = "| pass | " + md::escape(va) + " (ms) | " + md::escape(vb) +
-                      " (ms) | change | p (Mann-Whitney) | rays | nodes visited | triangles tested |\n|---|---|---|---|---|---|---|---|\n";
+  std::string table =
+      "| pass | " + md::escape(va) + " (ms) | " + md::escape(vb) +
+      " (ms) | change | p (Mann-Whitney) | rays | nodes visited | triangles tested |\n|---|---|---|---|---|---|---|---|\n";
   std::vector<std::string> significant;
   std::string largest;
   double largest_abs = -1.0;
@@ -431,11 +440,12 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
       if (x == y) return "=";
       return x == 0 ? "new" : pct(y / x);
     };
-    table += "| " + pa.pass + " | " + ms(pa.summary.median) + " | " + ms(it->summary.median) + " | " + pct(ratio) + " | " +
-             p_text(mw.p_value) + " | " + counter_change(counter::rays_cast) + " | " + counter_change(counter::nodes_visited) +
-             " | " + counter_change(counter::triangles_tested) + " |\n";
-    const std::string desc = pa.pass + " " + fmt("%.1f%%", std::abs(ratio - 1.0) * 100.0) + (ratio >= 1.0 ? " slower" : " faster") +
-                             " (" + ms(pa.summary.median) + " → " + ms(it->summary.median) + " ms, p " +
+    table += "| " + pa.pass + " | " + ms(pa.summary.median) + " | " + ms(it->summary.median) + " | " + pct(ratio) +
+             " | " + p_text(mw.p_value) + " | " + counter_change(counter::rays_cast) + " | " +
+             counter_change(counter::nodes_visited) + " | " + counter_change(counter::triangles_tested) + " |\n";
+    const std::string desc = pa.pass + " " + fmt("%.1f%%", std::abs(ratio - 1.0) * 100.0) +
+                             (ratio >= 1.0 ? " slower" : " faster") + " (" + ms(pa.summary.median) + " → " +
+                             ms(it->summary.median) + " ms, p " +
                              (mw.p_value < 0.001 ? "< 0.001" : "= " + p_text(mw.p_value)) + ")";
     if (mw.p_value < 0.05) significant.push_back(desc);
     if (std::abs(ratio - 1.0) > largest_abs) {
@@ -465,20 +475,23 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
                   md::count(x.l1_hits) + " → " + md::count(y->l1_hits) + ")";
   }
 
-  std::string sentence = "Changing " + leaf + " from " + va + " to " + vb + (others.empty() ? "" : " (with " + others + ")");
+  std::string sentence =
+      "Changing " + leaf + " from " + va + " to " + vb + (others.empty() ? "" : " (with " + others + ")");
   if (!significant.empty()) {
     sentence += " made ";
     for (size_t i = 0; i < significant.size(); ++i)
       sentence += (i == 0 ? "" : i + 1 == significant.size() ? " and " : ", ") + significant[i];
   } else {
-    sentence += " changed no pass time significantly at p < 0.05" + (largest.empty() ? "" : "; the largest change was " + largest);
+    sentence += " changed no pass time significantly at p < 0.05" +
+                (largest.empty() ? "" : "; the largest change was " + largest);
   }
   if (!a.timing.counters.empty() || !b.timing.counters.empty()) {
     if (counter_changes.empty()) {
       sentence += "; the work counters were identical";
     } else {
       sentence += "; the work per frame changed: ";
-      for (size_t i = 0; i < counter_changes.size() && i < 3; ++i) sentence += (i ? ", " : "") + counter_changes[i].second;
+      for (size_t i = 0; i < counter_changes.size() && i < 3; ++i)
+        sentence += (i ? ", " : "") + counter_changes[i].second;
       if (counter_changes.size() > 3) sentence += " (and " + std::to_string(counter_changes.size() - 3) + " more)";
     }
   }
@@ -493,10 +506,11 @@ void comparisons_section(const std::vector<CellResult>& cells, std::string& s) {
     s += "This run has no axes (a single scenario), so there is nothing to compare.\n\n";
     return;
   }
-  s += "For each axis and each pair of its values, cells whose other axes are equal are compared. Change is the "
-       "ratio of the medians minus one; p is a two-sided Mann-Whitney U test over the raw frame samples of the "
-       "two cells, per comparison and not corrected for multiplicity (the gate corrects; with fewer than 4 untied frames "
-       "per side no p-value can fall below 0.05; tied samples use the normal approximation). Counter changes are per frame; \"=\" means identical.\n\n";
+  s +=
+      "For each axis and each pair of its values, cells whose other axes are equal are compared. Change is the "
+      "ratio of the medians minus one; p is a two-sided Mann-Whitney U test over the raw frame samples of the "
+      "two cells, per comparison and not corrected for multiplicity (the gate corrects; with fewer than 4 untied frames "
+      "per side no p-value can fall below 0.05; tied samples use the normal approximation). Counter changes are per frame; \"=\" means identical.\n\n";
   for (const std::string& axis : axes) {
     std::vector<json> values;
     for (const CellResult& c : cells)
@@ -509,7 +523,8 @@ void comparisons_section(const std::vector<CellResult>& cells, std::string& s) {
         for (const CellResult& a : cells) {
           if (!a.axes.contains(axis) || a.axes[axis] != values[i]) continue;
           for (const CellResult& b : cells) {
-            if (!b.axes.contains(axis) || b.axes[axis] != values[j] || others_key(a, axis) != others_key(b, axis)) continue;
+            if (!b.axes.contains(axis) || b.axes[axis] != values[j] || others_key(a, axis) != others_key(b, axis))
+              continue;
             s += comparison(a, b, axis);
             ++n;
           }
@@ -517,7 +532,8 @@ void comparisons_section(const std::vector<CellResult>& cells, std::string& s) {
       }
     }
     if (n == 0) s += "No two cells differ in this axis alone.\n\n";
-    const bool have_cache = std::any_of(cells.begin(), cells.end(), [](const CellResult& c) { return !cache_passes(c).empty(); });
+    const bool have_cache =
+        std::any_of(cells.begin(), cells.end(), [](const CellResult& c) { return !cache_passes(c).empty(); });
     const std::string note = study::comparison_note(axis_leaf(axis), have_cache);
     if (!note.empty()) s += note + "\n";
   }
@@ -531,7 +547,8 @@ Report build_report(const std::vector<CellResult>& cells) {
   std::string& s = r.markdown;
   const std::string matrix = cells.front().matrix.empty() ? cells.front().name : cells.front().matrix;
   s += "# hybridprof report: " + md::escape(matrix) + "\n\n";
-  s += std::to_string(cells.size()) + " cell(s) from `results.jsonl`. Pass times are in milliseconds: the median "
+  s += std::to_string(cells.size()) +
+       " cell(s) from `results.jsonl`. Pass times are in milliseconds: the median "
        "over the measured frames with its distribution-free 95% confidence interval (order statistics; none "
        "below 6 frames), and the coefficient of variation (CV = standard deviation / mean) of the frames.\n\n";
   s += environment_section(cells) + "\n";

@@ -33,8 +33,9 @@ const StudyRow& study(bool shared, bool indexed) {
 std::string comparison_note(const std::string& leaf, bool have_cache) {
   if (leaf != "geometry" && leaf != "jitter") return "";
   std::string s = "\n**Beside the study (Santoro 2020, Table 1: PIX on a Vega 56, reflection pass).** ";
-  s += "\"offset\" is one shared jitter offset per frame (our `jitter: shared`), \"EBO\" an index buffer "
-       "(our `geometry: indexed`).\n\n| study configuration | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate |\n|---|---|---|---|---|---|\n";
+  s +=
+      "\"offset\" is one shared jitter offset per frame (our `jitter: shared`), \"EBO\" an index buffer "
+      "(our `geometry: indexed`).\n\n| study configuration | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate |\n|---|---|---|---|---|---|\n";
   for (const StudyRow& r : kTable1) {
     s += std::string("| ") + r.label + " | " + md::count(r.l1_hit) + " | " + md::count(r.l1_miss) + " | " +
          md::count(r.l2_hit) + " | " + md::count(r.l2_miss) + " | " +
@@ -46,8 +47,9 @@ std::string comparison_note(const std::string& leaf, bool have_cache) {
          pct(study(true, true).l1_hit / study(true, false).l1_hit).substr(1) + " with a shared offset and by " +
          pct(study(false, true).l1_hit / study(false, false).l1_hit).substr(1) + " without one.";
   } else {
-    s += "In the study the shared offset changed L1 hits by " + pct(study(true, true).l1_hit / study(false, true).l1_hit) +
-         " with an index buffer and by " + pct(study(true, false).l1_hit / study(false, false).l1_hit) + " without one.";
+    s += "In the study the shared offset changed L1 hits by " +
+         pct(study(true, true).l1_hit / study(false, true).l1_hit) + " with an index buffer and by " +
+         pct(study(true, false).l1_hit / study(false, false).l1_hit) + " without one.";
   }
   if (have_cache) {
     s += " Our L1-hit changes for the same comparison are in the sentences above (our scene, our cache preset, "

@@ -58,8 +58,8 @@ void check_log(bool log, double v, const char* what) {
 std::string x_axis(const Frame& f, const std::vector<double>& ticks, const std::string& label) {
   std::string s = "<g class=\"x-axis\">\n";
   for (double t : ticks) {
-    s += "<text class=\"tick\" x=\"" + num(f.px(t)) + "\" y=\"" + num(f.top + f.plot_h() + 16) + "\" text-anchor=\"middle\">" +
-         escape(tick_label(t)) + "</text>\n";
+    s += "<text class=\"tick\" x=\"" + num(f.px(t)) + "\" y=\"" + num(f.top + f.plot_h() + 16) +
+         "\" text-anchor=\"middle\">" + escape(tick_label(t)) + "</text>\n";
   }
   s += "<text class=\"axis-label\" x=\"" + num(f.left + f.plot_w() / 2) + "\" y=\"" + num(f.top + f.plot_h() + 36) +
        "\" text-anchor=\"middle\">" + escape(label) + "</text>\n</g>\n";
@@ -117,9 +117,10 @@ std::string legend(const Frame& f, const std::vector<std::string>& names) {
   double y = f.height - 18 - legend_extra_height(f.width, f.left, names);
   for (size_t i = 0; i < names.size(); ++i) {
     if (x > f.left && x + legend_entry_width(names[i]) > f.width - 10) x = f.left, y += 18;
-    s += "<rect class=\"legend-swatch\" x=\"" + num(x) + "\" y=\"" + num(y - 10) + "\" width=\"12\" height=\"12\" fill=\"" +
-         colour(i) + "\"/>\n";
-    s += "<text class=\"legend-label\" x=\"" + num(x + 16) + "\" y=\"" + num(y) + "\">" + escape(names[i]) + "</text>\n";
+    s += "<rect class=\"legend-swatch\" x=\"" + num(x) + "\" y=\"" + num(y - 10) +
+         "\" width=\"12\" height=\"12\" fill=\"" + colour(i) + "\"/>\n";
+    s +=
+        "<text class=\"legend-label\" x=\"" + num(x + 16) + "\" y=\"" + num(y) + "\">" + escape(names[i]) + "</text>\n";
     x += legend_entry_width(names[i]);
   }
   return s + "</g>\n";
@@ -205,8 +206,10 @@ std::vector<double> log_ticks(double lo, double hi) {
 
 std::string tick_label(double v) {
   char buf[32];
-  if (v != 0.0 && (std::abs(v) >= 1e6 || std::abs(v) < 1e-3)) std::snprintf(buf, sizeof(buf), "%.3g", v);
-  else std::snprintf(buf, sizeof(buf), "%.6g", v);
+  if (v != 0.0 && (std::abs(v) >= 1e6 || std::abs(v) < 1e-3))
+    std::snprintf(buf, sizeof(buf), "%.3g", v);
+  else
+    std::snprintf(buf, sizeof(buf), "%.6g", v);
   return buf;
 }
 
@@ -250,14 +253,15 @@ std::string render(const BarChart& c) {
     s += "<g class=\"group\">\n";
     for (size_t i = 0; i < ns; ++i) {
       const double x = gx + bar_w * double(i), y = f.py(grp.values[i]);
-      s += "<rect class=\"bar\" x=\"" + num(x) + "\" y=\"" + num(y) + "\" width=\"" + num(bar_w * 0.9) + "\" height=\"" +
-           num(f.py(0.0) - y) + "\" fill=\"" + colour(i) + "\"><title>" + escape(c.series[i] + ": " + tick_label(grp.values[i])) +
-           "</title></rect>\n";
+      s += "<rect class=\"bar\" x=\"" + num(x) + "\" y=\"" + num(y) + "\" width=\"" + num(bar_w * 0.9) +
+           "\" height=\"" + num(f.py(0.0) - y) + "\" fill=\"" + colour(i) + "\"><title>" +
+           escape(c.series[i] + ": " + tick_label(grp.values[i])) + "</title></rect>\n";
       if (!grp.low.empty()) s += error_bar(x + bar_w * 0.45, f.py(grp.low[i]), f.py(grp.high[i]), bar_w * 0.2);
     }
     const double lx = f.left + group_w * (double(g) + 0.5), ly = f.top + f.plot_h() + 14;
-    s += "<text class=\"group-label\" x=\"" + num(lx) + "\" y=\"" + num(ly) + "\" text-anchor=\"end\" transform=\"rotate(-30 " +
-         num(lx) + " " + num(ly) + ")\">" + escape(grp.label) + "</text>\n</g>\n";
+    s += "<text class=\"group-label\" x=\"" + num(lx) + "\" y=\"" + num(ly) +
+         "\" text-anchor=\"end\" transform=\"rotate(-30 " + num(lx) + " " + num(ly) + ")\">" + escape(grp.label) +
+         "</text>\n</g>\n";
   }
   return s + legend(f, c.series) + "</svg>\n";
 }
@@ -289,7 +293,8 @@ std::string render(const LineChart& c) {
   f.bottom = 70 + extra;
   f.log_x = c.log_x;
   f.log_y = c.log_y;
-  const std::vector<double> yt = c.log_y ? log_ticks(ylo, yhi) : nice_ticks(0.0, yhi), xt = axis_ticks(c.log_x, xlo, xhi, false);
+  const std::vector<double> yt = c.log_y ? log_ticks(ylo, yhi) : nice_ticks(0.0, yhi),
+                            xt = axis_ticks(c.log_x, xlo, xhi, false);
   f.set_y(yt);
   f.set_x(xt);
   std::string s = header(f, c.title) + y_axis(f, yt, c.y_label) + x_axis(f, xt, c.x_label);
@@ -308,8 +313,8 @@ std::string render(const LineChart& c) {
       pts += ',';
       pts += num(f.py(l.y[k]));
     }
-    s += "<g class=\"series\">\n<polyline class=\"line\" fill=\"none\" stroke-width=\"2\" stroke=\"" + std::string(colour(i)) +
-         "\" points=\"" + pts + "\"/>\n";
+    s += "<g class=\"series\">\n<polyline class=\"line\" fill=\"none\" stroke-width=\"2\" stroke=\"" +
+         std::string(colour(i)) + "\" points=\"" + pts + "\"/>\n";
     for (size_t k : order) {
       s += "<circle class=\"point\" cx=\"" + num(f.px(l.x[k])) + "\" cy=\"" + num(f.py(l.y[k])) + "\" r=\"3\" fill=\"" +
            colour(i) + "\"/>\n";
@@ -347,9 +352,8 @@ std::string render(const ScatterChart& c) {
   std::vector<const ScatterPoint*> front;
   for (const ScatterPoint& p : c.points)
     if (p.front) front.push_back(&p);
-  std::sort(front.begin(), front.end(), [](const ScatterPoint* a, const ScatterPoint* b) {
-    return a->x != b->x ? a->x < b->x : a->y > b->y;
-  });
+  std::sort(front.begin(), front.end(),
+            [](const ScatterPoint* a, const ScatterPoint* b) { return a->x != b->x ? a->x < b->x : a->y > b->y; });
   if (!front.empty()) {
     std::string pts = num(f.px(front[0]->x)) + "," + num(f.py(front[0]->y));
     for (size_t i = 1; i < front.size(); ++i) {
@@ -362,14 +366,15 @@ std::string render(const ScatterChart& c) {
   s += "<g class=\"points\">\n";
   for (const ScatterPoint& p : c.points) {
     const double x = f.px(p.x), y = f.py(p.y);
-    const std::string tip =
-        p.tooltip.empty() ? (p.label.empty() ? "" : p.label + ": ") + tick_label(p.x) + ", " + tick_label(p.y) : p.tooltip;
-    s += std::string("<circle class=\"") + (p.front ? "point front" : "point") + "\" cx=\"" + num(x) + "\" cy=\"" + num(y) +
-         "\" r=\"" + (p.front ? "5" : "4") + "\" fill=\"" + (p.front ? colour(1) : colour(0)) + "\" stroke=\"black\"><title>" +
-         escape(tip) + "</title></circle>\n";
+    const std::string tip = p.tooltip.empty()
+                                ? (p.label.empty() ? "" : p.label + ": ") + tick_label(p.x) + ", " + tick_label(p.y)
+                                : p.tooltip;
+    s += std::string("<circle class=\"") + (p.front ? "point front" : "point") + "\" cx=\"" + num(x) + "\" cy=\"" +
+         num(y) + "\" r=\"" + (p.front ? "5" : "4") + "\" fill=\"" + (p.front ? colour(1) : colour(0)) +
+         "\" stroke=\"black\"><title>" + escape(tip) + "</title></circle>\n";
     if (!p.label.empty()) {
-      s += "<text class=\"point-label\" x=\"" + num(x + 7) + "\" y=\"" + num(y - 7) + "\" font-size=\"10\">" + escape(p.label) +
-           "</text>\n";
+      s += "<text class=\"point-label\" x=\"" + num(x + 7) + "\" y=\"" + num(y - 7) + "\" font-size=\"10\">" +
+           escape(p.label) + "</text>\n";
     }
   }
   s += "</g>\n";

@@ -1,7 +1,7 @@
 #include "tradeoff.hpp"
 
-#include "error.hpp"
 #include "cache_sampling.hpp"
+#include "error.hpp"
 #include "markdown.hpp"
 #include "svg_chart.hpp"
 #include "timing/stats.hpp"
@@ -54,7 +54,8 @@ Metric parse_metric(const std::string& name, const std::string& context) {
     m.kind = Metric::per_ray;
     const std::string rest = name.substr(8);
     const size_t slash = rest.find('/');
-    if (slash == std::string::npos || slash == 0 || slash + 1 == rest.size() || rest.find('/', slash + 1) != std::string::npos)
+    if (slash == std::string::npos || slash == 0 || slash + 1 == rest.size() ||
+        rest.find('/', slash + 1) != std::string::npos)
       bad("expected per_ray:<pass>/<counter>, e.g. per_ray:shadows/nodes_visited");
     m.pass = rest.substr(0, slash);
     m.counter = rest.substr(slash + 1);
@@ -114,7 +115,8 @@ std::string value_text(const MetricValue& v, bool with_ci = true) {
 
 // Every pass a time metric names must be one some cell ran: a typo would otherwise leave every cell
 // "not available".
-void check_passes_ran(const std::vector<CellResult>& cells, const Metric& m, const std::string& name, const std::string& context) {
+void check_passes_ran(const std::vector<CellResult>& cells, const Metric& m, const std::string& name,
+                      const std::string& context) {
   if (!is_time_metric(m)) return;
   for (const std::string& p : m.passes) {
     const bool ran = std::any_of(cells.begin(), cells.end(), [&](const CellResult& c) {
@@ -157,7 +159,8 @@ TradeoffSpec parse_tradeoff(const std::vector<CellResult>& cells, const json& sp
   t.title = string_field(spec, "title", "Trade-off " + std::to_string(n), context);
   t.context += " \"" + t.title + "\"";
   for (const char* k : {"x", "y"})
-    if (!spec.contains(k) || !spec[k].is_string()) throw InputError(context + ": '" + k + "' (a metric name) missing or not a string");
+    if (!spec.contains(k) || !spec[k].is_string())
+      throw InputError(context + ": '" + k + "' (a metric name) missing or not a string");
   t.xn = spec["x"].get<std::string>();
   t.yn = spec["y"].get<std::string>();
   t.x_label = string_field(spec, "x_label", t.xn, context);
@@ -208,8 +211,8 @@ svg::ScatterChart tradeoff_chart(const TradeoffSpec& t, const std::vector<Tradeo
     // Only the front is labelled (every point has its tooltip): labels on every point of a 24-cell sweep
     // overlap into an unreadable band.
     if (r.front) p.label = varying_label(*r.cell, among);
-    p.tooltip = cell_label(*r.cell) + ": " + t.x_label + " " + value_text(r.x) + ", " + t.y_label + " " + value_text(r.y) +
-                (r.front ? " (on the Pareto front)" : "");
+    p.tooltip = cell_label(*r.cell) + ": " + t.x_label + " " + value_text(r.x) + ", " + t.y_label + " " +
+                value_text(r.y) + (r.front ? " (on the Pareto front)" : "");
     p.front = r.front;
     chart.points.push_back(p);
   }
@@ -221,7 +224,8 @@ std::string front_sentence(const TradeoffSpec& t, const std::vector<TradeoffRow>
                            const std::vector<const CellResult*>& among) {
   std::vector<std::string> on;
   for (const TradeoffRow& r : rows)
-    if (r.front) on.push_back(varying_label(*r.cell, among) + " (" + value_text(r.x, false) + ", " + value_text(r.y, false) + ")");
+    if (r.front)
+      on.push_back(varying_label(*r.cell, among) + " (" + value_text(r.x, false) + ", " + value_text(r.y, false) + ")");
   const size_t n_front = on.size();
   if (rows.size() == 1) return "Only one cell has both values; it is trivially on the Pareto front.\n\n";
   if (n_front == rows.size()) {
@@ -229,8 +233,8 @@ std::string front_sentence(const TradeoffSpec& t, const std::vector<TradeoffRow>
            " by another); in x order: " + md::list(on) + ".\n\n";
   }
   return std::to_string(n_front) + " of " + std::to_string(rows.size()) +
-         " cells are on the Pareto front (no other cell is at least as good in both " + t.x_label + " and " + t.y_label +
-         " and better in one): " + md::list(on) + "; the other " + std::to_string(rows.size() - n_front) +
+         " cells are on the Pareto front (no other cell is at least as good in both " + t.x_label + " and " +
+         t.y_label + " and better in one): " + md::list(on) + "; the other " + std::to_string(rows.size() - n_front) +
          " are dominated.\n\n";
 }
 
@@ -253,7 +257,8 @@ std::string tradeoff_table(const TradeoffSpec& t, const std::vector<TradeoffRow>
   return s + "\n";
 }
 
-std::string tradeoff_section(const std::vector<CellResult>& cells, const json& spec, size_t n, std::vector<ReportFile>& charts) {
+std::string tradeoff_section(const std::vector<CellResult>& cells, const json& spec, size_t n,
+                             std::vector<ReportFile>& charts) {
   const TradeoffSpec t = parse_tradeoff(cells, spec, n);
   std::vector<TradeoffRow> rows;
   std::vector<std::string> skipped;
@@ -309,12 +314,15 @@ std::string depth_error_section(const std::vector<CellResult>& cells, std::vecto
   std::vector<const CellResult*> with;
   std::vector<std::string> without;
   for (const CellResult& c : cells) {
-    if (c.error.is_object() && c.error.contains("depth") && c.error["depth"].is_object()) with.push_back(&c);
-    else without.push_back(cell_label(c));
+    if (c.error.is_object() && c.error.contains("depth") && c.error["depth"].is_object())
+      with.push_back(&c);
+    else
+      without.push_back(cell_label(c));
   }
   if (with.empty()) return s + "No cell carries depth-error numbers (`error.depth`).\n\n";
-  s += "|reconstructed − true world position| / true distance, from the depth buffer of each cell's depth mode; mean and "
-       "max over the pixels with geometry, and the mean per distance bin (x: the bin's centre distance).\n\n";
+  s +=
+      "|reconstructed − true world position| / true distance, from the depth buffer of each cell's depth mode; mean and "
+      "max over the pixels with geometry, and the mean per distance bin (x: the bin's centre distance).\n\n";
   svg::LineChart chart;
   chart.title = "Mean relative position error by distance";
   chart.x_label = "distance from the camera (bin centre, log)";
@@ -326,12 +334,14 @@ std::string depth_error_section(const std::vector<CellResult>& cells, std::vecto
     const json& d = c->error["depth"];
     const auto px = number_at(d, "pixels"), mean = number_at(d, "mean_rel"), mx = number_at(d, "max_rel");
     const size_t nbins = d.contains("bins") && d["bins"].is_array() ? d["bins"].size() : 0;
-    s += "| " + md::escape(cell_label(*c)) + " | " + (px ? md::count(*px) : "—") + " | " + (mean ? fmt("%.3g", *mean) : "—") +
-         " | " + (mx ? fmt("%.3g", *mx) : "—") + " | " + std::to_string(nbins) + " |\n";
+    s += "| " + md::escape(cell_label(*c)) + " | " + (px ? md::count(*px) : "—") + " | " +
+         (mean ? fmt("%.3g", *mean) : "—") + " | " + (mx ? fmt("%.3g", *mx) : "—") + " | " + std::to_string(nbins) +
+         " |\n";
     svg::Line line{varying_label(*c, with), {}, {}, {}, {}};
     if (nbins) {
       for (const json& b : d["bins"]) {
-        const auto nr = number_at(b, "near"), fr = number_at(b, "far"), m = number_at(b, "mean_rel"), n = number_at(b, "pixels");
+        const auto nr = number_at(b, "near"), fr = number_at(b, "far"), m = number_at(b, "mean_rel"),
+                   n = number_at(b, "pixels");
         if (!nr || !fr || !m || (n && *n <= 0)) continue;
         const double x = (*nr + *fr) / 2;
         if (!(x > 0) || !(*m > 0)) {
@@ -381,9 +391,8 @@ std::string varying_label(const CellResult& c, const std::vector<const CellResul
   std::string s;
   for (const auto& [k, v] : c.axes.items()) {
     if (std::find(skip_leaves.begin(), skip_leaves.end(), axis_leaf(k)) != skip_leaves.end()) continue;
-    const bool varies = std::any_of(among.begin(), among.end(), [&](const CellResult* o) {
-      return !o->axes.contains(k) || o->axes[k] != v;
-    });
+    const bool varies = std::any_of(among.begin(), among.end(),
+                                    [&](const CellResult* o) { return !o->axes.contains(k) || o->axes[k] != v; });
     if (varies) s += (s.empty() ? "" : ", ") + axis_leaf(k) + "=" + axis_value_text(v);
   }
   if (!s.empty()) return s;
@@ -420,15 +429,15 @@ std::optional<double> per_ray(const Counters& counters, const std::string& pass,
   return double(counters.get(pass, counter)) / double(rays);
 }
 
-std::optional<MetricValue> resolve_metric(const CellResult& c, const std::string& name, const std::string& context, std::string* why) {
+std::optional<MetricValue> resolve_metric(const CellResult& c, const std::string& name, const std::string& context,
+                                          std::string* why) {
   const Metric m = parse_metric(name, context);
   auto none = [&](const std::string& w) -> std::optional<MetricValue> {
     if (why) *why = w;
     return std::nullopt;
   };
   switch (m.kind) {
-    case Metric::time:
-      return time_value(c, m.passes, why);
+    case Metric::time: return time_value(c, m.passes, why);
     case Metric::image_time: {
       const auto frames = number_at(c.error, "frames");
       if (!frames) return none("no error.frames (the cell computed no error metrics)");
@@ -469,20 +478,25 @@ std::string error_metrics_section(const std::vector<CellResult>& cells) {
   const std::string eps = distinct_numbers(cells, "relmse_eps"), peak = distinct_numbers(cells, "psnr_peak"),
                     threshold = distinct_numbers(cells, "threshold");
   std::string s = "## Error metrics\n\n";
-  s += "Each cell's image (t), accumulated over `error.frames` frames, is compared with a converged reference render (r) of "
-       "the same configuration, per pixel and RGB channel on linear values:\n\n";
+  s +=
+      "Each cell's image (t), accumulated over `error.frames` frames, is compared with a converged reference render (r) of "
+      "the same configuration, per pixel and RGB channel on linear values:\n\n";
   s += "- **MSE** = mean over pixels and channels of (t − r)².\n";
   s += "- **relMSE** = mean of (t − r)² / (r² + ε), ε = " + (eps.empty() ? std::string("as recorded") : eps) + ".\n";
-  s += "- **PSNR** = 10 · log10(peak² / MSE) dB on linear values, peak = " + (peak.empty() ? std::string("as recorded") : peak) +
+  s += "- **PSNR** = 10 · log10(peak² / MSE) dB on linear values, peak = " +
+       (peak.empty() ? std::string("as recorded") : peak) +
        " (∞ when the images are identical). This is not OpenImageIO's PSNR, which uses max(1, peak) as the peak.\n";
   s += "- **max |t − r|**: the largest channel difference of any pixel.\n";
   s += "- **over threshold**: pixels whose largest channel error exceeds " +
-       (threshold.empty() ? std::string("the threshold") : threshold) + "; **non-finite**: pixels with a NaN or infinite channel.\n";
-  s += "- **FLIP** (when computed): mean LDR-FLIP over the pixels (Andersson et al. 2020, \"FLIP: A Difference Evaluator for "
-       "Alternating Images\").\n";
-  s += "- **Shadows**, over pixels whose primary visibility agrees with the reference: **acne** = shadowed in the frame but lit "
-       "in the reference, **leaks** = lit in the frame but shadowed in the reference; **coverage mismatches** (primary "
-       "visibility differs) are counted apart and left out of both.\n";
+       (threshold.empty() ? std::string("the threshold") : threshold) +
+       "; **non-finite**: pixels with a NaN or infinite channel.\n";
+  s +=
+      "- **FLIP** (when computed): mean LDR-FLIP over the pixels (Andersson et al. 2020, \"FLIP: A Difference Evaluator for "
+      "Alternating Images\").\n";
+  s +=
+      "- **Shadows**, over pixels whose primary visibility agrees with the reference: **acne** = shadowed in the frame but lit "
+      "in the reference, **leaks** = lit in the frame but shadowed in the reference; **coverage mismatches** (primary "
+      "visibility differs) are counted apart and left out of both.\n";
   s += "- **Depth error** = |reconstructed − true world position| / true distance, per pixel with geometry.\n\n";
   return s;
 }
@@ -496,7 +510,8 @@ std::string error_table(const CellResult& c) {
     std::string t = r.contains("id") && r["id"].is_string() ? "`" + r["id"].get<std::string>() + "`" : std::string("?");
     if (const auto n = number_at(r, "samples")) t += ", " + md::count(*n) + " samples per pixel";
     if (const auto sec = number_at(r, "render_s")) t += ", rendered in " + fmt("%.1f", *sec) + " s";
-    if (r.contains("cached") && r["cached"].is_boolean()) t += r["cached"].get<bool>() ? " (cached)" : " (rendered for this run)";
+    if (r.contains("cached") && r["cached"].is_boolean())
+      t += r["cached"].get<bool>() ? " (cached)" : " (rendered for this run)";
     s += "| reference | " + t + " |\n";
   }
   if (const auto f = number_at(e, "frames")) s += "| frames accumulated | " + md::count(*f) + " |\n";
@@ -511,7 +526,9 @@ std::string error_table(const CellResult& c) {
     if (im.contains("psnr_db")) {
       const auto peak = number_at(im, "psnr_peak");
       s += "| PSNR" + (peak ? " (peak " + fmt("%g", *peak) + ")" : std::string()) + " | " +
-           (im["psnr_db"].is_null() ? std::string("∞") : im["psnr_db"].is_number() ? fmt("%.2f", im["psnr_db"].get<double>()) + " dB" : "—") +
+           (im["psnr_db"].is_null()     ? std::string("∞")
+            : im["psnr_db"].is_number() ? fmt("%.2f", im["psnr_db"].get<double>()) + " dB"
+                                        : "—") +
            " |\n";
     }
     row("max \\|t − r\\|", "max_abs", "%.4g");
@@ -519,21 +536,26 @@ std::string error_table(const CellResult& c) {
       const auto th = number_at(im, "threshold");
       const auto px = number_at(im, "pixels");
       s += "| pixels over " + (th ? fmt("%g", *th) : std::string("the threshold")) + " | " + md::count(*o) +
-           (px && *px > 0 ? " (" + fmt("%.3g", 100.0 * *o / *px) + "% of " + md::count(*px) + ")" : std::string()) + " |\n";
+           (px && *px > 0 ? " (" + fmt("%.3g", 100.0 * *o / *px) + "% of " + md::count(*px) + ")" : std::string()) +
+           " |\n";
     }
     if (const auto nf = number_at(im, "non_finite")) s += "| non-finite pixels | " + md::count(*nf) + " |\n";
     if (const auto fl = number_at(im, "flip_mean"); fl && *fl >= 0) s += "| FLIP (mean) | " + fmt("%.4f", *fl) + " |\n";
   }
   if (e.contains("shadow") && e["shadow"].is_object()) {
     const json& sh = e["shadow"];
-    auto v = [&](const char* k) { const auto x = number_at(sh, k); return x ? md::count(*x) : std::string("—"); };
+    auto v = [&](const char* k) {
+      const auto x = number_at(sh, k);
+      return x ? md::count(*x) : std::string("—");
+    };
     s += "| shadow acne / leaks | " + v("acne") + " / " + v("leaks") + " of " + v("compared") + " compared pixels |\n";
     s += "| shadow coverage mismatches | " + v("coverage_mismatch") + " |\n";
   }
   if (e.contains("depth") && e["depth"].is_object()) {
     const json& d = e["depth"];
     const auto mean = number_at(d, "mean_rel"), mx = number_at(d, "max_rel");
-    s += "| relative position error (mean / max) | " + (mean ? fmt("%.3g", *mean) : "—") + " / " + (mx ? fmt("%.3g", *mx) : "—") + " |\n";
+    s += "| relative position error (mean / max) | " + (mean ? fmt("%.3g", *mean) : "—") + " / " +
+         (mx ? fmt("%.3g", *mx) : "—") + " |\n";
   }
   return s;
 }

@@ -81,7 +81,10 @@ CellExpect parse_expect(const LineReader& r, const json& e) {
 }  // namespace
 
 void to_json(json& j, const CellBvh& b) {
-  j = {{"build_ms", b.build_ms}, {"nodes", b.nodes}, {"leaves", b.leaves}, {"max_depth", b.max_depth},
+  j = {{"build_ms", b.build_ms},
+       {"nodes", b.nodes},
+       {"leaves", b.leaves},
+       {"max_depth", b.max_depth},
        {"sah_cost", b.sah_cost}};
 }
 
@@ -92,8 +95,8 @@ bool operator==(const CellRecord& a, const CellRecord& b) {
   };
   return a.id == b.id && a.matrix == b.matrix && a.name == b.name && a.axes == b.axes && a.config == b.config &&
          same_timing(a.result, b.result) && a.load_1min == b.load_1min && a.triangles == b.triangles &&
-         a.bvh == b.bvh && a.cache == b.cache && a.error == b.error && a.report == b.report &&
-         a.expect == b.expect && a.images == b.images && a.wall_s == b.wall_s;
+         a.bvh == b.bvh && a.cache == b.cache && a.error == b.error && a.report == b.report && a.expect == b.expect &&
+         a.images == b.images && a.wall_s == b.wall_s;
 }
 
 json to_json(const CellRecord& r) {
@@ -106,8 +109,8 @@ json to_json(const CellRecord& r) {
   line["axes"] = r.axes;
   line["config"] = r.config;
   line["result"] = timing_result_json(r.result.environment, r.result.timings);
-  if (r.load_1min) line["load_1min"] = {{"start", optional_number(r.load_1min->start)},
-                                        {"end", optional_number(r.load_1min->end)}};
+  if (r.load_1min)
+    line["load_1min"] = {{"start", optional_number(r.load_1min->start)}, {"end", optional_number(r.load_1min->end)}};
   if (r.triangles) line["scene"] = {{"triangles", *r.triangles}};
   if (r.bvh) line["bvh"] = *r.bvh;
   if (!r.cache.is_null()) line["cache"] = r.cache;
@@ -140,8 +143,8 @@ CellRecord parse_cell_record(const json& line, const std::string& where) {
   if (const json* a = r.object("axes")) c.axes = *a;
   if (line.contains("config")) c.config = line["config"];
   if (const json* l = r.object("load_1min")) {
-    c.load_1min = CellLoad{r.nullable_number(*l, "start", "load_1min.start"),
-                           r.nullable_number(*l, "end", "load_1min.end")};
+    c.load_1min =
+        CellLoad{r.nullable_number(*l, "start", "load_1min.start"), r.nullable_number(*l, "end", "load_1min.end")};
   }
   if (const json* s = r.object("scene"); s && s->contains("triangles")) {
     c.triangles = r.count((*s)["triangles"], "scene.triangles");

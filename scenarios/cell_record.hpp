@@ -74,7 +74,7 @@ struct CellRecord {
   nlohmann::json report;
   std::optional<CellExpect> expect;
   std::map<std::string, std::string> images;  ///< {"color": "cells/<id>/color.png", ...}
-  double wall_s = 0.0;                         ///< the cell's wall time, scene load to last image
+  double wall_s = 0.0;                        ///< the cell's wall time, scene load to last image
 };
 
 bool operator==(const CellRecord& a, const CellRecord& b);

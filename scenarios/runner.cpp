@@ -4,9 +4,9 @@
 #include "cache_analysis.hpp"
 #include "cell_record.hpp"
 #include "error.hpp"
+#include "frame_profiler.hpp"
 #include "input_file.hpp"
 #include "json_depth.hpp"
-#include "frame_profiler.hpp"
 #include "reference/compare.hpp"
 #include "scene/load.hpp"
 #include "stable_id.hpp"
@@ -37,7 +37,10 @@ json folder_identity(const std::string& matrix, std::vector<std::string> ids) {
   std::sort(ids.begin(), ids.end());
   std::string all;
   for (const std::string& id : ids) all += id + "\n";
-  return {{"schema", "hybridprof.results-folder"}, {"version", 1}, {"matrix", matrix}, {"cells", ids.size()},
+  return {{"schema", "hybridprof.results-folder"},
+          {"version", 1},
+          {"matrix", matrix},
+          {"cells", ids.size()},
           {"cells_hash", stable_id(all)}};
 }
 
@@ -103,8 +106,10 @@ std::string format_double(double v) {
 
 std::string eta(double seconds) {
   char buf[32];
-  if (seconds < 60) std::snprintf(buf, sizeof(buf), "%.0fs", seconds);
-  else std::snprintf(buf, sizeof(buf), "%dm%02ds", int(seconds) / 60, int(seconds) % 60);
+  if (seconds < 60)
+    std::snprintf(buf, sizeof(buf), "%.0fs", seconds);
+  else
+    std::snprintf(buf, sizeof(buf), "%dm%02ds", int(seconds) / 60, int(seconds) % 60);
   return buf;
 }
 
@@ -202,7 +207,8 @@ std::vector<std::string> unmet_expectations(const CellRecord& cell, const json& 
     if (!value) {
       unmet.push_back(std::string(what) + " was not measured (" + key + ")");
     } else if (!(*value <= bound)) {
-      unmet.push_back(std::string(what) + " " + format_double(*value) + " > " + format_double(bound) + " (" + key + ")");
+      unmet.push_back(std::string(what) + " " + format_double(*value) + " > " + format_double(bound) + " (" + key +
+                      ")");
     }
   };
   const auto fraction = [&](const char* num, const char* den) -> std::optional<double> {
@@ -213,7 +219,8 @@ std::vector<std::string> unmet_expectations(const CellRecord& cell, const json& 
   check("max_non_finite", number(json::json_pointer("/image/non_finite")), "non-finite pixels");
   check("max_acne_fraction", fraction("/shadow/acne", "/shadow/compared"), "acne fraction");
   check("max_leak_fraction", fraction("/shadow/leaks", "/shadow/compared"), "leak fraction");
-  check("max_coverage_mismatch_fraction", fraction("/coverage_mismatch", "/image/pixels"), "coverage-mismatch fraction");
+  check("max_coverage_mismatch_fraction", fraction("/coverage_mismatch", "/image/pixels"),
+        "coverage-mismatch fraction");
   check("max_relmse", number(json::json_pointer("/image/relmse")), "relMSE");
   check("max_depth_rel", number(json::json_pointer("/depth/max_rel")), "largest relative position error");
   return unmet;
@@ -342,9 +349,12 @@ json capture_cache(Frame& frame, const Scenario& s, const fs::path& out, const f
     }
     for (const CapturedPass& c : captured) {
       if (c.pass == p["pass"]) {
-        p["capture"] = {{"workgroups", c.workgroups}, {"sampled_workgroups", c.sampled_workgroups},
-                        {"sample_every", s.trace_sample_every}, {"sample_block", s.trace_sample_block},
-                        {"slices", c.slices}, {"reruns", c.reruns}};
+        p["capture"] = {{"workgroups", c.workgroups},
+                        {"sampled_workgroups", c.sampled_workgroups},
+                        {"sample_every", s.trace_sample_every},
+                        {"sample_block", s.trace_sample_block},
+                        {"slices", c.slices},
+                        {"reruns", c.reruns}};
       }
     }
   }
@@ -437,7 +447,8 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   if (shard_cells.empty()) return sum;
 
   vk::Context ctx({o.device, o.validate, true});
-  if (ctx.info().timestamp_valid_bits == 0) std::fprintf(stderr, "hybridprof run: %s\n", host_timing_note(false).c_str());
+  if (ctx.info().timestamp_valid_bits == 0)
+    std::fprintf(stderr, "hybridprof run: %s\n", host_timing_note(false).c_str());
   const Environment env = capture_environment(describe_device(ctx));
 
   // A cell measured by another build or on another driver is stale: its line and files go, and it runs
@@ -506,8 +517,10 @@ size_t merge_results(const std::string& out_dir, const std::vector<std::string>&
   for (const std::string& d : shard_dirs) {
     const json id = read_folder_identity(d);
     if (id.is_null()) continue;
-    if (identity.is_null()) identity = id;
-    else check_folder_matrix(d, id, identity, ": shards of different matrices cannot be merged");
+    if (identity.is_null())
+      identity = id;
+    else
+      check_folder_matrix(d, id, identity, ": shards of different matrices cannot be merged");
   }
   std::set<std::string> seen;
   for (const json& r : read_results(out_dir)) seen.insert(r["id"].get<std::string>());

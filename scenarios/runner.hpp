@@ -28,10 +28,10 @@ struct RunOptions {
 };
 
 struct RunSummary {
-  size_t cells = 0;        ///< in the matrix
-  size_t in_shard = 0;     ///< of them, this shard's (among those the filters select)
-  size_t already_done = 0; ///< found in results.jsonl and skipped
-  size_t stale = 0;        ///< found, but measured by another build or driver: removed and run again
+  size_t cells = 0;         ///< in the matrix
+  size_t in_shard = 0;      ///< of them, this shard's (among those the filters select)
+  size_t already_done = 0;  ///< found in results.jsonl and skipped
+  size_t stale = 0;         ///< found, but measured by another build or driver: removed and run again
   size_t ran = 0;
 };
 

@@ -37,9 +37,7 @@ void only_keys(const json& j, const std::set<std::string>& allowed, const std::s
 
 // The value of one key, checked against its table row (the messages are those the scenario tests pin).
 json read_value(const ScenarioKey& k, const json& v, const std::string& file, const std::string& where) {
-  const auto wrong = [&](const char* expected) {
-    fail(file, where, std::string(expected) + ", got " + v.type_name());
-  };
+  const auto wrong = [&](const char* expected) { fail(file, where, std::string(expected) + ", got " + v.type_name()); };
   switch (k.type) {
     case KeyType::boolean:
       if (!v.is_boolean()) wrong("expected true or false");
@@ -58,8 +56,8 @@ json read_value(const ScenarioKey& k, const json& v, const std::string& file, co
       if (!v.is_number_integer()) wrong("expected an integer");
       const int64_t x = v.get<int64_t>();
       if (x < k.int_lo || x > k.int_hi) {
-        fail(file, where, std::to_string(x) + " is outside [" + std::to_string(k.int_lo) + ", " +
-                              std::to_string(k.int_hi) + "]");
+        fail(file, where,
+             std::to_string(x) + " is outside [" + std::to_string(k.int_lo) + ", " + std::to_string(k.int_hi) + "]");
       }
       return x;
     }
@@ -90,8 +88,9 @@ json read_value(const ScenarioKey& k, const json& v, const std::string& file, co
       }
       const int64_t w = v[0].get<int64_t>(), h = v[1].get<int64_t>();
       if (w < 1 || h < 1 || w > kMaxImageSide || h > kMaxImageSide) {
-        fail(file, where, std::to_string(w) + "x" + std::to_string(h) + " is outside 1.." +
-                              std::to_string(kMaxImageSide) + " per side");
+        fail(file, where,
+             std::to_string(w) + "x" + std::to_string(h) + " is outside 1.." + std::to_string(kMaxImageSide) +
+                 " per side");
       }
       return v;
     }
@@ -125,8 +124,10 @@ std::set<std::string> keys_of(const std::string& object) {
   std::set<std::string> out;
   for (const ScenarioKey& k : scenario_keys()) {
     const auto [parent, leaf] = split_key(k.path);
-    if (object.empty()) out.insert(parent.empty() ? leaf : parent);
-    else if (parent == object) out.insert(leaf);
+    if (object.empty())
+      out.insert(parent.empty() ? leaf : parent);
+    else if (parent == object)
+      out.insert(leaf);
   }
   return out;
 }
@@ -182,9 +183,7 @@ json Scenario::canonical() const {
   return j;  // nlohmann::json objects are key-sorted: dump() is canonical
 }
 
-std::string Scenario::id() const {
-  return stable_id(canonical().dump());
-}
+std::string Scenario::id() const { return stable_id(canonical().dump()); }
 
 namespace {
 
@@ -205,7 +204,8 @@ void check_report(const json& rep, const std::string& file) {
     const std::string at = "report.tradeoffs[" + std::to_string(i) + "]";
     only_keys(ts[i], {"title", "x", "y", "x_label", "y_label", "log_x", "log_y", "columns"}, file, at);
     for (const char* k : {"x", "y"}) {
-      if (!ts[i].contains(k) || !ts[i][k].is_string()) fail(file, join(at, k), "a metric name, missing or not a string");
+      if (!ts[i].contains(k) || !ts[i][k].is_string())
+        fail(file, join(at, k), "a metric name, missing or not a string");
     }
     for (const char* k : {"title", "x_label", "y_label"}) {
       if (ts[i].contains(k) && !ts[i][k].is_string()) fail(file, join(at, k), "expected a string");
@@ -270,11 +270,14 @@ void check_expect(const json& expect, const std::string& file, const json* case_
       fail(file, "expect." + k, "names no cell of \"cells\"");
     }
     if (!v.is_object()) fail(file, "expect." + k, "expected an object");
-    only_keys(v, {"max_non_finite", "max_acne_fraction", "max_leak_fraction", "max_coverage_mismatch_fraction",
-                  "max_relmse", "max_depth_rel", "gpu_equals_cpu"}, file, "expect." + k);
+    only_keys(v,
+              {"max_non_finite", "max_acne_fraction", "max_leak_fraction", "max_coverage_mismatch_fraction",
+               "max_relmse", "max_depth_rel", "gpu_equals_cpu"},
+              file, "expect." + k);
     for (const auto& [ek, ev] : v.items()) {
       if (ek == "gpu_equals_cpu" ? !ev.is_boolean() : !(ev.is_number() && ev.get<double>() >= 0.0)) {
-        fail(file, "expect." + k + "." + ek, ek == "gpu_equals_cpu" ? "expected true or false" : "expected a number >= 0");
+        fail(file, "expect." + k + "." + ek,
+             ek == "gpu_equals_cpu" ? "expected true or false" : "expected a number >= 0");
       }
     }
   }
@@ -461,8 +464,8 @@ std::vector<bool> select_cells(const Matrix& m, const std::vector<std::string>& 
     if (axis.empty()) {
       std::string names;
       for (const std::string& a : m.axes) names += (names.empty() ? "" : ", ") + a;
-      throw InputError("--filter " + f + ": '" + key + "' is not an axis of matrix '" + m.name + "' (axes: " +
-                       (names.empty() ? "none" : names) + ")");
+      throw InputError("--filter " + f + ": '" + key + "' is not an axis of matrix '" + m.name +
+                       "' (axes: " + (names.empty() ? "none" : names) + ")");
     }
     for (size_t i = 0; i < m.cells.size(); ++i)
       keep[i] = keep[i] && m.cell_axis_values[i].contains(axis) && value_matches(m.cell_axis_values[i][axis], value);

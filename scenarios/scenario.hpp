@@ -20,15 +20,15 @@
 namespace hp {
 
 struct Scenario {
-  std::string name;              ///< label for reports (not part of the id)
+  std::string name;  ///< label for reports (not part of the id)
   std::string scene = "builtin:pica";
   std::optional<glm::vec3> camera_position, camera_target;
   std::optional<float> camera_fov_deg;
   std::optional<glm::vec3> light_direction;
   std::optional<float> light_intensity;
-  FrameSettings frame;           ///< resolution, passes and their options, BVH build
-  uint32_t frames = 10;          ///< measured frames
-  uint32_t warmup = 3;           ///< discarded frames before them
+  FrameSettings frame;   ///< resolution, passes and their options, BVH build
+  uint32_t frames = 10;  ///< measured frames
+  uint32_t warmup = 3;   ///< discarded frames before them
   /// Also measure the timestamp queries' overhead: as many frames again without queries, interleaved with
   /// the measured ones (ProfileOptions::measure_query_overhead). Off unless asked: it doubles the frames.
   bool query_overhead = false;
@@ -75,8 +75,8 @@ Scenario parse_scenario(const nlohmann::json& j, const std::string& file, const 
 struct Matrix {
   std::string file;
   std::string name;
-  std::vector<std::string> axes;   ///< axis key paths, in file order
-  std::vector<Scenario> cells;     ///< expanded, excludes removed, in deterministic order
+  std::vector<std::string> axes;                 ///< axis key paths, in file order
+  std::vector<Scenario> cells;                   ///< expanded, excludes removed, in deterministic order
   std::vector<nlohmann::json> cell_axis_values;  ///< per cell: {"axis": value} of its coordinates
   /// The matrix's "report" object (trade-off sections of the report; README "Speed against error"), copied
   /// into every result line. Null when absent.

@@ -141,15 +141,15 @@ std::vector<ScenarioKey> make_keys() {
     e.canonical = [](const S& s) { return optional_json(s.light_intensity); };
   }));
 
-  k.push_back(with(typed("resolution", KeyType::resolution, json::array({1280, 720}), "image size in pixels"),
-                   [](auto& e) {
-    e.range_text = "1.." + std::to_string(kMaxImageSide) + " per side";
-    e.apply = [](S& s, const json& v, C) {
-      s.frame.width = v[0].get<std::uint32_t>();
-      s.frame.height = v[1].get<std::uint32_t>();
-    };
-    e.canonical = [](const S& s) { return json::array({s.frame.width, s.frame.height}); };
-  }));
+  k.push_back(
+      with(typed("resolution", KeyType::resolution, json::array({1280, 720}), "image size in pixels"), [](auto& e) {
+        e.range_text = "1.." + std::to_string(kMaxImageSide) + " per side";
+        e.apply = [](S& s, const json& v, C) {
+          s.frame.width = v[0].get<std::uint32_t>();
+          s.frame.height = v[1].get<std::uint32_t>();
+        };
+        e.canonical = [](const S& s) { return json::array({s.frame.width, s.frame.height}); };
+      }));
   k.push_back(with(boolean("reversed_z", false, "reversed-Z depth"), [](auto& e) {
     e.apply = [](S& s, const json& v, C) { s.frame.reversed_z = v.get<bool>(); };
     e.canonical = [](const S& s) { return json(s.frame.reversed_z); };
@@ -163,99 +163,109 @@ std::vector<ScenarioKey> make_keys() {
     e.canonical = [](const S& s) { return json(s.frame.rt.reflections); };
   }));
   k.push_back(with(choice("geometry", {"indexed", "soup"}, "indexed",
-                          "ray-tracing geometry: indexed (shared vertices) or a triangle soup"), [](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.frame.geometry = parse_geometry_layout(v.get<std::string>()); };
-    e.canonical = [](const S& s) { return json(to_string(s.frame.geometry)); };
-  }));
-  k.push_back(with(choice("jitter", {"shared", "per-thread"}, "per-thread",
-                          "reflection jitter: one per frame or per pixel"),
+                          "ray-tracing geometry: indexed (shared vertices) or a triangle soup"),
                    [](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.frame.rt.jitter = parse_jitter_mode(v.get<std::string>()); };
-    e.canonical = [](const S& s) { return json(to_string(s.frame.rt.jitter)); };
-  }));
+                     e.apply = [](S& s, const json& v, C) {
+                       s.frame.geometry = parse_geometry_layout(v.get<std::string>());
+                     };
+                     e.canonical = [](const S& s) { return json(to_string(s.frame.geometry)); };
+                   }));
+  k.push_back(
+      with(choice("jitter", {"shared", "per-thread"}, "per-thread", "reflection jitter: one per frame or per pixel"),
+           [](auto& e) {
+             e.apply = [](S& s, const json& v, C) { s.frame.rt.jitter = parse_jitter_mode(v.get<std::string>()); };
+             e.canonical = [](const S& s) { return json(to_string(s.frame.rt.jitter)); };
+           }));
   k.push_back(with(choice("shadow_offset", {"normal-bias", "robust"}, "normal-bias",
                           "shadow-ray origin offset: `bias` along the normal, or by the point's error bound"),
                    [](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.frame.rt.offset = parse_shadow_offset(v.get<std::string>()); };
-    e.canonical = [](const S& s) { return json(to_string(s.frame.rt.offset)); };
-  }));
+                     e.apply = [](S& s, const json& v, C) {
+                       s.frame.rt.offset = parse_shadow_offset(v.get<std::string>());
+                     };
+                     e.canonical = [](const S& s) { return json(to_string(s.frame.rt.offset)); };
+                   }));
   k.push_back(with(number("bias", 0.0, 1e6, 0.1, "normal-bias offset, world units"), [](auto& e) {
     e.apply = [](S& s, const json& v, C) { s.frame.rt.bias = float(v.get<double>()); };
     e.canonical = [](const S& s) { return json(s.frame.rt.bias); };
   }));
-  k.push_back(with(number("reflection_scale", 0.25, 1.0, 1.0, "reflection grid resolution relative to the image"),
-                   [](auto& e) {
-    e.range_text = "1, 0.5 or 0.25";
-    e.apply = [](S& s, const json& v, C c) {
-      const double scale = v.get<double>();
-      if (scale != 1.0 && scale != 0.5 && scale != 0.25) c.fail("reflection_scale", "must be 1, 0.5 or 0.25");
-      s.frame.rt.reflection_divisor = std::uint32_t(std::lround(1.0 / scale));
-    };
-    e.canonical = [](const S& s) { return json(1.0 / s.frame.rt.reflection_divisor); };
-  }));
-  k.push_back(with(number("roughness_threshold", 0.0, 1.01, 0.35, "pixels rougher than this reflect nothing"),
-                   [](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.frame.rt.roughness_threshold = float(v.get<double>()); };
-    e.canonical = [](const S& s) { return json(s.frame.rt.roughness_threshold); };
-  }));
+  k.push_back(
+      with(number("reflection_scale", 0.25, 1.0, 1.0, "reflection grid resolution relative to the image"), [](auto& e) {
+        e.range_text = "1, 0.5 or 0.25";
+        e.apply = [](S& s, const json& v, C c) {
+          const double scale = v.get<double>();
+          if (scale != 1.0 && scale != 0.5 && scale != 0.25) c.fail("reflection_scale", "must be 1, 0.5 or 0.25");
+          s.frame.rt.reflection_divisor = std::uint32_t(std::lround(1.0 / scale));
+        };
+        e.canonical = [](const S& s) { return json(1.0 / s.frame.rt.reflection_divisor); };
+      }));
+  k.push_back(
+      with(number("roughness_threshold", 0.0, 1.01, 0.35, "pixels rougher than this reflect nothing"), [](auto& e) {
+        e.apply = [](S& s, const json& v, C) { s.frame.rt.roughness_threshold = float(v.get<double>()); };
+        e.canonical = [](const S& s) { return json(s.frame.rt.roughness_threshold); };
+      }));
   k.push_back(with(boolean("reflection_shadows", true, "shadow rays at reflection hits"), [](auto& e) {
     e.apply = [](S& s, const json& v, C) { s.frame.rt.reflection_shadows = v.get<bool>(); };
     e.canonical = [](const S& s) { return json(s.frame.rt.reflection_shadows); };
   }));
   k.push_back(with(choice("reflection_path", {"direct", "compact"}, "direct",
-                          "reflections traced per pixel, or compacted into a ray list first"), [&](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.frame.rt.reflection_path = parse_reflection_path(v.get<std::string>()); };
-    e.canonical = [](const S& s) { return json(to_string(s.frame.rt.reflection_path)); };
-    e.canonical_when = is_compact;
-  }));
+                          "reflections traced per pixel, or compacted into a ray list first"),
+                   [&](auto& e) {
+                     e.apply = [](S& s, const json& v, C) {
+                       s.frame.rt.reflection_path = parse_reflection_path(v.get<std::string>());
+                     };
+                     e.canonical = [](const S& s) { return json(to_string(s.frame.rt.reflection_path)); };
+                     e.canonical_when = is_compact;
+                   }));
   k.push_back(with(choice("sort", {"none", "octant", "direction", "origin"}, "none",
-                          "sort key of the compacted rays (compact path only)"), [&](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.frame.rt.sort = parse_sort_key(v.get<std::string>()); };
-    e.canonical = [](const S& s) { return json(to_string(s.frame.rt.sort)); };
-    e.canonical_when = is_compact;
-  }));
+                          "sort key of the compacted rays (compact path only)"),
+                   [&](auto& e) {
+                     e.apply = [](S& s, const json& v, C) { s.frame.rt.sort = parse_sort_key(v.get<std::string>()); };
+                     e.canonical = [](const S& s) { return json(to_string(s.frame.rt.sort)); };
+                     e.canonical_when = is_compact;
+                   }));
   k.push_back(with(choice("writeback", {"index", "reproject"}, "index",
-                          "how compacted results reach their pixels (compact path only)"), [&](auto& e) {
-    e.apply = [](S& s, const json& v, C c) {
-      s.frame.rt.writeback = parse_writeback(v.get<std::string>());
-      const RayTracingOptions& rt = s.frame.rt;
-      const bool compact_keys = rt.sort != SortKey::none || rt.writeback != Writeback::index;
-      if (rt.reflection_path == ReflectionPath::direct && compact_keys) {
-        c.fail("sort", "sort and writeback apply to \"reflection_path\": \"compact\" only");
-      }
-    };
-    e.canonical = [](const S& s) { return json(to_string(s.frame.rt.writeback)); };
-    e.canonical_when = is_compact;
-  }));
+                          "how compacted results reach their pixels (compact path only)"),
+                   [&](auto& e) {
+                     e.apply = [](S& s, const json& v, C c) {
+                       s.frame.rt.writeback = parse_writeback(v.get<std::string>());
+                       const RayTracingOptions& rt = s.frame.rt;
+                       const bool compact_keys = rt.sort != SortKey::none || rt.writeback != Writeback::index;
+                       if (rt.reflection_path == ReflectionPath::direct && compact_keys) {
+                         c.fail("sort", "sort and writeback apply to \"reflection_path\": \"compact\" only");
+                       }
+                     };
+                     e.canonical = [](const S& s) { return json(to_string(s.frame.rt.writeback)); };
+                     e.canonical_when = is_compact;
+                   }));
 
   k.push_back(with(integer("bvh.buckets", 2, 1024, 12, "SAH buckets per binned axis"), [](auto& e) {
     e.apply = [](S& s, const json& v, C) { s.frame.bvh.buckets = int(v.get<std::int64_t>()); };
     e.canonical = [](const S& s) { return json(s.frame.bvh.buckets); };
   }));
-  k.push_back(with(boolean("bvh.full_sweep", false, "exact SAH over every split position instead of buckets"),
-                   [](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.frame.bvh.full_sweep = v.get<bool>(); };
-    e.canonical = [](const S& s) { return json(s.frame.bvh.full_sweep); };
-  }));
+  k.push_back(
+      with(boolean("bvh.full_sweep", false, "exact SAH over every split position instead of buckets"), [](auto& e) {
+        e.apply = [](S& s, const json& v, C) { s.frame.bvh.full_sweep = v.get<bool>(); };
+        e.canonical = [](const S& s) { return json(s.frame.bvh.full_sweep); };
+      }));
   k.push_back(with(integer("bvh.leaf_size", 1, 1 << 20, 4, "largest leaf, in primitives"), [](auto& e) {
     e.apply = [](S& s, const json& v, C) { s.frame.bvh.max_leaf_size = int(v.get<std::int64_t>()); };
     e.canonical = [](const S& s) { return json(s.frame.bvh.max_leaf_size); };
   }));
-  k.push_back(with(choice("bvh.granularity", {"triangle", "object"}, "triangle",
-                          "BVH leaves hold triangles or objects"),
-                   [](auto& e) {
-    e.apply = [](S& s, const json& v, C) {
-      s.frame.bvh.granularity = v == "object" ? bvh::Granularity::object : bvh::Granularity::triangle;
-    };
-    e.canonical = [](const S& s) {
-      return json(s.frame.bvh.granularity == bvh::Granularity::object ? "object" : "triangle");
-    };
-  }));
-  k.push_back(with(number("bvh.traversal_cost", 1e-6, 1e6, 0.5, "SAH cost of a traversal step (a test costs 1)"),
-                   [](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.frame.bvh.traversal_cost = float(v.get<double>()); };
-    e.canonical = [](const S& s) { return json(s.frame.bvh.traversal_cost); };
-  }));
+  k.push_back(
+      with(choice("bvh.granularity", {"triangle", "object"}, "triangle", "BVH leaves hold triangles or objects"),
+           [](auto& e) {
+             e.apply = [](S& s, const json& v, C) {
+               s.frame.bvh.granularity = v == "object" ? bvh::Granularity::object : bvh::Granularity::triangle;
+             };
+             e.canonical = [](const S& s) {
+               return json(s.frame.bvh.granularity == bvh::Granularity::object ? "object" : "triangle");
+             };
+           }));
+  k.push_back(
+      with(number("bvh.traversal_cost", 1e-6, 1e6, 0.5, "SAH cost of a traversal step (a test costs 1)"), [](auto& e) {
+        e.apply = [](S& s, const json& v, C) { s.frame.bvh.traversal_cost = float(v.get<double>()); };
+        e.canonical = [](const S& s) { return json(s.frame.bvh.traversal_cost); };
+      }));
 
   k.push_back(with(integer("frames", 1, 100000, 10, "measured frames"), [](auto& e) {
     e.apply = [](S& s, const json& v, C) { s.frames = std::uint32_t(v.get<std::int64_t>()); };
@@ -273,18 +283,18 @@ std::vector<ScenarioKey> make_keys() {
                            "also time as many frames without timestamp queries, interleaved: the queries' overhead "
                            "(doubles the frames)"),
                    [](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.query_overhead = v.get<bool>(); };
-    e.canonical = [](const S&) { return json(true); };
-    e.canonical_when = [](const S& s) { return s.query_overhead; };
-  }));
+                     e.apply = [](S& s, const json& v, C) { s.query_overhead = v.get<bool>(); };
+                     e.canonical = [](const S&) { return json(true); };
+                     e.canonical_when = [](const S& s) { return s.query_overhead; };
+                   }));
   k.push_back(with(boolean("overlap", true,
                            "also time, beside each measured (serialized) frame, the frame as an application records "
                            "it: what overlapping the passes saves; false halves the GPU frames"),
                    [](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.overlap = v.get<bool>(); };
-    e.canonical = [](const S&) { return json(false); };
-    e.canonical_when = [](const S& s) { return !s.overlap; };
-  }));
+                     e.apply = [](S& s, const json& v, C) { s.overlap = v.get<bool>(); };
+                     e.canonical = [](const S&) { return json(false); };
+                     e.canonical_when = [](const S& s) { return !s.overlap; };
+                   }));
   k.push_back(with(integer("seed", 0, 0xFFFFFFFFll, 1, "reflection jitter seed"), [](auto& e) {
     e.apply = [](S& s, const json& v, C) { s.frame.rt.seed = std::uint32_t(v.get<std::int64_t>()); };
     e.canonical = [](const S& s) { return json(s.frame.rt.seed); };
@@ -307,16 +317,16 @@ std::vector<ScenarioKey> make_keys() {
                          "passes to capture in one more, instrumented frame and replay through the cache simulator "
                          "(only the G-buffer and these run in it; the cell's images come from the timed frames)"),
                    [](auto& e) {
-    e.range_text = "`\"shadows\"`, `\"reflections\"`";
-    e.default_text = "none";
-    e.apply = [](S& s, const json& v, C) { s.trace_passes = v.get<std::vector<std::string>>(); };
-    e.canonical = [](const S& s) { return json(s.trace_passes); };
-  }));
-  k.push_back(with(integer("trace.sample_every", 1, 0xFFFFF, 1, "record only every k-th burst of workgroups"),
-                   [](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.trace_sample_every = std::uint32_t(v.get<std::int64_t>()); };
-    e.canonical = [](const S& s) { return json(s.trace_sample_every); };
-  }));
+                     e.range_text = "`\"shadows\"`, `\"reflections\"`";
+                     e.default_text = "none";
+                     e.apply = [](S& s, const json& v, C) { s.trace_passes = v.get<std::vector<std::string>>(); };
+                     e.canonical = [](const S& s) { return json(s.trace_passes); };
+                   }));
+  k.push_back(
+      with(integer("trace.sample_every", 1, 0xFFFFF, 1, "record only every k-th burst of workgroups"), [](auto& e) {
+        e.apply = [](S& s, const json& v, C) { s.trace_sample_every = std::uint32_t(v.get<std::int64_t>()); };
+        e.canonical = [](const S& s) { return json(s.trace_sample_every); };
+      }));
   k.push_back(with(integer("trace.sample_block", 1, 2048, 1, "consecutive workgroups per sampled burst"), [](auto& e) {
     e.range_text = "a power of two, 1..2048";
     e.apply = [](S& s, const json& v, C c) {
@@ -327,19 +337,19 @@ std::vector<ScenarioKey> make_keys() {
     e.canonical = [](const S& s) { return json(s.trace_sample_block); };
     e.canonical_when = [](const S& s) { return s.trace_sample_block != 1; };
   }));
-  k.push_back(with(boolean("trace.scale_model", true, "replay a sampled trace on 1/k of the CUs and the L2"),
-                   [](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.trace_scale_model = v.get<bool>(); };
-    e.canonical = [](const S& s) { return json(s.trace_scale_model); };
-    e.canonical_when = [](const S& s) { return s.trace_sample_every > 1; };  // irrelevant to a full trace
-  }));
+  k.push_back(
+      with(boolean("trace.scale_model", true, "replay a sampled trace on 1/k of the CUs and the L2"), [](auto& e) {
+        e.apply = [](S& s, const json& v, C) { s.trace_scale_model = v.get<bool>(); };
+        e.canonical = [](const S& s) { return json(s.trace_scale_model); };
+        e.canonical_when = [](const S& s) { return s.trace_sample_every > 1; };  // irrelevant to a full trace
+      }));
   k.push_back(with(boolean("trace.keep", false, "keep the trace file beside the results (not part of the id)"),
                    [](auto& e) { e.apply = [](S& s, const json& v, C) { s.trace_keep = v.get<bool>(); }; }));
   k.push_back(with(choice("trace.image_layout", {"tiled", "linear"}, "tiled", "image address layout of the trace"),
                    [](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.trace_tiled_images = v == "tiled"; };
-    e.canonical = [](const S& s) { return json(s.trace_tiled_images ? "tiled" : "linear"); };
-  }));
+                     e.apply = [](S& s, const json& v, C) { s.trace_tiled_images = v == "tiled"; };
+                     e.canonical = [](const S& s) { return json(s.trace_tiled_images ? "tiled" : "linear"); };
+                   }));
 
   k.push_back(with(choice("inject.pass", {"shadows"}, "shadows", "the pass that does extra work"), [](auto& e) {
     e.apply = [](S& s, const json& v, C) { s.inject_pass = v.get<std::string>(); };
@@ -349,58 +359,59 @@ std::vector<ScenarioKey> make_keys() {
                           "the shadow pass re-traces this first fraction of the rows (same image, more work): a known "
                           "slowdown for validating the gate; 0 = off"),
                    [](auto& e) {
-    e.apply = [](S& s, const json& v, C c) {
-      s.inject_fraction = float(v.get<double>());
-      if (s.inject_fraction > 0.0f && !s.frame.rt.shadows) c.fail("inject", "injects work into shadows, which are off");
-      s.frame.rt.inject_shadow_fraction = s.inject_fraction;
-    };
-    e.canonical = [](const S& s) { return json(s.inject_fraction); };
-  }));
+                     e.apply = [](S& s, const json& v, C c) {
+                       s.inject_fraction = float(v.get<double>());
+                       if (s.inject_fraction > 0.0f && !s.frame.rt.shadows)
+                         c.fail("inject", "injects work into shadows, which are off");
+                       s.frame.rt.inject_shadow_fraction = s.inject_fraction;
+                     };
+                     e.canonical = [](const S& s) { return json(s.inject_fraction); };
+                   }));
 
   k.push_back(with(number("transform.scale", 1e-6, 1e6, 1.0,
                           "the whole world (geometry, camera, clip planes) scaled about the origin"),
                    [&](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.world_scale = v.get<double>(); };
-    e.canonical = [](const S& s) { return json(s.world_scale); };
-    e.canonical_when = has_transform;
-  }));
+                     e.apply = [](S& s, const json& v, C) { s.world_scale = v.get<double>(); };
+                     e.canonical = [](const S& s) { return json(s.world_scale); };
+                     e.canonical_when = has_transform;
+                   }));
   k.push_back(with(typed("transform.translate", KeyType::vec3, json::array({0, 0, 0}),
                          "then moved: the same image far from the origin"),
                    [&](auto& e) {
-    e.range_text = "at most 1e7 from the origin";
-    e.apply = [](S& s, const json& v, C c) {
-      s.world_translate = glm::dvec3(*vec_of(v));
-      if (c.present && glm::length(s.world_translate) > 1e7) {
-        c.fail("transform.translate", "farther than 1e7 from the origin");
-      }
-    };
-    e.canonical = [](const S& s) {
-      return json::array({s.world_translate.x, s.world_translate.y, s.world_translate.z});
-    };
-    e.canonical_when = has_transform;
-  }));
+                     e.range_text = "at most 1e7 from the origin";
+                     e.apply = [](S& s, const json& v, C c) {
+                       s.world_translate = glm::dvec3(*vec_of(v));
+                       if (c.present && glm::length(s.world_translate) > 1e7) {
+                         c.fail("transform.translate", "farther than 1e7 from the origin");
+                       }
+                     };
+                     e.canonical = [](const S& s) {
+                       return json::array({s.world_translate.x, s.world_translate.y, s.world_translate.z});
+                     };
+                     e.canonical_when = has_transform;
+                   }));
 
   // "error": present (even empty), the error against the CPU reference is measured.
   k.push_back(with(integer("error.frames", 1, 4096, 16,
                            "after the timed frames, accumulate this many frames and compare them with the CPU "
                            "reference"),
                    [&](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.error_frames = std::uint32_t(v.get<std::int64_t>()); };
-    e.canonical = [](const S& s) { return json(s.error_frames); };
-    e.canonical_when = has_error;
-  }));
-  k.push_back(with(integer("error.reference_samples", 1, 1 << 16, 256, "samples per pixel of the CPU reference"),
-                   [&](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.reference_samples = std::uint32_t(v.get<std::int64_t>()); };
-    e.canonical = [](const S& s) { return json(s.reference_samples); };
-    e.canonical_when = has_error;
-  }));
-  k.push_back(with(number("error.threshold", 0.0, 1e6, 0.1, "per-pixel error counted as over the threshold"),
-                   [&](auto& e) {
-    e.apply = [](S& s, const json& v, C) { s.error_threshold = v.get<double>(); };
-    e.canonical = [](const S& s) { return json(s.error_threshold); };
-    e.canonical_when = has_error;
-  }));
+                     e.apply = [](S& s, const json& v, C) { s.error_frames = std::uint32_t(v.get<std::int64_t>()); };
+                     e.canonical = [](const S& s) { return json(s.error_frames); };
+                     e.canonical_when = has_error;
+                   }));
+  k.push_back(
+      with(integer("error.reference_samples", 1, 1 << 16, 256, "samples per pixel of the CPU reference"), [&](auto& e) {
+        e.apply = [](S& s, const json& v, C) { s.reference_samples = std::uint32_t(v.get<std::int64_t>()); };
+        e.canonical = [](const S& s) { return json(s.reference_samples); };
+        e.canonical_when = has_error;
+      }));
+  k.push_back(
+      with(number("error.threshold", 0.0, 1e6, 0.1, "per-pixel error counted as over the threshold"), [&](auto& e) {
+        e.apply = [](S& s, const json& v, C) { s.error_threshold = v.get<double>(); };
+        e.canonical = [](const S& s) { return json(s.error_threshold); };
+        e.canonical_when = has_error;
+      }));
   k.push_back(with(boolean("error.flip", true, "also compute LDR-FLIP and write its error map"), [&](auto& e) {
     e.apply = [](S& s, const json& v, C) { s.error_flip = v.get<bool>(); };
     e.canonical = [](const S& s) { return json(s.error_flip); };

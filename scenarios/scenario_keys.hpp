@@ -17,8 +17,8 @@ struct Scenario;
 
 enum class KeyType {
   boolean,
-  number,      ///< finite, within [lo, hi]
-  integer,     ///< within [int_lo, int_hi]
+  number,   ///< finite, within [lo, hi]
+  integer,  ///< within [int_lo, int_hi]
   string,
   choice,      ///< a string, one of `choices`
   vec3,        ///< [x, y, z] finite numbers (read as float)
@@ -37,7 +37,7 @@ struct KeyContext {
 struct ScenarioKey {
   std::string path;  ///< "bvh.buckets": a top-level key or one member of a top-level object
   KeyType type = KeyType::string;
-  double lo = 0, hi = 0;              ///< number
+  double lo = 0, hi = 0;                ///< number
   std::int64_t int_lo = 0, int_hi = 0;  ///< integer
   std::vector<std::string> choices;     ///< choice
   /// The value an absent key takes (null: none, an optional stays unset).

@@ -35,8 +35,8 @@ std::string check_config(const CacheConfig& c) {
   if (c.channels > 1024) return "channels: " + n(c.channels) + " exceeds the limit of 1024";
   const uint64_t per_channel_way = uint64_t(c.line_bytes) * c.ways * c.channels;
   if (c.size_bytes % per_channel_way != 0)
-    return "size_bytes: " + n(c.size_bytes) + " is not divisible by line_bytes * ways * channels = " +
-           n(per_channel_way);
+    return "size_bytes: " + n(c.size_bytes) +
+           " is not divisible by line_bytes * ways * channels = " + n(per_channel_way);
   const uint64_t sets = c.size_bytes / per_channel_way;
   if (!pow2(sets)) return "size_bytes: gives " + n(sets) + " sets per channel, not a power of two";
   const uint32_t interleave = c.channel_interleave_bytes ? c.channel_interleave_bytes : c.line_bytes;
@@ -117,13 +117,31 @@ uint64_t Cache::first_line_with_tag(uint64_t tag) const {
 }
 
 Cache::Cache(const Cache& o)
-    : config_(o.config_), engine_(o.engine_), sectored_(o.sectored_), lru_(o.lru_),
-      ways_per_set_(o.ways_per_set_), stride_(o.stride_), sets_(o.sets_), set_mask_(o.set_mask_),
-      set_bits_(o.set_bits_), channels_(o.channels_), plain_index_(o.plain_index_),
-      interleave_shift_(o.interleave_shift_), interleave_mask_(o.interleave_mask_),
-      sets_per_channel_(o.sets_per_channel_), line_shift_(o.line_shift_), sector_shift_(o.sector_shift_),
-      full_mask_(o.full_mask_), replacement_(o.replacement_), rng_(o.rng_), ordered16_limit_(o.ordered16_limit_),
-      ordered32_limit_(o.ordered32_limit_), meta_(o.meta_), tags_(o.tags_), gmeta_(o.gmeta_), stamp_(o.stamp_),
+    : config_(o.config_),
+      engine_(o.engine_),
+      sectored_(o.sectored_),
+      lru_(o.lru_),
+      ways_per_set_(o.ways_per_set_),
+      stride_(o.stride_),
+      sets_(o.sets_),
+      set_mask_(o.set_mask_),
+      set_bits_(o.set_bits_),
+      channels_(o.channels_),
+      plain_index_(o.plain_index_),
+      interleave_shift_(o.interleave_shift_),
+      interleave_mask_(o.interleave_mask_),
+      sets_per_channel_(o.sets_per_channel_),
+      line_shift_(o.line_shift_),
+      sector_shift_(o.sector_shift_),
+      full_mask_(o.full_mask_),
+      replacement_(o.replacement_),
+      rng_(o.rng_),
+      ordered16_limit_(o.ordered16_limit_),
+      ordered32_limit_(o.ordered32_limit_),
+      meta_(o.meta_),
+      tags_(o.tags_),
+      gmeta_(o.gmeta_),
+      stamp_(o.stamp_),
       clock_(o.clock_) {
   if (o.tag16_) {
     tag16_ = aligned_array<uint16_t>(size_t(sets_) * stride_);

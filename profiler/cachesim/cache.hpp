@@ -176,21 +176,22 @@ class Cache {
   bool plain_index() const { return plain_index_; }
   OrderedGeometry ordered_geometry() const { return {set_mask_, set_bits_, lru_}; }
   void* ordered_entries() {
-    return engine_ == Engine::ordered16 ? static_cast<void*>(tag16_.get())
+    return engine_ == Engine::ordered16   ? static_cast<void*>(tag16_.get())
            : engine_ == Engine::ordered32 ? static_cast<void*>(tag32_.get())
                                           : nullptr;
   }
   template <int kOp, typename T, uint32_t kStride, bool kLru = false, bool kClean = false>
   [[gnu::always_inline]] static Outcome ordered_access(const OrderedGeometry& g, T* entries, uint64_t line) {
     return ordered_set_access<Op(kOp), T, kStride, kLru, kClean>(entries + size_t(line & g.set_mask) * kStride,
-                                                                uint32_t(line >> g.set_bits), kStride - 1, g.lru);
+                                                                 uint32_t(line >> g.set_bits), kStride - 1, g.lru);
   }
 #if defined(__x86_64__) && defined(__GNUC__)
   // ordered_access<kOp, uint16_t, 16, kLru> with AVX2: a 16-way set of 16-bit entries is one 256-bit
   // register. Only for a caller compiled for AVX2 (gnu::target("avx2")) that checked the CPU.
   template <int kOp, bool kLru>
   [[gnu::target("avx2"), gnu::always_inline]] static Outcome ordered_access16x16_avx2(const OrderedGeometry& g,
-                                                                                      uint16_t* entries, uint64_t line) {
+                                                                                      uint16_t* entries,
+                                                                                      uint64_t line) {
     uint16_t* e = entries + size_t(line & g.set_mask) * 16;
     const uint32_t tag = uint32_t(line >> g.set_bits);
     const __m256i x = _mm256_load_si256(reinterpret_cast<const __m256i*>(e));
@@ -239,7 +240,7 @@ class Cache {
 
  private:
   static constexpr uint64_t kEmpty = ~uint64_t(0);
-  static constexpr uint32_t kEmpty32 = ~0u;          // compact engine: an empty or padding way
+  static constexpr uint32_t kEmpty32 = ~0u;  // compact engine: an empty or padding way
   // Ordered engine, per entry width: the tag bits (also the empty or padding entry: no tag reaches
   // it) and the dirty bit above them.
   template <typename T>
@@ -309,7 +310,8 @@ class Cache {
     } else if constexpr (kVec == 2) {
       match = uint32_t(_mm_movemask_epi8(_mm_packs_epi16(_mm_packs_epi32(eq[0], eq[1]), _mm_setzero_si128())));
     } else {
-      match = uint32_t(_mm_movemask_epi8(_mm_packs_epi16(_mm_packs_epi32(eq[0], eq[1]), _mm_packs_epi32(eq[2], eq[3]))));
+      match =
+          uint32_t(_mm_movemask_epi8(_mm_packs_epi16(_mm_packs_epi32(eq[0], eq[1]), _mm_packs_epi32(eq[2], eq[3]))));
     }
 #else
     uint32_t match = 0;
@@ -423,7 +425,9 @@ class Cache {
 #endif
   }
   uint32_t match_ways(const uint32_t* tags, uint32_t tag) const {
-    return stride_ == 4 ? match_ways<4>(tags, tag) : stride_ == 8 ? match_ways<8>(tags, tag) : match_ways<16>(tags, tag);
+    return stride_ == 4   ? match_ways<4>(tags, tag)
+           : stride_ == 8 ? match_ways<8>(tags, tag)
+                          : match_ways<16>(tags, tag);
   }
 
   // The compact engine (sectored caches).
@@ -523,7 +527,7 @@ class Cache {
   uint64_t set_mask_ = 0;  // of the sets within one channel
   uint32_t set_bits_ = 0;  // log2(sets per channel)
   uint32_t channels_ = 1;
-  bool plain_index_ = true;  // one channel or a power of two: the set is the low line bits
+  bool plain_index_ = true;        // one channel or a power of two: the set is the low line bits
   uint32_t interleave_shift_ = 0;  // log2(interleave in lines)
   uint64_t interleave_mask_ = 0;
   uint64_t sets_per_channel_ = 1;
@@ -532,15 +536,15 @@ class Cache {
   uint64_t rng_ = 1;
 
   // Ordered and compact engines.
-  Aligned<uint16_t> tag16_;    // ordered16: sets_ * stride_ entries
-  Aligned<uint32_t> tag32_;    // sets_ * stride_ entries (ordered32) or partial tags (compact)
+  Aligned<uint16_t> tag16_;                             // ordered16: sets_ * stride_ entries
+  Aligned<uint32_t> tag32_;                             // sets_ * stride_ entries (ordered32) or partial tags (compact)
   uint64_t ordered16_limit_ = 0, ordered32_limit_ = 0;  // the first lines whose tags 16 / 32-bit entries cannot hold
   // Compact engine.
-  Aligned<uint64_t> order_;    // sets_ recency permutations
-  std::vector<Meta> meta_;     // sets_ * stride_
+  Aligned<uint64_t> order_;  // sets_ recency permutations
+  std::vector<Meta> meta_;   // sets_ * stride_
 
   // General engine.
-  std::vector<uint64_t> tags_;   // line number (address >> line_shift); kEmpty when invalid
+  std::vector<uint64_t> tags_;  // line number (address >> line_shift); kEmpty when invalid
   std::vector<Meta> gmeta_;
   std::vector<uint32_t> stamp_;  // last use (LRU) or insertion (FIFO) time; 0 = never
   uint32_t clock_ = 0;

@@ -104,8 +104,8 @@ DinResult replay_din(std::span<const trace::DinAccess> accesses, const CacheConf
   return replay.result();
 }
 
-DinResult replay_din_file(const std::filesystem::path& path, const CacheConfig& l1, const CacheConfig& l2,
-                          bool curves, uint64_t& references) {
+DinResult replay_din_file(const std::filesystem::path& path, const CacheConfig& l1, const CacheConfig& l2, bool curves,
+                          uint64_t& references) {
   trace::DinReader reader(path);
   DinReplay replay(l1, l2, curves);
   references = 0;

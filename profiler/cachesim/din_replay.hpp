@@ -28,7 +28,7 @@ struct DinLevelStats {
 
 struct DinResult {
   DinLevelStats l1, l2;
-  uint64_t l1_copies_back = 0;  // dirty L1 blocks evicted
+  uint64_t l1_copies_back = 0;        // dirty L1 blocks evicted
   MissRatioCurve l1_curve, l2_curve;  // when requested
 };
 
@@ -59,7 +59,7 @@ DinResult replay_din(std::span<const trace::DinAccess> accesses, const CacheConf
 // fixed (about 2 MiB besides the caches' state) whatever the file's size. `references` receives the
 // accesses replayed. Errors are the parser's "FILE:LINE: reason" InputError.
 inline constexpr size_t kDinBatch = 16384;
-DinResult replay_din_file(const std::filesystem::path& path, const CacheConfig& l1, const CacheConfig& l2,
-                          bool curves, uint64_t& references);
+DinResult replay_din_file(const std::filesystem::path& path, const CacheConfig& l1, const CacheConfig& l2, bool curves,
+                          uint64_t& references);
 
 }  // namespace hp::cachesim

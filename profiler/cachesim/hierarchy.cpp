@@ -1,8 +1,8 @@
 #include "cachesim/hierarchy.hpp"
 
 #include <algorithm>
-#include <type_traits>
 #include <stdexcept>
+#include <type_traits>
 
 namespace hp::cachesim {
 
@@ -69,7 +69,7 @@ void Hierarchy::refresh_fast_limit() {
   using E = Cache::Engine;
   const E e1 = l1_.empty() ? E::general : l1_[0].engine(), e2 = l2_.engine();
   const bool o1 = e1 == E::ordered16 || e1 == E::ordered32, o2 = e2 == E::ordered16 || e2 == E::ordered32;
-  entry_widths_ = !o1 || !o2 ? EntryWidths::none
+  entry_widths_ = !o1 || !o2           ? EntryWidths::none
                   : e1 == E::ordered16 ? (e2 == E::ordered16 ? EntryWidths::w16_16 : EntryWidths::w16_32)
                                        : (e2 == E::ordered16 ? EntryWidths::w32_16 : EntryWidths::w32_32);
   if (entry_widths_ == EntryWidths::none) fast_limit_ = 0;
@@ -172,7 +172,7 @@ size_t Hierarchy::issue_chunk(const Request* rs, const uint32_t* cus, size_t n, 
 #if defined(__x86_64__) && defined(__GNUC__)
 template <bool kLru>
 [[gnu::target("avx2")]] size_t Hierarchy::issue_chunk_avx2(const Request* rs, const uint32_t* cus, size_t n,
-                                                          IssueResult* out) {
+                                                           IssueResult* out) {
   return issue_chunk_impl<4, uint32_t, 16, uint16_t, kLru, L2Avx2>(rs, cus, n, out);
 }
 #endif
@@ -196,7 +196,8 @@ template <uint32_t S1, typename T1, uint32_t S2, typename T2, bool kLru, typenam
     const size_t i = done;
     const Request& r = rs[i];
     const uint64_t line = r.line;
-    if (line >= limit) [[unlikely]] break;
+    if (line >= limit) [[unlikely]]
+      break;
     uint32_t to_l2 = 1;
     Counts& c = counts_[r.buffer];
     if (r.kind == AccessKind::load) {

@@ -42,8 +42,8 @@ struct LevelStats {
 };
 
 struct HierarchyStats {
-  LevelStats l1;  // loads only (stores and atomics do not look up the L1 state)
-  LevelStats l2;  // every request reaching the L2: L1 load misses, stores, atomics
+  LevelStats l1;                     // loads only (stores and atomics do not look up the L1 state)
+  LevelStats l2;                     // every request reaching the L2: L1 load misses, stores, atomics
   uint64_t stores = 0, atomics = 0;  // requests issued by the coalescer, besides l1.requests loads
   uint64_t dram_read_bytes = 0, dram_write_bytes = 0;
   void add(const HierarchyStats& o);
@@ -73,7 +73,7 @@ class Hierarchy {
     if (!sectored_) {
       // The set widths of the L1s and the L2 become constants of the code (picked at construction;
       // a cache that left the ordered engine is still handled: access1 checks it).
-      switch (widths_) {  // codes: 0 unknown, 1/2/3 ordered sets of 4/8/16 ways
+      switch (widths_) {                                        // codes: 0 unknown, 1/2/3 ordered sets of 4/8/16 ways
         case 1 * 4 + 3: return issue_unsectored<4, 16>(cu, r);  // vega56-like: 4-way L1, 16-way L2
         case 1 * 4 + 2: return issue_unsectored<4, 8>(cu, r);
         case 1 * 4 + 1: return issue_unsectored<4, 4>(cu, r);
@@ -187,11 +187,15 @@ class Hierarchy {
   template <uint32_t S, int kOp>
   [[gnu::always_inline]] static Outcome access1(Cache& c, uint64_t line) {
     if constexpr (S != 0) {
-      if (line < c.ordered_line_limit()) [[likely]] return c.template ordered_access<kOp, S>(line);
+      if (line < c.ordered_line_limit()) [[likely]]
+        return c.template ordered_access<kOp, S>(line);
     }
-    if constexpr (kOp == 0) return c.load(line, 1);
-    else if constexpr (kOp == 1) return c.store(line, 1);
-    else return c.update(line, 1);
+    if constexpr (kOp == 0)
+      return c.load(line, 1);
+    else if constexpr (kOp == 1)
+      return c.store(line, 1);
+    else
+      return c.update(line, 1);
   }
   template <uint32_t S1, uint32_t S2>
   [[gnu::always_inline]] IssueResult issue_unsectored(uint32_t cu, const Request& r) {

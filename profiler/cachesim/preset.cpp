@@ -177,8 +177,7 @@ std::vector<std::string> known_presets() {
 
 Preset find_preset(std::string_view name_or_path) {
   const std::string arg(name_or_path);
-  if (arg.find('/') != std::string::npos || (arg.size() > 5 && arg.ends_with(".json")))
-    return load_preset_file(arg);
+  if (arg.find('/') != std::string::npos || (arg.size() > 5 && arg.ends_with(".json"))) return load_preset_file(arg);
   for (const auto& d : preset_dirs()) {
     std::error_code ec;
     const auto file = d / (arg + ".json");

@@ -2,11 +2,11 @@
 
 #include <algorithm>
 #include <bit>
-#include <ostream>
 #include <condition_variable>
 #include <deque>
 #include <exception>
 #include <mutex>
+#include <ostream>
 #include <stdexcept>
 #include <thread>
 
@@ -218,8 +218,11 @@ class Buckets {
 class Builder {
  public:
   Builder(const Preset& preset, const Cache& l1, const trace::BufferInfo* const* buffers, bool per_invocation)
-      : co_(preset.wave_width, l1.line_shift(), l1.sector_shift(), l1.full_mask(), preset.coalescing == Coalescing::sector),
-        buffers_(buffers), width_(preset.wave_width), per_inv_(per_invocation) {}
+      : co_(preset.wave_width, l1.line_shift(), l1.sector_shift(), l1.full_mask(),
+            preset.coalescing == Coalescing::sector),
+        buffers_(buffers),
+        width_(preset.wave_width),
+        per_inv_(per_invocation) {}
 
   // Workgroup first_group + g's requests (null: no accesses).
   std::unique_ptr<GroupRequests> build(const Buckets& buckets, uint64_t g) {
@@ -243,7 +246,8 @@ class Builder {
         const trace::TraceRecord& r = in[k];
         const trace::BufferInfo& b = *buffers_[gpu::trace_buffer(r.info)];
         recs_[cursor32_[r.invocation - first_invocation]++] =
-            LaneAccess{b.kind == trace::BufferKind::buffer ? b.base_address + r.offset : b.address(r.offset), r.seq, r.info};
+            LaneAccess{b.kind == trace::BufferKind::buffer ? b.base_address + r.offset : b.address(r.offset), r.seq,
+                       r.info};
       }
     });
     auto by_seq = [](const LaneAccess& x, const LaneAccess& y) { return x.seq < y.seq; };
@@ -309,7 +313,8 @@ class Builder {
           const uint32_t s0 = seq_count_[q], s1 = seq_count_[q + 1];
           if (s0 == s1) continue;
           co_.begin();
-          for (uint32_t j = s0; j < s1; ++j) co_.add(steps[j].address, steps[j].info, lane_base + steps[j].seq, per_inv_);
+          for (uint32_t j = s0; j < s1; ++j)
+            co_.add(steps[j].address, steps[j].info, lane_base + steps[j].seq, per_inv_);
           end_step();
         }
         ga->wave_steps_end.push_back(uint32_t(ga->step_end.size()));
@@ -445,7 +450,9 @@ struct Simulator::PassState {
   std::thread thread;
 
   PassState(const Preset& preset, const Cache& l1, const trace::BufferInfo* const* buffers, bool per_invocation)
-      : buckets(buffers), builder(preset, l1, buffers, per_invocation), helper_builder(preset, l1, buffers, per_invocation) {}
+      : buckets(buffers),
+        builder(preset, l1, buffers, per_invocation),
+        helper_builder(preset, l1, buffers, per_invocation) {}
 
   // Hands a piece to the scheduler (under m).
   void publish_locked(std::unique_ptr<Piece> p) {
@@ -543,10 +550,13 @@ struct Simulator::PassState {
 };
 
 Simulator::Simulator(const Preset& preset, const trace::TraceHeader& header, SimOptions options)
-    : preset_(preset), buffer_storage_(header.buffers), options_(std::move(options)),
+    : preset_(preset),
+      buffer_storage_(header.buffers),
+      options_(std::move(options)),
       hierarchy_(preset.l1, preset.compute_units, preset.l2) {
   for (const auto& b : buffer_storage_) buffers_[b.id & 0xFF] = &b;
-  if (options_.l1_mrc || options_.l2_mrc) hierarchy_.enable_mrc(options_.l1_mrc, options_.l2_mrc, options_.mrc_sampling_rate);
+  if (options_.l1_mrc || options_.l2_mrc)
+    hierarchy_.enable_mrc(options_.l1_mrc, options_.l2_mrc, options_.mrc_sampling_rate);
 }
 
 Simulator::~Simulator() { stop(); }
@@ -616,10 +626,11 @@ void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first
                      std::to_string(end_workgroup) + ") outside the dispatch of " + std::to_string(ps.groups));
   if (first_workgroup < ps.fed_end)
     throw InputError("pass '" + name + "': slice [" + std::to_string(first_workgroup) + ", " +
-                     std::to_string(end_workgroup) + ") overlaps or precedes workgroup " +
-                     std::to_string(ps.fed_end) + " (slices must come in dispatch order)");
+                     std::to_string(end_workgroup) + ") overlaps or precedes workgroup " + std::to_string(ps.fed_end) +
+                     " (slices must come in dispatch order)");
   if (end_workgroup == first_workgroup) {
-    if (!records.empty()) throw InputError("pass '" + name + "': record outside its slice's workgroups or the buffer table");
+    if (!records.empty())
+      throw InputError("pass '" + name + "': record outside its slice's workgroups or the buffer table");
     // Nothing fed, but the workgroups before it are known to be empty now.
     ps.fed_end = end_workgroup;
     auto p = std::make_unique<Piece>();
@@ -726,8 +737,7 @@ void Simulator::schedule() {
       const uint32_t s0 = w ? ga->wave_steps_end[w - 1] : 0, s1 = ga->wave_steps_end[w];
       if (s0 == s1) continue;  // a wavefront without accesses
       c.waves.push_back(Wave{ga->requests.data(), ga->step_end.data(), ga->lanes.data(), ga->step_lanes_end.data(), g,
-                             s0, s1, s0 ? ga->step_end[s0 - 1] : 0,
-                             per_inv && s0 ? ga->step_lanes_end[s0 - 1] : 0});
+                             s0, s1, s0 ? ga->step_end[s0 - 1] : 0, per_inv && s0 ? ga->step_lanes_end[s0 - 1] : 0});
       ++placed;
     }
     c.groups.push_back(ResidentGroup{g, std::move(ga), placed});
@@ -771,7 +781,8 @@ void Simulator::schedule() {
       ps.batch_cu.insert(ps.batch_cu.end(), r1 - r0, i);
       if (per_inv) {
         const uint32_t l1 = w.step_lanes_end[w.next_step];
-        for (uint32_t k = w.next_lane; k < l1; ++k) ps.batch_lanes.emplace_back(w.lanes[k].first, base + (w.lanes[k].second - r0));
+        for (uint32_t k = w.next_lane; k < l1; ++k)
+          ps.batch_lanes.emplace_back(w.lanes[k].first, base + (w.lanes[k].second - r0));
         w.next_lane = l1;
       }
       if (ps.batch.size() >= kIssueBatch) issue_batch();
@@ -817,10 +828,10 @@ uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceH
 }
 
 std::function<void(uint32_t, const Request&)> din_observer(std::ostream& out, const Preset& preset, uint32_t cu,
-                                                          bool include_stores, uint64_t& lines) {
+                                                           bool include_stores, uint64_t& lines) {
   if (cu >= preset.compute_units)
-    throw InputError("--export-din: compute unit " + std::to_string(cu) + " does not exist (preset '" +
-                     preset.name + "' has " + std::to_string(preset.compute_units) + ")");
+    throw InputError("--export-din: compute unit " + std::to_string(cu) + " does not exist (preset '" + preset.name +
+                     "' has " + std::to_string(preset.compute_units) + ")");
   const uint32_t line_shift = uint32_t(std::countr_zero(preset.l1.line_bytes));
   const uint32_t sector_bytes = preset.l1.sector_bytes;
   return [&out, &lines, cu, include_stores, line_shift, sector_bytes](uint32_t c, const Request& r) {
@@ -831,8 +842,8 @@ std::function<void(uint32_t, const Request&)> din_observer(std::ostream& out, co
     while (m) {
       const uint32_t s0 = uint32_t(std::countr_zero(m));
       const uint32_t run = uint32_t(std::countr_one(m >> s0));
-      trace::write_din_line(out, trace::DinAccess{r.kind == AccessKind::store, (r.line << line_shift) + s0 * sector_bytes,
-                                                  run * sector_bytes});
+      trace::write_din_line(out, trace::DinAccess{r.kind == AccessKind::store,
+                                                  (r.line << line_shift) + s0 * sector_bytes, run * sector_bytes});
       ++lines;
       m &= run == 32 ? 0u : ~(((1u << run) - 1) << s0);
     }

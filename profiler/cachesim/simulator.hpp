@@ -45,7 +45,7 @@ struct PassResult {
   uint64_t lane_accesses = 0, wave_steps = 0, waves = 0, workgroups = 0, cycles = 0;
   uint32_t slices = 0;                 // feed() calls that brought records
   uint64_t peak_resident_records = 0;  // most records held at once (streaming keeps this bounded)
-  MissRatioCurve l1_curve, l2_curve;  // filled when requested
+  MissRatioCurve l1_curve, l2_curve;   // filled when requested
 };
 
 class Simulator {
@@ -78,7 +78,9 @@ class Simulator {
   uint64_t finish();
 
   // Replaces SimOptions::observer from the next pass on (empty: none); call it between passes.
-  void set_observer(std::function<void(uint32_t cu, const Request&)> observer) { options_.observer = std::move(observer); }
+  void set_observer(std::function<void(uint32_t cu, const Request&)> observer) {
+    options_.observer = std::move(observer);
+  }
 
   const Preset& preset() const { return preset_; }
 
@@ -113,7 +115,7 @@ uint64_t export_din(std::ostream& out, const Preset& preset, const trace::TraceH
 // counts them in `lines`. Attach it to a simulator that replays anyway (Simulator::set_observer) to export
 // without a second replay: the request stream does not depend on the caches' state.
 std::function<void(uint32_t cu, const Request&)> din_observer(std::ostream& out, const Preset& preset, uint32_t cu,
-                                                             bool include_stores, uint64_t& lines);
+                                                              bool include_stores, uint64_t& lines);
 
 // The same, streamed: `feed` hands the pass's slices to the simulator (Simulator::feed), e.g. from
 // TraceReader::read_slices, so a frame of any size exports in bounded memory.

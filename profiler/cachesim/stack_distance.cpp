@@ -256,7 +256,8 @@ template <bool kHw>
     tree_add(last >> kBlockBits, -1);
     const uint64_t bucket = sampled_ ? uint64_t(double(distance) * scale_) : distance;
     histogram_stale_ = true;
-    if (bucket >= counts_.size()) [[unlikely]] count_distance(bucket);  // grows only
+    if (bucket >= counts_.size()) [[unlikely]]
+      count_distance(bucket);  // grows only
     __builtin_prefetch(counts_.data() + bucket, 1);
     uint64_t& p = pending_[pending_next_];
     pending_next_ = (pending_next_ + 1) % kPending;

@@ -32,9 +32,9 @@ namespace hp::cachesim {
 // Histogram of stack distances, in lines. Miss counts of any fully associative LRU size follow.
 struct MissRatioCurve {
   uint32_t line_bytes = 64;
-  double sampling_rate = 1.0;  // 1: exact; < 1: SHARDS estimate
-  uint64_t accesses = 0;       // tracked accesses (sampled ones for SHARDS)
-  uint64_t cold = 0;           // first accesses to a line (misses at every size)
+  double sampling_rate = 1.0;       // 1: exact; < 1: SHARDS estimate
+  uint64_t accesses = 0;            // tracked accesses (sampled ones for SHARDS)
+  uint64_t cold = 0;                // first accesses to a line (misses at every size)
   std::vector<uint64_t> histogram;  // histogram[d]: re-accesses at distance d (hit iff d < lines)
 
   // Misses of a fully associative LRU cache holding `lines` lines (tracked accesses, unscaled).
@@ -70,7 +70,7 @@ class StackDistance {
   uint64_t distinct_lines() const { return live_; }
 
  private:
-  static constexpr uint32_t kPageBits = 4;  // 16 lines' times per page: one 64-byte host line
+  static constexpr uint32_t kPageBits = 4;   // 16 lines' times per page: one 64-byte host line
   static constexpr uint32_t kBlockBits = 9;  // 512 times per Fenwick block: 8 bitmap words
 
   uint32_t* page_of(uint64_t line);
@@ -89,7 +89,7 @@ class StackDistance {
   uint64_t access_one(uint64_t line);
   template <bool kHw>
   void access_batch(std::span<const uint64_t> lines);
-  uint64_t access_hw(uint64_t line);                     // access_one<true>, compiled for POPCNT
+  uint64_t access_hw(uint64_t line);                      // access_one<true>, compiled for POPCNT
   void access_batch_hw(std::span<const uint64_t> lines);  // access_batch<true>, likewise
   bool hw_popcount_ = false;
   uint32_t* new_page(uint64_t key);
@@ -126,10 +126,10 @@ class StackDistance {
   std::vector<PageSlot> page_table_;
   uint64_t page_mask_ = 0, pages_ = 0;
   uint64_t last_key_ = ~uint64_t(0), last_page_ = 0;  // consecutive accesses often share a page
-  std::vector<uint32_t> times_;  // per line: latest access time + 1, 0 = never seen
+  std::vector<uint32_t> times_;                       // per line: latest access time + 1, 0 = never seen
 
-  std::vector<uint64_t> bits_;   // bitmap over times [0, capacity)
-  std::vector<uint32_t> tree_;   // Fenwick tree, 1-based, over block counts
+  std::vector<uint64_t> bits_;  // bitmap over times [0, capacity)
+  std::vector<uint32_t> tree_;  // Fenwick tree, 1-based, over block counts
   uint32_t capacity_ = 0, now_ = 0;
   uint64_t live_ = 0;
 };

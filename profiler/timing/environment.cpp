@@ -37,8 +37,7 @@ std::string or_unknown(std::string s) { return s.empty() ? "unknown" : s; }
 std::string parse_cpu_model(std::string_view cpuinfo) {
   // Preference order: x86's "model name" first; Arm kernels print "Model" or "Hardware" (and a
   // "Processor" line on older ones), MIPS "cpu model".
-  static constexpr std::string_view keys[] = {"model name", "Model", "Hardware", "cpu model",
-                                              "Processor"};
+  static constexpr std::string_view keys[] = {"model name", "Model", "Hardware", "cpu model", "Processor"};
   for (std::string_view key : keys) {
     std::size_t pos = 0;
     while (pos < cpuinfo.size()) {
@@ -59,8 +58,7 @@ std::string parse_cpu_model(std::string_view cpuinfo) {
 std::string compiler_id() {
   char buf[64];
 #if defined(__clang__)
-  std::snprintf(buf, sizeof buf, "clang %d.%d.%d", __clang_major__, __clang_minor__,
-                __clang_patchlevel__);
+  std::snprintf(buf, sizeof buf, "clang %d.%d.%d", __clang_major__, __clang_minor__, __clang_patchlevel__);
 #elif defined(__GNUC__)
   std::snprintf(buf, sizeof buf, "gcc %d.%d.%d", __GNUC__, __GNUC_MINOR__, __GNUC_PATCHLEVEL__);
 #elif defined(_MSC_VER)
@@ -111,8 +109,7 @@ Environment capture_environment(const DeviceDescription& device) {
   env.compiler = compiler_id();
   env.git_commit = or_unknown(HP_GIT_COMMIT);
   const auto now = std::chrono::system_clock::now();
-  env.date_utc = iso8601_utc(
-      std::chrono::duration_cast<std::chrono::seconds>(now.time_since_epoch()).count());
+  env.date_utc = iso8601_utc(std::chrono::duration_cast<std::chrono::seconds>(now.time_since_epoch()).count());
   char host[256] = {};
   env.hostname = gethostname(host, sizeof host - 1) == 0 ? or_unknown(host) : "unknown";
   utsname u{};

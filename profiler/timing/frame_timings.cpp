@@ -89,8 +89,8 @@ double QueryOverhead::overhead_fraction() const {
 
 QueryOverhead paired_query_overhead(std::span<const double> with_queries, std::span<const double> without_queries) {
   if (with_queries.size() != without_queries.size())
-    throw std::invalid_argument("paired_query_overhead: " + std::to_string(with_queries.size()) + " frames with queries, " +
-                                std::to_string(without_queries.size()) + " without");
+    throw std::invalid_argument("paired_query_overhead: " + std::to_string(with_queries.size()) +
+                                " frames with queries, " + std::to_string(without_queries.size()) + " without");
   QueryOverhead q;
   q.frames = std::uint32_t(without_queries.size());
   if (with_queries.empty()) return q;
@@ -178,8 +178,7 @@ Counters FrameTimings::total_counters() const {
   return total;
 }
 
-FrameTimings FrameTimings::from_measured(std::uint32_t warmup, TimingSource source,
-                                         std::vector<FrameSample> measured,
+FrameTimings FrameTimings::from_measured(std::uint32_t warmup, TimingSource source, std::vector<FrameSample> measured,
                                          std::optional<QueryOverhead> overhead, Counters frame_invocations,
                                          std::vector<FrameSpan> overlapped, std::optional<PassIsolation> isolation) {
   FrameTimings t(warmup, static_cast<std::uint32_t>(measured.size()), source);

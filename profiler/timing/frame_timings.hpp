@@ -92,7 +92,7 @@ TimingSource timing_source_from_string(std::string_view text);
 struct QueryOverhead {
   double frame_ns_with_queries = 0.0;
   double frame_ns_without_queries = 0.0;
-  std::uint32_t frames = 0;  // frames per side
+  std::uint32_t frames = 0;               // frames per side
   std::optional<double> paired_fraction;  // median of the pairs' relative differences
   MedianCi paired_fraction_ci;            // its order-statistic CI (valid from 6 pairs)
 
@@ -109,9 +109,9 @@ QueryOverhead paired_query_overhead(std::span<const double> with_queries, std::s
 // frame's start and end) against the serialized frames' sum of pass times. Frame i of each kind ran next
 // to the other (alternating which went first), so the paired differences cancel the machine's drift.
 struct OverlapSummary {
-  std::uint32_t frames = 0;          // pairs
-  Summary overlapped_frame_ns;       // the overlapped frames' spans
-  Summary serialized_sum_ns;         // per serialized frame: the sum of its pass times
+  std::uint32_t frames = 0;     // pairs
+  Summary overlapped_frame_ns;  // the overlapped frames' spans
+  Summary serialized_sum_ns;    // per serialized frame: the sum of its pass times
   // Median of the pairs' (serialized sum - overlapped span), in ns and as a fraction of the serialized
   // sum, with their order-statistic CIs (valid from 6 pairs). Positive: overlap saves time.
   std::optional<double> saving_ns;
@@ -139,8 +139,8 @@ struct TimingSummary {
   // contributes the sum of its durations as that frame's sample; a pass absent from some frames has
   // a smaller count.
   std::vector<PassSummary> passes;
-  Summary frame_ns;        // frame span on the timing source's clock
-  Summary cpu_wall_ns;     // CPU wall time per frame
+  Summary frame_ns;     // frame span on the timing source's clock
+  Summary cpu_wall_ns;  // CPU wall time per frame
   std::optional<QueryOverhead> query_overhead;
   std::optional<OverlapSummary> overlap;  // when overlapped frames were timed beside the measured ones
   bool operator==(const TimingSummary&) const = default;
@@ -192,8 +192,7 @@ class FrameTimings {
   const Counters& frame_invocations() const { return invocations_; }
 
   // Rebuilds a finished collector from stored frames (reading a result back).
-  static FrameTimings from_measured(std::uint32_t warmup, TimingSource source,
-                                    std::vector<FrameSample> measured,
+  static FrameTimings from_measured(std::uint32_t warmup, TimingSource source, std::vector<FrameSample> measured,
                                     std::optional<QueryOverhead> overhead, Counters frame_invocations = {},
                                     std::vector<FrameSpan> overlapped = {},
                                     std::optional<PassIsolation> isolation = std::nullopt);

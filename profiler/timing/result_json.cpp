@@ -34,8 +34,7 @@ T get(const json& j, const char* name) {
     } else if constexpr (std::is_same_v<T, bool>) {
       if (!v.is_boolean()) throw InputError("");
     } else if constexpr (std::is_integral_v<T>) {
-      if (!v.is_number_unsigned() && !(v.is_number_integer() && v.get<std::int64_t>() >= 0))
-        throw InputError("");
+      if (!v.is_number_unsigned() && !(v.is_number_integer() && v.get<std::int64_t>() >= 0)) throw InputError("");
       if (v.get<std::uint64_t>() > std::numeric_limits<T>::max()) throw InputError("");
     } else {
       if (!v.is_number()) throw InputError("");
@@ -75,10 +74,14 @@ json pass_sample_json(const PassSample& p) {
 }  // namespace
 
 void to_json(json& j, const MedianCi& ci) {
-  j = {{"method", ci.method},         {"level", ci.level},
-       {"low", ci.low},               {"high", ci.high},
-       {"coverage", ci.coverage},     {"lower_rank", ci.lower_rank},
-       {"upper_rank", ci.upper_rank}, {"valid", ci.valid}};
+  j = {{"method", ci.method},
+       {"level", ci.level},
+       {"low", ci.low},
+       {"high", ci.high},
+       {"coverage", ci.coverage},
+       {"lower_rank", ci.lower_rank},
+       {"upper_rank", ci.upper_rank},
+       {"valid", ci.valid}};
 }
 
 void from_json(const json& j, MedianCi& ci) {
@@ -239,8 +242,7 @@ void from_json(const json& j, OverlapSummary& o) {
     o.saving_fraction_ci = within("saving_fraction_ci", [&] { return field(j, "saving_fraction_ci").get<MedianCi>(); });
 }
 
-json timing_result_json(const Environment& env, const FrameTimings& timings,
-                        const SummaryOptions& options) {
+json timing_result_json(const Environment& env, const FrameTimings& timings, const SummaryOptions& options) {
   const TimingSummary s = timings.summarize(options);
   json passes = json::array();
   for (const PassSummary& p : s.passes) passes.push_back({{"pass", p.pass}, {"duration_ns", p.duration_ns}});
@@ -257,7 +259,8 @@ json timing_result_json(const Environment& env, const FrameTimings& timings,
                       {"counters", f.counters}});
   }
   json overlapped = json::array();
-  for (const FrameSpan& o : timings.overlapped()) overlapped.push_back({{"begin_ns", o.begin_ns}, {"end_ns", o.end_ns}});
+  for (const FrameSpan& o : timings.overlapped())
+    overlapped.push_back({{"begin_ns", o.begin_ns}, {"end_ns", o.end_ns}});
   return {{"schema", "hybridprof.timings"},
           {"version", 1},
           {"environment", env},
@@ -371,9 +374,9 @@ TimingResult parse_timing_result(const json& doc) {
   Counters invocations;
   if (doc.contains("invocations_per_frame"))
     invocations = within("invocations_per_frame", [&] { return doc["invocations_per_frame"].get<Counters>(); });
-  FrameTimings timings = FrameTimings::from_measured(summary.warmup_frames, summary.source, std::move(frames),
-                                                     summary.query_overhead, std::move(invocations),
-                                                     std::move(overlapped), summary.pass_isolation);
+  FrameTimings timings =
+      FrameTimings::from_measured(summary.warmup_frames, summary.source, std::move(frames), summary.query_overhead,
+                                  std::move(invocations), std::move(overlapped), summary.pass_isolation);
   return TimingResult{std::move(env), std::move(timings), std::move(summary), std::move(counters)};
 }
 
@@ -383,8 +386,8 @@ void write_json_atomically(const std::filesystem::path& path, const json& doc, i
   write_file_atomically(path, text);
 }
 
-void write_timing_result(const std::filesystem::path& path, const Environment& env,
-                         const FrameTimings& timings, const SummaryOptions& options) {
+void write_timing_result(const std::filesystem::path& path, const Environment& env, const FrameTimings& timings,
+                         const SummaryOptions& options) {
   write_json_atomically(path, timing_result_json(env, timings, options));
 }
 

@@ -75,8 +75,8 @@ TimingResult parse_timing_result(const nlohmann::json& doc);
 void write_json_atomically(const std::filesystem::path& path, const nlohmann::json& doc, int indent = 1);
 
 // timing_result_json + write_json_atomically.
-void write_timing_result(const std::filesystem::path& path, const Environment& env,
-                         const FrameTimings& timings, const SummaryOptions& options = {});
+void write_timing_result(const std::filesystem::path& path, const Environment& env, const FrameTimings& timings,
+                         const SummaryOptions& options = {});
 
 // Reads and parses a result file; errors (unreadable, not JSON, bad field) name the file.
 TimingResult read_timing_result(const std::filesystem::path& path);

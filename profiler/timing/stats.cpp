@@ -42,8 +42,7 @@ std::size_t draw_index(std::mt19937_64& rng, std::size_t bound) {
 double binomial_half_pmf(std::size_t n, std::size_t k) {
   const double dn = static_cast<double>(n);
   const double dk = static_cast<double>(k);
-  return std::exp(std::lgamma(dn + 1.0) - std::lgamma(dk + 1.0) - std::lgamma(dn - dk + 1.0) -
-                  dn * std::log(2.0));
+  return std::exp(std::lgamma(dn + 1.0) - std::lgamma(dk + 1.0) - std::lgamma(dn - dk + 1.0) - dn * std::log(2.0));
 }
 
 // Null distribution of U for sample sizes m, n without ties, as probabilities indexed by U.
@@ -132,8 +131,7 @@ MedianCi median_ci_order_statistic(std::span<const double> sorted, double level)
   return ci;
 }
 
-MedianCi median_ci_bootstrap(std::span<const double> samples, std::size_t resamples,
-                             std::uint64_t seed, double level) {
+MedianCi median_ci_bootstrap(std::span<const double> samples, std::size_t resamples, std::uint64_t seed, double level) {
   require_finite(samples, "bootstrap CI");
   if (resamples == 0) throw std::invalid_argument("bootstrap CI: zero resamples");
   if (!(level > 0.0 && level < 1.0)) throw std::invalid_argument("bootstrap CI: level outside (0, 1)");
@@ -211,8 +209,7 @@ MannWhitneyResult mann_whitney_u(std::span<const double> x, std::span<const doub
   pooled.reserve(total);
   for (double v : x) pooled.emplace_back(v, true);
   for (double v : y) pooled.emplace_back(v, false);
-  std::sort(pooled.begin(), pooled.end(),
-            [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::sort(pooled.begin(), pooled.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   double rank_sum_x = 0.0;
   double tie_term = 0.0;  // sum over tie groups of t^3 - t
   bool ties = false;
@@ -271,8 +268,7 @@ std::vector<double> holm_adjust(std::span<const double> p_values) {
   }
   std::vector<std::size_t> order(m);
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(),
-                   [&](std::size_t a, std::size_t b) { return p_values[a] < p_values[b]; });
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return p_values[a] < p_values[b]; });
   std::vector<double> adjusted(m);
   double running = 0.0;
   for (std::size_t i = 0; i < m; ++i) {

@@ -47,10 +47,10 @@ struct Summary {
   double max = 0.0;
   double median = 0.0;
   double mean = 0.0;
-  double p95 = 0.0;                  // type-7 quantile at 0.95
-  std::optional<double> stddev;      // sample (n-1); absent for n < 2
-  std::optional<double> cv;          // stddev / mean; absent with stddev or when mean == 0
-  MedianCi median_ci;                // order-statistic, 95%
+  double p95 = 0.0;                             // type-7 quantile at 0.95
+  std::optional<double> stddev;                 // sample (n-1); absent for n < 2
+  std::optional<double> cv;                     // stddev / mean; absent with stddev or when mean == 0
+  MedianCi median_ci;                           // order-statistic, 95%
   std::optional<MedianCi> median_ci_bootstrap;  // second method, when asked for
 
   bool operator==(const Summary&) const = default;
@@ -85,8 +85,8 @@ MedianCi median_ci_order_statistic(std::span<const double> sorted, double level 
 
 // Percentile bootstrap CI of the median with a fixed seed (mt19937_64, unbiased index draws by
 // rejection, so it does not depend on the standard library's distributions). Non-empty sample.
-MedianCi median_ci_bootstrap(std::span<const double> samples, std::size_t resamples,
-                             std::uint64_t seed, double level = 0.95);
+MedianCi median_ci_bootstrap(std::span<const double> samples, std::size_t resamples, std::uint64_t seed,
+                             double level = 0.95);
 
 // Standard normal CDF.
 double normal_cdf(double z);
@@ -95,10 +95,10 @@ double normal_cdf(double z);
 // exact null distribution when both samples have fewer than 50 values and there are no ties;
 // otherwise the normal approximation with tie correction and continuity correction.
 struct MannWhitneyResult {
-  double u = 0.0;          // U of x: pairs with x_i > y_j, plus half the tied pairs (R's W)
-  double p_value = 1.0;    // two-sided
+  double u = 0.0;        // U of x: pairs with x_i > y_j, plus half the tied pairs (R's W)
+  double p_value = 1.0;  // two-sided
   bool exact = false;
-  double z = 0.0;          // continuity-corrected z of the normal approximation; 0 when exact
+  double z = 0.0;  // continuity-corrected z of the normal approximation; 0 when exact
   // Median of all x_i - y_j, the location shift of x relative to y: only with `with_shift` (it holds all
   // m * n differences: 800 MB for 10,000 frames a side), else 0.
   double hodges_lehmann = 0.0;

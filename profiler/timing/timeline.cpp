@@ -37,8 +37,13 @@ double ns_to_trace_us(std::uint64_t ns) {
 template <class ToUs>
 void add_frame_track(json& events, const FrameSample& f, std::size_t i, Span frame, int tid,
                      const std::vector<std::size_t>& indices, const ToUs& us, TimelineFixes& fixes) {
-  events.push_back({{"ph", "X"}, {"name", "frame"}, {"cat", "frame"}, {"pid", kPid}, {"tid", tid},
-                    {"ts", us(frame.begin)}, {"dur", ns_to_trace_us(frame.end - frame.begin)},
+  events.push_back({{"ph", "X"},
+                    {"name", "frame"},
+                    {"cat", "frame"},
+                    {"pid", kPid},
+                    {"tid", tid},
+                    {"ts", us(frame.begin)},
+                    {"dur", ns_to_trace_us(frame.end - frame.begin)},
                     {"args", {{"frame", i}, {"frame_ns", f.duration_ns()}, {"cpu_wall_ns", f.cpu_wall_ns}}}});
 
   std::vector<Span> spans;
@@ -64,8 +69,13 @@ void add_frame_track(json& events, const FrameSample& f, std::size_t i, Span fra
     }
     prev_end = s.end;
     const PassSample& p = f.passes[indices[o]];
-    events.push_back({{"ph", "X"}, {"name", p.pass}, {"cat", "pass"}, {"pid", kPid}, {"tid", tid},
-                      {"ts", us(s.begin)}, {"dur", ns_to_trace_us(s.end - s.begin)},
+    events.push_back({{"ph", "X"},
+                      {"name", p.pass},
+                      {"cat", "pass"},
+                      {"pid", kPid},
+                      {"tid", tid},
+                      {"ts", us(s.begin)},
+                      {"dur", ns_to_trace_us(s.end - s.begin)},
                       {"args", {{"frame", i}, {"duration_ns", p.duration_ns()}}}});
   }
 }
@@ -73,10 +83,13 @@ void add_frame_track(json& events, const FrameSample& f, std::size_t i, Span fra
 // The frames timed as the application records them (Frame::render_overlapped), on track `tid`.
 template <class ToUs>
 void add_overlapped_track(json& events, const FrameTimings& timings, int tid, const ToUs& us, TimelineFixes& fixes) {
-  events.push_back({{"ph", "M"}, {"name", "thread_name"}, {"pid", kPid}, {"tid", tid},
+  events.push_back({{"ph", "M"},
+                    {"name", "thread_name"},
+                    {"pid", kPid},
+                    {"tid", tid},
                     {"args", {{"name", "frame as recorded (passes free to overlap)"}}}});
-  events.push_back({{"ph", "M"}, {"name", "thread_sort_index"}, {"pid", kPid}, {"tid", tid},
-                    {"args", {{"sort_index", tid}}}});
+  events.push_back(
+      {{"ph", "M"}, {"name", "thread_sort_index"}, {"pid", kPid}, {"tid", tid}, {"args", {{"sort_index", tid}}}});
   std::uint64_t prev_end = 0;
   for (std::size_t i = 0; i < timings.overlapped().size(); ++i) {
     Span o{timings.overlapped()[i].begin_ns, timings.overlapped()[i].end_ns};
@@ -86,8 +99,13 @@ void add_overlapped_track(json& events, const FrameTimings& timings, int tid, co
       ++fixes.frames_trimmed;
     }
     prev_end = o.end;
-    events.push_back({{"ph", "X"}, {"name", "frame (overlapped)"}, {"cat", "frame"}, {"pid", kPid}, {"tid", tid},
-                      {"ts", us(o.begin)}, {"dur", ns_to_trace_us(o.end - o.begin)},
+    events.push_back({{"ph", "X"},
+                      {"name", "frame (overlapped)"},
+                      {"cat", "frame"},
+                      {"pid", kPid},
+                      {"tid", tid},
+                      {"ts", us(o.begin)},
+                      {"dur", ns_to_trace_us(o.end - o.begin)},
                       {"args", {{"paired_with_frame", i}, {"frame_ns", timings.overlapped()[i].duration_ns()}}}});
   }
 }
@@ -120,14 +138,17 @@ json build_timeline(const FrameTimings& timings, TimelineFixes* fixes_out, const
   };
 
   json events = json::array();
-  events.push_back({{"ph", "M"}, {"name", "process_name"}, {"pid", kPid}, {"tid", 0},
-                    {"args", {{"name", options.process_name}}}});
+  events.push_back(
+      {{"ph", "M"}, {"name", "process_name"}, {"pid", kPid}, {"tid", 0}, {"args", {{"name", options.process_name}}}});
   for (std::size_t q = 0; q < queues.size(); ++q) {
     const int tid = static_cast<int>(q) + 1;
-    events.push_back({{"ph", "M"}, {"name", "thread_name"}, {"pid", kPid}, {"tid", tid},
+    events.push_back({{"ph", "M"},
+                      {"name", "thread_name"},
+                      {"pid", kPid},
+                      {"tid", tid},
                       {"args", {{"name", queues[q] + " queue"}}}});
-    events.push_back({{"ph", "M"}, {"name", "thread_sort_index"}, {"pid", kPid}, {"tid", tid},
-                      {"args", {{"sort_index", tid}}}});
+    events.push_back(
+        {{"ph", "M"}, {"name", "thread_sort_index"}, {"pid", kPid}, {"tid", tid}, {"args", {{"sort_index", tid}}}});
   }
 
   static constexpr const char* counter_names[] = {counter::rays_cast, counter::nodes_visited};
@@ -159,11 +180,17 @@ json build_timeline(const FrameTimings& timings, TimelineFixes* fixes_out, const
     if (options.counter_tracks) {
       for (const char* name : counter_names) {
         if (!counter_present[name]) continue;
-        events.push_back({{"ph", "C"}, {"name", name}, {"pid", kPid}, {"ts", us(frame.begin)},
+        events.push_back({{"ph", "C"},
+                          {"name", name},
+                          {"pid", kPid},
+                          {"ts", us(frame.begin)},
                           {"args", {{name, f.counters.total(name)}}}});
         // The last sample would otherwise have no extent: repeat it at the end of the last frame.
         if (i + 1 == frames.size()) {
-          events.push_back({{"ph", "C"}, {"name", name}, {"pid", kPid}, {"ts", us(frame.end)},
+          events.push_back({{"ph", "C"},
+                            {"name", name},
+                            {"pid", kPid},
+                            {"ts", us(frame.end)},
                             {"args", {{name, f.counters.total(name)}}}});
         }
       }
@@ -220,8 +247,7 @@ std::vector<std::string> check_timeline(const json& trace) {
     }
     if (ph != "X") continue;
     if (!e.contains("ts") || !e["ts"].is_number() || !e.contains("dur") || !e["dur"].is_number() ||
-        !e.contains("pid") || !e["pid"].is_number_integer() || !e.contains("tid") ||
-        !e["tid"].is_number_integer()) {
+        !e.contains("pid") || !e["pid"].is_number_integer() || !e.contains("tid") || !e["tid"].is_number_integer()) {
       problems.push_back(where + ": X event needs numeric ts, dur, pid, tid");
       continue;
     }
@@ -234,8 +260,7 @@ std::vector<std::string> check_timeline(const json& trace) {
     // Whole nanoseconds, the resolution the importer keeps.
     const std::int64_t begin = std::llround(ts * 1000.0);
     const std::int64_t end = begin + std::llround(dur * 1000.0);
-    if (static_cast<std::int64_t>(ts * 1000.0) != begin ||
-        static_cast<std::int64_t>(dur * 1000.0) != end - begin) {
+    if (static_cast<std::int64_t>(ts * 1000.0) != begin || static_cast<std::int64_t>(dur * 1000.0) != end - begin) {
       problems.push_back(where + ": ts or dur is not a whole nanosecond when truncated");
     }
     tracks[{e["pid"].get<std::int64_t>(), e["tid"].get<std::int64_t>()}].push_back(
@@ -251,12 +276,11 @@ std::vector<std::string> check_timeline(const json& trace) {
     for (const Event& e : list) {
       while (!open.empty() && open.back()->end <= e.begin) open.pop_back();
       if (!open.empty() && e.end > open.back()->end) {
-        problems.push_back("pid " + std::to_string(track.first) + " tid " + std::to_string(track.second) +
-                           ": event " + std::to_string(e.index) + " '" + e.name + "' [" +
-                           std::to_string(e.begin) + ", " + std::to_string(e.end) + "] ns overlaps event " +
-                           std::to_string(open.back()->index) + " '" + open.back()->name + "' [" +
-                           std::to_string(open.back()->begin) + ", " + std::to_string(open.back()->end) +
-                           "] ns without nesting");
+        problems.push_back("pid " + std::to_string(track.first) + " tid " + std::to_string(track.second) + ": event " +
+                           std::to_string(e.index) + " '" + e.name + "' [" + std::to_string(e.begin) + ", " +
+                           std::to_string(e.end) + "] ns overlaps event " + std::to_string(open.back()->index) + " '" +
+                           open.back()->name + "' [" + std::to_string(open.back()->begin) + ", " +
+                           std::to_string(open.back()->end) + "] ns without nesting");
       }
       open.push_back(&e);
     }

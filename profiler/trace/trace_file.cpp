@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <bit>
-#include <stdexcept>
 #include <cstring>
 #include <exception>
+#include <stdexcept>
 #include <system_error>
 #include <thread>
 
@@ -109,8 +109,7 @@ struct CloseOnThrow {
 };
 }  // namespace
 
-TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header)
-    : out_(std::move(path)) {
+TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header) : out_(std::move(path)) {
   file_ = std::fopen(out_.temp_path().c_str(), "wb");
   if (!file_) throw InputError(out_.path().string() + ": cannot create trace file: " + std::strerror(errno));
   CloseOnThrow guard{file_};  // and out_'s destructor removes the temporary
@@ -128,8 +127,8 @@ TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header)
   uint32_t count = uint32_t(header.buffers.size());
   append(&count, 4);
   for (const BufferInfo& b : header.buffers) {
-    BufferEntry e{b.id, uint32_t(b.kind), b.base_address, b.size_bytes, b.texel_bytes, b.width, b.height,
-                  b.row_pitch_bytes, b.tile_width, b.tile_height, uint32_t(b.name.size()), 0};
+    BufferEntry e{b.id,     uint32_t(b.kind),  b.base_address, b.size_bytes,  b.texel_bytes,           b.width,
+                  b.height, b.row_pitch_bytes, b.tile_width,   b.tile_height, uint32_t(b.name.size()), 0};
     append(&e, sizeof e);
     append(b.name.data(), b.name.size());
     payload.resize(payload.size() + pad8(b.name.size()), 0);
@@ -215,7 +214,8 @@ void TraceReader::read_buffer_table(const std::vector<char>& payload, const std:
     b.name.resize(e.name_bytes);
     if (!c.get(b.name.data(), e.name_bytes)) fail("malformed BUFS" + at + ": name of entry " + std::to_string(i));
     // The writer's names are printable ASCII; anything else is corruption (and cannot go into JSON).
-    if (!printable_ascii(b.name)) fail("malformed BUFS" + at + ": name of entry " + std::to_string(i) + " is not printable ASCII");
+    if (!printable_ascii(b.name))
+      fail("malformed BUFS" + at + ": name of entry " + std::to_string(i) + " is not printable ASCII");
     c.pos += pad8(e.name_bytes);
     if (e.kind > uint32_t(BufferKind::image_tiled) || e.id > HP_TRACE_BUFFER_MASK)
       fail("BUFS" + at + ": entry " + std::to_string(i) + " has an invalid kind or id");
@@ -337,9 +337,8 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
         EndEntry e{};
         if (!c.get(&e, sizeof e)) fail("malformed END" + at);
         if (e.total_records != total || e.passes != passes_.size())
-          fail("END" + at + " counts " + std::to_string(e.total_records) + " records in " +
-               std::to_string(e.passes) + " passes, the file holds " + std::to_string(total) + " in " +
-               std::to_string(passes_.size()));
+          fail("END" + at + " counts " + std::to_string(e.total_records) + " records in " + std::to_string(e.passes) +
+               " passes, the file holds " + std::to_string(total) + " in " + std::to_string(passes_.size()));
         have_end = true;
         if (pos + ch.payload_bytes != file_size)
           fail(std::to_string(file_size - pos - ch.payload_bytes) + " bytes after the END chunk");
@@ -374,7 +373,8 @@ void TraceReader::read_chunk(const Chunk& c, TraceRecord* out) const {
   const std::string where = path_.string() + ": pass '" + passes_[c.pass].name + "'";
   for (uint64_t at = 0; at < c.count; at += kBlock) {
     const uint64_t n = std::min(kBlock, c.count - at);
-    if (std::fread(out + at, sizeof(TraceRecord), n, file_) != n) fail("truncated records of pass " + std::to_string(c.pass));
+    if (std::fread(out + at, sizeof(TraceRecord), n, file_) != n)
+      fail("truncated records of pass " + std::to_string(c.pass));
     validate_records(where, header_, passes_[c.pass], std::span<const TraceRecord>(out + at, n), c.first_workgroup,
                      c.end_workgroup, at);
   }
@@ -464,8 +464,7 @@ void write_trace(const std::filesystem::path& path, const Trace& trace) {
   TraceWriter w(path, trace.header);
   for (size_t p = 0; p < trace.passes.size(); ++p) {
     uint32_t index = w.begin_pass(trace.passes[p]);
-    if (p < trace.records.size())
-      w.write_records(index, trace.records[p], 0, trace.passes[p].dispatch.workgroups());
+    if (p < trace.records.size()) w.write_records(index, trace.records[p], 0, trace.passes[p].dispatch.workgroups());
   }
   w.finish();
 }

@@ -88,8 +88,8 @@ class TraceReader {
   // The same records one slice at a time, in workgroup order, each validated before `consume` sees it;
   // a second thread reads and validates the next slice while `consume` runs: memory bounded by two
   // of the largest slice. Returns the largest slice's record count.
-  using SliceFn = std::function<void(std::span<const TraceRecord> records, uint64_t first_workgroup,
-                                     uint64_t end_workgroup)>;
+  using SliceFn =
+      std::function<void(std::span<const TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup)>;
   uint64_t read_slices(uint32_t pass, const SliceFn& consume) const;
 
  private:

@@ -16,8 +16,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -68,7 +68,9 @@ struct Bin {
     lo = _mm_min_ps(lo, l);
     hi = _mm_castsi128_ps(_mm_add_epi32(_mm_castps_si128(_mm_max_ps(hi, h)), _mm_set_epi32(1, 0, 0, 0)));
   }
-  uint32_t count() const { return static_cast<uint32_t>(_mm_cvtsi128_si32(_mm_shuffle_epi32(_mm_castps_si128(hi), 0xff))); }
+  uint32_t count() const {
+    return static_cast<uint32_t>(_mm_cvtsi128_si32(_mm_shuffle_epi32(_mm_castps_si128(hi), 0xff)));
+  }
   __m128 box_hi() const { return _mm_and_ps(hi, _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1))); }
   void merge(const Bin& o) {
     const __m128i c = _mm_add_epi32(_mm_castps_si128(hi), _mm_shuffle_epi32(_mm_castps_si128(o.hi), 0xff));
@@ -93,7 +95,7 @@ struct Lanes {
 /// Per-thread scratch, allocated once per worker so that nodes allocate nothing.
 struct Scratch {
   explicit Scratch(int buckets) : bins(6 * buckets), empty_bins(6 * buckets), right_cost(buckets), soa(8 * buckets) {}
-  std::vector<Bin> bins;  // [set * 3 * buckets + axis * buckets + bin], two sets (see the binning loop)
+  std::vector<Bin> bins;        // [set * 3 * buckets + axis * buckets + bin], two sets (see the binning loop)
   std::vector<Bin> empty_bins;  // as many empty bins, copied over `bins` at each node
   std::vector<float> right_cost;
   // The three-axis sweep: N_B * S_B per bin (lane = axis), and the bins transposed to lane = axis
@@ -114,7 +116,7 @@ inline __m128i bin_index(__m128 c, __m128 cmin, __m128 scale, __m128 last) {
 constexpr uint32_t kRunBinning = 64;
 
 class BinnedBuilder {
-public:
+ public:
   BinnedBuilder(std::span<PrimRef> prims, const BuildParams& p)
       : prims_(prims), p_(p), forker_(p.threads), dfs_(p.threads == 1) {
     // Nodes are written depth first, in the final layout (a node's first child right after it, the second
@@ -146,7 +148,7 @@ public:
         box.grow(lo, hi);
         cbox.grow_point(_mm_add_ps(lo, hi));
         z = _mm_or_si128(z, _mm_or_si128(_mm_cmpeq_epi32(_mm_castps_si128(lo), neg_zero),
-                                          _mm_cmpeq_epi32(_mm_castps_si128(hi), neg_zero)));
+                                         _mm_cmpeq_epi32(_mm_castps_si128(hi), neg_zero)));
       }
       parts[c].box = box;
       parts[c].cbox = cbox;
@@ -176,7 +178,7 @@ public:
     return tree;
   }
 
-private:
+ private:
   static glm::vec3 to_vec3(__m128 v) {
     alignas(16) float f[4];
     _mm_store_ps(f, v);
@@ -212,7 +214,8 @@ private:
       Forker::parallel_chunks(out.size(), p_.threads, [&](std::size_t b, std::size_t e, std::size_t) {
         for (std::size_t i = b; i < e; ++i) {
           gpu::BvhNode& n = out[i];
-          if ((n.prim_axis >> HP_BVH_AXIS_BITS) == 0) n.offset -= static_cast<int>(shift_of(static_cast<uint32_t>(n.offset)));
+          if ((n.prim_axis >> HP_BVH_AXIS_BITS) == 0)
+            n.offset -= static_cast<int>(shift_of(static_cast<uint32_t>(n.offset)));
         }
       });
     }
@@ -477,7 +480,7 @@ private:
       const __m128 h01lo = _mm_unpacklo_ps(b0.hi, b1.hi);
       const __m128 h01hi = _mm_unpackhi_ps(b0.hi, b1.hi);  // z0 z1 c0 c1
       const __m128 h2lo = _mm_unpacklo_ps(b2.hi, zero);
-      const __m128 h2hi = _mm_unpackhi_ps(b2.hi, zero);    // z2 0 c2 0
+      const __m128 h2hi = _mm_unpackhi_ps(b2.hi, zero);  // z2 0 c2 0
       soa[7 * b + 3] = _mm_movelh_ps(h01lo, h2lo);
       soa[7 * b + 4] = _mm_movehl_ps(h2lo, h01lo);
       soa[7 * b + 5] = _mm_movelh_ps(h01hi, h2hi);
@@ -504,7 +507,8 @@ private:
     __m128* right = soa + 7 * nb;
     for (int b = nb - 1; b > 0; --b) {
       grow(soa + 7 * b);
-      const __m128 nonzero = _mm_castsi128_ps(_mm_xor_si128(_mm_cmpeq_epi32(count, _mm_setzero_si128()), _mm_set1_epi32(-1)));
+      const __m128 nonzero =
+          _mm_castsi128_ps(_mm_xor_si128(_mm_cmpeq_epi32(count, _mm_setzero_si128()), _mm_set1_epi32(-1)));
       right[b - 1] = _mm_and_ps(nonzero, _mm_mul_ps(_mm_cvtepi32_ps(count), area(lx, ly, lz, hx, hy, hz)));
     }
     lx = inf, ly = inf, lz = inf, hx = ninf, hy = ninf, hz = ninf;
@@ -517,8 +521,9 @@ private:
     for (int b = 0; b < nb - 1; ++b) {
       grow(soa + 7 * b);
       const __m128 cost = _mm_add_ps(_mm_mul_ps(_mm_cvtepi32_ps(count), area(lx, ly, lz, hx, hy, hz)), right[b]);
-      const __m128i valid = _mm_andnot_si128(
-          _mm_or_si128(_mm_cmpeq_epi32(count, _mm_setzero_si128()), _mm_cmpeq_epi32(count, vn)), axis_ok);
+      const __m128i valid =
+          _mm_andnot_si128(_mm_or_si128(_mm_cmpeq_epi32(count, _mm_setzero_si128()), _mm_cmpeq_epi32(count, vn)),
+                           axis_ok);
       const __m128i better = _mm_and_si128(valid, _mm_castps_si128(_mm_cmplt_ps(cost, lane_best)));
       const __m128 bf = _mm_castsi128_ps(better);
       lane_best = _mm_or_ps(_mm_and_ps(bf, cost), _mm_andnot_ps(bf, lane_best));
@@ -632,9 +637,9 @@ private:
   BuildParams p_;
   Forker forker_;
   std::size_t capacity_ = 0;
-  bool dfs_;                               ///< one thread: nodes go straight into flat_
-  std::vector<gpu::BvhNode> flat_;         ///< one thread
-  std::unique_ptr<gpu::BvhNode[]> win_;    ///< threads: the windowed layout
+  bool dfs_;                             ///< one thread: nodes go straight into flat_
+  std::vector<gpu::BvhNode> flat_;       ///< one thread
+  std::unique_ptr<gpu::BvhNode[]> win_;  ///< threads: the windowed layout
   std::mutex gaps_mutex_;
   std::vector<std::pair<uint32_t, uint32_t>> gaps_;  ///< threads: unused window ends [begin, end)
   std::atomic<std::size_t> depth_limited_{0};

@@ -50,7 +50,7 @@ struct PairTree {
   std::size_t node_count = 0;
   std::vector<gpu::BvhNode> flat;  ///< the flattened layout of bvh.hpp, when the builder wrote it directly
   int flat_max_depth = 0;          ///< with `flat`: interior nodes above the deepest leaf
-  std::vector<uint32_t> order;  ///< leaf order -> scene index
+  std::vector<uint32_t> order;     ///< leaf order -> scene index
   std::size_t depth_limited_splits = 0;
 };
 
@@ -65,7 +65,7 @@ inline gpu::BvhNode make_interior(const glm::vec3& lo, const glm::vec3& hi, uint
 /// pay for a thread start, else inline; runs `b` inline; waits for both. Slots return as soon as a forked
 /// subtree finishes, so a long unbalanced branch picks up the core a short one gave back.
 class Forker {
-public:
+ public:
   explicit Forker(int threads) : free_slots_(threads - 1) {}
 
   template <class A, class B>
@@ -126,7 +126,7 @@ public:
     if (error) std::rethrow_exception(error);
   }
 
-private:
+ private:
   static constexpr std::size_t kMinForkSize = 8192;
   bool try_acquire() {
     int n = free_slots_.load(std::memory_order_relaxed);

@@ -15,9 +15,8 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
 class SweepBuilder {
-public:
-  SweepBuilder(std::span<const PrimRef> prims, const BuildParams& p)
-      : prims_(prims), p_(p), forker_(p.threads) {
+ public:
+  SweepBuilder(std::span<const PrimRef> prims, const BuildParams& p) : prims_(prims), p_(p), forker_(p.threads) {
     const std::size_t n = prims.size();
     // Uninitialised on purpose: every node slot handed out is written before it is read.
     nodes_.reset(new gpu::BvhNode[std::max<std::size_t>(1, 2 * n)]);
@@ -61,7 +60,7 @@ public:
     return std::move(tree_);
   }
 
-private:
+ private:
   float centroid(uint32_t slot, int axis) const { return prims_[slot].lo[axis] + prims_[slot].hi[axis]; }
 
   void build(uint32_t index, uint32_t begin, uint32_t end, const glm::vec3& lo, const glm::vec3& hi, int depth) {

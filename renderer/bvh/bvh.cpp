@@ -6,9 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <stdexcept>
-#include <limits>
 #include <string>
 #include <thread>
 
@@ -129,7 +129,8 @@ struct Flattener {
 
 }  // namespace
 
-Bvh build_bvh(std::span<const Triangle> triangles, const BuildOptions& options, std::span<const uint32_t> object_first) {
+Bvh build_bvh(std::span<const Triangle> triangles, const BuildOptions& options,
+              std::span<const uint32_t> object_first) {
   const bool objects = options.granularity == Granularity::object;
   if (objects) {
     if (object_first.empty() || object_first.front() != 0 || object_first.back() != triangles.size()) {
@@ -163,7 +164,8 @@ Bvh build_bvh(std::span<const Triangle> triangles, const BuildOptions& options, 
   }
 
   const std::span<PrimRef> prims(refs.data.get(), refs.size);
-  detail::PairTree tree = options.full_sweep ? detail::build_full_sweep(prims, params) : detail::build_binned(prims, params);
+  detail::PairTree tree =
+      options.full_sweep ? detail::build_full_sweep(prims, params) : detail::build_binned(prims, params);
   if (tree.nodes) {
     bvh.nodes.reserve(tree.node_count);
     Flattener f{tree.nodes.get(), bvh.nodes};

@@ -38,7 +38,8 @@ std::vector<T> read_records(const std::string& path, const char* what) {
 template <class T>
 void write_records(const std::string& path, std::span<const T> records, const char* what) {
   AtomicFile file(path, std::string(what) + " file");
-  file.stream().write(reinterpret_cast<const char*>(records.data()), static_cast<std::streamsize>(records.size_bytes()));
+  file.stream().write(reinterpret_cast<const char*>(records.data()),
+                      static_cast<std::streamsize>(records.size_bytes()));
   file.commit();
 }
 

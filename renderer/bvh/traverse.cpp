@@ -6,9 +6,9 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <exception>
 #include <limits>
 #include <mutex>
-#include <exception>
 #include <stdexcept>
 #include <thread>
 
@@ -300,7 +300,9 @@ bool intersect_box(const Ray& ray, const glm::vec3& bmin, const glm::vec3& bmax,
   return slab(r, box, r.tmax, tnear, tfar);
 }
 
-Hit brute_force_closest(std::span<const Triangle> triangles, const Ray& ray) { return brute_force<false>(triangles, ray); }
+Hit brute_force_closest(std::span<const Triangle> triangles, const Ray& ray) {
+  return brute_force<false>(triangles, ray);
+}
 
 Hit brute_force_any(std::span<const Triangle> triangles, const Ray& ray) { return brute_force<true>(triangles, ray); }
 

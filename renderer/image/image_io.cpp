@@ -1,5 +1,5 @@
-#include "error.hpp"
 #include "atomic_file.hpp"
+#include "error.hpp"
 #include "image/image.hpp"
 #include "output_path.hpp"
 
@@ -20,9 +20,7 @@ float linear_to_srgb(float x) {
   return x <= 0.0031308f ? 12.92f * x : 1.055f * std::pow(x, 1.0f / 2.4f) - 0.055f;
 }
 
-float srgb_to_linear(float x) {
-  return x <= 0.04045f ? x / 12.92f : std::pow((x + 0.055f) / 1.055f, 2.4f);
-}
+float srgb_to_linear(float x) { return x <= 0.04045f ? x / 12.92f : std::pow((x + 0.055f) / 1.055f, 2.4f); }
 
 namespace {
 std::string lower_extension(const std::string& path) {

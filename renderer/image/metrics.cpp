@@ -11,14 +11,12 @@ namespace hp {
 
 namespace {
 
-std::string size_text(const Image4f& im) {
-  return std::to_string(im.width) + "x" + std::to_string(im.height);
-}
+std::string size_text(const Image4f& im) { return std::to_string(im.width) + "x" + std::to_string(im.height); }
 
 void check_sizes(const Image4f& test, const Image4f& reference, const char* what) {
   if (test.width != reference.width || test.height != reference.height) {
-    throw std::invalid_argument(std::string(what) + ": test image is " + size_text(test) +
-                                " but reference image is " + size_text(reference));
+    throw std::invalid_argument(std::string(what) + ": test image is " + size_text(test) + " but reference image is " +
+                                size_text(reference));
   }
   const std::size_t n = std::size_t(test.width) * test.height * 4;
   if (test.rgba.size() != n || reference.rgba.size() != n) {
@@ -159,8 +157,8 @@ constexpr double kQc = 0.7, kPc = 0.4, kPt = 0.95, kQf = 0.5, kFeatureW = 0.082;
 struct CsfParams {
   double a1, b1, a2, b2;
 };
-constexpr CsfParams kCsf[3] = {{1.0, 0.0047, 0.0, 1e-5},     // achromatic
-                               {1.0, 0.0053, 0.0, 1e-5},     // red-green
+constexpr CsfParams kCsf[3] = {{1.0, 0.0047, 0.0, 1e-5},    // achromatic
+                               {1.0, 0.0053, 0.0, 1e-5},    // red-green
                                {34.1, 0.04, 13.5, 0.025}};  // blue-yellow
 
 // Spatial CSF filtering of one YCxCz channel: sum of (up to) two separable Gaussians, 2D kernel
@@ -285,8 +283,7 @@ FlipPrep flip_prepare(const Image4f& im, double ppd, int csf_radius, const Featu
 // Per-pixel FLIP errors, row-major.
 std::vector<float> flip_errors(const Image4f& test, const Image4f& reference, double ppd) {
   if (!(ppd > 0.0) || !std::isfinite(ppd)) {
-    throw std::invalid_argument("FLIP: pixels per degree must be positive and finite, got " +
-                                std::to_string(ppd));
+    throw std::invalid_argument("FLIP: pixels per degree must be positive and finite, got " + std::to_string(ppd));
   }
   const std::size_t n = std::size_t(test.width) * test.height;
   if (n == 0) return {};
@@ -306,9 +303,9 @@ std::vector<float> flip_errors(const Image4f& test, const Image4f& reference, do
 
   std::vector<float> err(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const double de = std::pow(hyab({t.lab[0].v[i], t.lab[1].v[i], t.lab[2].v[i]},
-                                    {r.lab[0].v[i], r.lab[1].v[i], r.lab[2].v[i]}),
-                               kQc);
+    const double de =
+        std::pow(hyab({t.lab[0].v[i], t.lab[1].v[i], t.lab[2].v[i]}, {r.lab[0].v[i], r.lab[1].v[i], r.lab[2].v[i]}),
+                 kQc);
     double ec = de < knee ? kPt / knee * de : kPt + (de - knee) / (cmax - knee) * (1.0 - kPt);
     ec = std::clamp(ec, 0.0, 1.0);
     const double fe = std::abs(double(r.edge.v[i]) - t.edge.v[i]);
@@ -382,8 +379,8 @@ ErrorMetrics compare_images(const Image4f& test, const Image4f& reference, const
   } else {
     m.mse = sum_sq / (3.0 * double(finite));
     m.relmse = sum_rel / (3.0 * double(finite));
-    m.psnr_db = m.mse == 0.0 ? std::numeric_limits<double>::infinity()
-                             : 10.0 * std::log10(o.psnr_peak * o.psnr_peak / m.mse);
+    m.psnr_db =
+        m.mse == 0.0 ? std::numeric_limits<double>::infinity() : 10.0 * std::log10(o.psnr_peak * o.psnr_peak / m.mse);
   }
 
   if (o.flip) {

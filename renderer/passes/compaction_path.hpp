@@ -42,8 +42,8 @@ class CompactionPath {
   /// of one sort step (with the capture's sampling word).
   void record_traced_compact(VkCommandBuffer cmd, uint32_t first_row, uint32_t rows) const;
   void record_traced_consume(VkCommandBuffer cmd, uint32_t groups) const;
-  void record_traced_sort_step(VkCommandBuffer cmd, const RadixSort::Step& step, uint32_t first_group,
-                               uint32_t groups, uint32_t sampling);
+  void record_traced_sort_step(VkCommandBuffer cmd, const RadixSort::Step& step, uint32_t first_group, uint32_t groups,
+                               uint32_t sampling);
 
  private:
   RtResources& rt_;

@@ -9,23 +9,30 @@ CompositePass::CompositePass(vk::Context& ctx, const vk::Buffer& frame_uniforms,
                              const vk::Image& output, VkSampler sampler, const vk::Image& shadow_mask,
                              const vk::Image& reflection) {
   const VkShaderStageFlags cs = VK_SHADER_STAGE_COMPUTE_BIT;
-  descriptors_ = vk::DescriptorSet(ctx,
-                                   {{HP_BIND_COMPOSITE_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, cs, nullptr},
-                                    {HP_BIND_COMPOSITE_GBUF_DEPTH, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
-                                    {HP_BIND_COMPOSITE_GBUF_NORMAL, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
-                                    {HP_BIND_COMPOSITE_GBUF_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
-                                    {HP_BIND_COMPOSITE_OUTPUT, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr},
-                                    {HP_BIND_COMPOSITE_SHADOW_MASK, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr},
-                                    {HP_BIND_COMPOSITE_REFLECTION, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr}},
-                                   0, 0);
+  descriptors_ =
+      vk::DescriptorSet(ctx,
+                        {{HP_BIND_COMPOSITE_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, cs, nullptr},
+                         {HP_BIND_COMPOSITE_GBUF_DEPTH, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
+                         {HP_BIND_COMPOSITE_GBUF_NORMAL, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
+                         {HP_BIND_COMPOSITE_GBUF_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, cs, nullptr},
+                         {HP_BIND_COMPOSITE_OUTPUT, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr},
+                         {HP_BIND_COMPOSITE_SHADOW_MASK, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr},
+                         {HP_BIND_COMPOSITE_REFLECTION, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, cs, nullptr}},
+                        0, 0);
   const VkImageLayout ro = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
   descriptors_.write_buffer(HP_BIND_COMPOSITE_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
-  descriptors_.write_image(HP_BIND_COMPOSITE_GBUF_DEPTH, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.depth.view(), ro, sampler);
-  descriptors_.write_image(HP_BIND_COMPOSITE_GBUF_NORMAL, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.normal_roughness.view(), ro, sampler);
-  descriptors_.write_image(HP_BIND_COMPOSITE_GBUF_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gbuffer.albedo_metal.view(), ro, sampler);
-  descriptors_.write_image(HP_BIND_COMPOSITE_OUTPUT, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, output.view(), VK_IMAGE_LAYOUT_GENERAL);
-  descriptors_.write_image(HP_BIND_COMPOSITE_SHADOW_MASK, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, shadow_mask.view(), VK_IMAGE_LAYOUT_GENERAL);
-  descriptors_.write_image(HP_BIND_COMPOSITE_REFLECTION, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, reflection.view(), VK_IMAGE_LAYOUT_GENERAL);
+  descriptors_.write_image(HP_BIND_COMPOSITE_GBUF_DEPTH, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+                           gbuffer.depth.view(), ro, sampler);
+  descriptors_.write_image(HP_BIND_COMPOSITE_GBUF_NORMAL, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+                           gbuffer.normal_roughness.view(), ro, sampler);
+  descriptors_.write_image(HP_BIND_COMPOSITE_GBUF_ALBEDO, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+                           gbuffer.albedo_metal.view(), ro, sampler);
+  descriptors_.write_image(HP_BIND_COMPOSITE_OUTPUT, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, output.view(),
+                           VK_IMAGE_LAYOUT_GENERAL);
+  descriptors_.write_image(HP_BIND_COMPOSITE_SHADOW_MASK, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, shadow_mask.view(),
+                           VK_IMAGE_LAYOUT_GENERAL);
+  descriptors_.write_image(HP_BIND_COMPOSITE_REFLECTION, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, reflection.view(),
+                           VK_IMAGE_LAYOUT_GENERAL);
   pipeline_ = vk::create_compute_pipeline(ctx, composite_comp, descriptors_.pipeline_layout());
 }
 
@@ -35,8 +42,7 @@ void CompositePass::record(VkCommandBuffer cmd, const vk::Image& output) const {
                  VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
   VkDescriptorSet set = descriptors_.set();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0,
-                          nullptr);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
   // Round up: the study's dispatch truncated width/8 and left the ragged edge unshaded.
   vkCmdDispatch(cmd, (output.width() + 7) / 8, (output.height() + 7) / 8, 1);
   vk::transition(cmd, output, VK_IMAGE_LAYOUT_GENERAL, VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,

@@ -1,7 +1,7 @@
 #include "passes/gbuffer.hpp"
 
-#include "vk/check.hpp"
 #include "gpu/bindings.h"
+#include "vk/check.hpp"
 
 #include "shaders/gbuffer_frag.h"
 #include "shaders/gbuffer_vert.h"
@@ -17,28 +17,34 @@ GBuffer::GBuffer(vk::Context& ctx, uint32_t width, uint32_t height)
                        VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
                            VK_IMAGE_USAGE_TRANSFER_SRC_BIT),
       albedo_metal(ctx, width, height, kAlbedoFormat,
-                   VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT) {}
+                   VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT) {
+}
 
 GBufferPass::GBufferPass(vk::Context& ctx, const vk::Buffer& frame_uniforms, bool reversed_z)
     : reversed_z_(reversed_z) {
-  descriptors_ = vk::DescriptorSet(
-      ctx,
-      {{HP_BIND_GBUFFER_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr}},
-      sizeof(gpu::GBufferPush), VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
+  descriptors_ = vk::DescriptorSet(ctx,
+                                   {{HP_BIND_GBUFFER_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
+                                     VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr}},
+                                   sizeof(gpu::GBufferPush), VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT);
   descriptors_.write_buffer(HP_BIND_GBUFFER_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, frame_uniforms.handle());
 
   VkDevice dev = ctx.device();
   VkShaderModule vs = vk::create_shader_module(dev, gbuffer_vert);
   VkShaderModule fs = vk::create_shader_module(dev, gbuffer_frag);
   std::array<VkPipelineShaderStageCreateInfo, 2> stages{};
-  stages[0] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, nullptr, 0, VK_SHADER_STAGE_VERTEX_BIT, vs, "main",
+  stages[0] = {
+      VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, nullptr, 0, VK_SHADER_STAGE_VERTEX_BIT, vs, "main", nullptr};
+  stages[1] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO,
+               nullptr,
+               0,
+               VK_SHADER_STAGE_FRAGMENT_BIT,
+               fs,
+               "main",
                nullptr};
-  stages[1] = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO, nullptr, 0, VK_SHADER_STAGE_FRAGMENT_BIT, fs,
-               "main", nullptr};
 
   VkVertexInputBindingDescription binding{0, sizeof(RasterVertex), VK_VERTEX_INPUT_RATE_VERTEX};
-  std::array<VkVertexInputAttributeDescription, 2> attrs{{{0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0},
-                                                          {1, 0, VK_FORMAT_R32G32B32_SFLOAT, 12}}};
+  std::array<VkVertexInputAttributeDescription, 2> attrs{
+      {{0, 0, VK_FORMAT_R32G32B32_SFLOAT, 0}, {1, 0, VK_FORMAT_R32G32B32_SFLOAT, 12}}};
   VkPipelineVertexInputStateCreateInfo vi{VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
   vi.vertexBindingDescriptionCount = 1;
   vi.pVertexBindingDescriptions = &binding;
@@ -97,7 +103,8 @@ GBufferPass::GBufferPass(vk::Context& ctx, const vk::Buffer& frame_uniforms, boo
   pipeline_ = vk::Pipeline(dev, p);
 }
 
-void GBufferPass::record(VkCommandBuffer cmd, const GpuScene& scene, const GBuffer& target, const glm::vec3& eye) const {
+void GBufferPass::record(VkCommandBuffer cmd, const GpuScene& scene, const GBuffer& target,
+                         const glm::vec3& eye) const {
   const uint32_t w = target.depth.width(), h = target.depth.height();
   const VkPipelineStageFlags2 prev = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT;
   for (const vk::Image* img : {&target.normal_roughness, &target.albedo_metal}) {
@@ -137,8 +144,7 @@ void GBufferPass::record(VkCommandBuffer cmd, const GpuScene& scene, const GBuff
   vkCmdSetScissor(cmd, 0, 1, &scissor);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
   VkDescriptorSet set = descriptors_.set();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, descriptors_.pipeline_layout(), 0, 1, &set, 0,
-                          nullptr);
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
   VkBuffer vb = scene.vertices().handle();
   VkDeviceSize zero = 0;
   vkCmdBindVertexBuffers(cmd, 0, 1, &vb, &zero);

@@ -2,6 +2,7 @@
 
 #include "error.hpp"
 #include "gpu/bindings.h"
+#include "gpu/radix_config.h"
 #include "shaders/sort_radix_copy_comp.h"
 #include "shaders/sort_radix_copy_traced_comp.h"
 #include "shaders/sort_radix_histogram_comp.h"
@@ -10,7 +11,6 @@
 #include "shaders/sort_radix_scan_traced_comp.h"
 #include "shaders/sort_radix_scatter_comp.h"
 #include "shaders/sort_radix_scatter_traced_comp.h"
-#include "gpu/radix_config.h"
 
 #include <stdexcept>
 #include <string>
@@ -71,7 +71,8 @@ RadixSort::RadixSort(vk::Context& ctx, uint32_t capacity) : capacity_(capacity) 
   // The kernels use 256-thread workgroups and the scatter ~17 KiB of shared memory (radix_scatter.comp): above Vulkan's
   // guaranteed minimums (128 invocations, 16 KiB), within lavapipe's and every desktop GPU's limits.
   const VkPhysicalDeviceLimits& lim = ctx.properties().limits;
-  const uint32_t shared_bytes = (RADIX_DIGITS * RADIX_THREADS + RADIX_THREADS + RADIX_THREADS / 16 + RADIX_DIGITS) * sizeof(uint32_t);
+  const uint32_t shared_bytes =
+      (RADIX_DIGITS * RADIX_THREADS + RADIX_THREADS + RADIX_THREADS / 16 + RADIX_DIGITS) * sizeof(uint32_t);
   if (lim.maxComputeWorkGroupInvocations < RADIX_THREADS || lim.maxComputeWorkGroupSize[0] < RADIX_THREADS ||
       lim.maxComputeSharedMemorySize < shared_bytes)
     throw DeviceError("radix sort: needs " + std::to_string(RADIX_THREADS) + "-invocation workgroups and " +
@@ -142,8 +143,12 @@ void RadixSort::record_step(VkCommandBuffer cmd, const Step& step, uint32_t key_
   const VkDescriptorSet set = (to_caller ? to_caller_ : to_scratch_).set();
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0, nullptr);
   const uint32_t key_mask = key_bits >= 32 ? 0xFFFFFFFFu : ((1u << key_bits) - 1u);
-  const RadixPush push{step.kernel == Step::Kernel::copy ? 0u : step.digit_pass * RADIX_BITS, capacity_, key_mask,
-                       first_group, sampling, to_caller ? 1u : 0u};
+  const RadixPush push{step.kernel == Step::Kernel::copy ? 0u : step.digit_pass * RADIX_BITS,
+                       capacity_,
+                       key_mask,
+                       first_group,
+                       sampling,
+                       to_caller ? 1u : 0u};
   vkCmdPushConstants(cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
   const vk::Pipeline* plain[] = {&histogram_, &scan_, &scatter_, &copy_};
   const vk::Pipeline* instrumented[] = {&histogram_traced_, &scan_traced_, &scatter_traced_, &copy_traced_};
@@ -156,8 +161,8 @@ void RadixSort::bind(const vk::Buffer& keys, const vk::Buffer& values, const vk:
   const VkDeviceSize bytes = VkDeviceSize(capacity_) * sizeof(uint32_t);
   if (keys.size() < bytes || values.size() < bytes)
     throw InputError("radix sort: keys (" + std::to_string(keys.size()) + " bytes) and values (" +
-                     std::to_string(values.size()) + " bytes) must hold the capacity of " +
-                     std::to_string(capacity_) + " uints");
+                     std::to_string(values.size()) + " bytes) must hold the capacity of " + std::to_string(capacity_) +
+                     " uints");
   if (count.size() < sizeof(uint32_t)) throw InputError("radix sort: the count buffer must hold one uint");
   const VkDescriptorType sb = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   // Ranges are the capacity, not VK_WHOLE_SIZE: a caller's larger buffer may exceed maxStorageBufferRange.
@@ -176,8 +181,8 @@ void RadixSort::bind(const vk::Buffer& keys, const vk::Buffer& values, const vk:
   bound_count_ = count.handle();
 }
 
-void RadixSort::record(VkCommandBuffer cmd, const vk::Buffer& keys, const vk::Buffer& values,
-                       const vk::Buffer& count, uint32_t key_bits) {
+void RadixSort::record(VkCommandBuffer cmd, const vk::Buffer& keys, const vk::Buffer& values, const vk::Buffer& count,
+                       uint32_t key_bits) {
   if (key_bits > 32) throw InputError("radix sort: key_bits " + std::to_string(key_bits) + " exceeds 32");
   const std::vector<Step> all = steps(key_bits);
   if (all.empty()) return;  // no significant bits: the stable order is the input order

@@ -1,8 +1,8 @@
 #include "passes/ray_batch.hpp"
 
-#include "gpu/shared_types.h"
 #include "error.hpp"
 #include "gpu/bindings.h"
+#include "gpu/shared_types.h"
 
 #include "shaders/trace_rays_comp.h"
 
@@ -36,8 +36,8 @@ glm::uvec2 RayBatchTracer::check_limits(uint64_t rays, const VkPhysicalDeviceLim
   const uint64_t x = std::min<uint64_t>(groups, limits.maxComputeWorkGroupCount[0]);
   const uint64_t y = (groups + x - 1) / x;
   if (y > limits.maxComputeWorkGroupCount[1]) {
-    throw InputError("ray batch: " + std::to_string(rays) + " rays need " + std::to_string(groups) +
-                     " workgroups of " + std::to_string(kGroup) + ", over this device's maxComputeWorkGroupCount of " +
+    throw InputError("ray batch: " + std::to_string(rays) + " rays need " + std::to_string(groups) + " workgroups of " +
+                     std::to_string(kGroup) + ", over this device's maxComputeWorkGroupCount of " +
                      std::to_string(limits.maxComputeWorkGroupCount[0]) + " x " +
                      std::to_string(limits.maxComputeWorkGroupCount[1]));
   }

@@ -15,9 +15,7 @@ void ReflectionPass::record(VkCommandBuffer cmd) const {
   rt_.dispatch(cmd, pipeline_, rt_.grid_width(), rt_.grid_height());
 }
 
-glm::uvec2 ReflectionPass::workgroups() const {
-  return {(rt_.grid_width() + 7) / 8, (rt_.grid_height() + 7) / 8};
-}
+glm::uvec2 ReflectionPass::workgroups() const { return {(rt_.grid_width() + 7) / 8, (rt_.grid_height() + 7) / 8}; }
 
 void ReflectionPass::attach_trace(vk::Context& ctx) {
   if (!traced_.handle()) traced_ = rt_.create_pipeline(ctx, reflections_traced_comp);

@@ -88,14 +88,14 @@ RtResources::RtResources(vk::Context& ctx, const RtScene& scene, const GBuffer& 
 
 void RtResources::create_buffers(vk::Context& ctx) {
   params_ = vk::Buffer(ctx, sizeof(gpu::RayParams), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, true);
-  counters_ = vk::Buffer(ctx, HP_COUNTER_WORDS * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
-                                                        VK_BUFFER_USAGE_TRANSFER_DST_BIT |
-                                                        VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
+  counters_ = vk::Buffer(ctx, HP_COUNTER_WORDS * 4,
+                         VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                             VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                         false);
   const VkBufferUsageFlags dump_usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;
   const bool dump = options_.dump_rays;
   shadow_dump_ = vk::Buffer(ctx, dump ? uint64_t(width_) * height_ * sizeof(gpu::RayDump) : 4, dump_usage, false);
-  reflection_dump_ =
-      vk::Buffer(ctx, dump ? uint64_t(grid_w_) * grid_h_ * sizeof(gpu::RayDump) : 4, dump_usage, false);
+  reflection_dump_ = vk::Buffer(ctx, dump ? uint64_t(grid_w_) * grid_h_ * sizeof(gpu::RayDump) : 4, dump_usage, false);
   const VkImageUsageFlags img_usage =
       VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT;
   // A disabled pass's output is a 1x1 stand-in (the composite reads it only when the pass is on): a frame
@@ -112,8 +112,8 @@ void RtResources::create_buffers(vk::Context& ctx) {
   compact_rays_ = vk::Buffer(ctx, compact ? cells * sizeof(gpu::CompactRay) : 4, sb_usage, false);
   sort_keys_ = vk::Buffer(ctx, compact ? cells * 4 : 4, sb_usage, false);
   sort_values_ = vk::Buffer(ctx, compact ? cells * 4 : 4, sb_usage, false);
-  ray_count_ = vk::Buffer(ctx, 16, sb_usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                          false);
+  ray_count_ =
+      vk::Buffer(ctx, 16, sb_usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
   if (compact && cells * sizeof(gpu::CompactRay) > ctx.properties().limits.maxStorageBufferRange) {
     throw InputError("compact reflections: " + std::to_string(cells) + " rays need " +
                      std::to_string((cells * sizeof(gpu::CompactRay)) >> 20) +
@@ -171,9 +171,9 @@ void RtResources::begin_frame(uint32_t sample_index) {
   p.reflection = glm::vec4(options_.roughness_threshold, 0.0f, 0.0f, 0.0f);
   p.frame = glm::uvec4(sample_index, options_.seed, 0u, 0u);
   p.bounds_min = glm::vec4(bounds_.empty() ? glm::vec3(0.0f) : bounds_.min, float(int(options_.sort)));
-  p.bounds_max = glm::vec4(bounds_.empty() ? glm::vec3(1.0f) : bounds_.max,
-                           options_.writeback == Writeback::reproject ? float(HP_WRITEBACK_REPROJECT)
-                                                                      : float(HP_WRITEBACK_INDEX));
+  p.bounds_max =
+      glm::vec4(bounds_.empty() ? glm::vec3(1.0f) : bounds_.max,
+                options_.writeback == Writeback::reproject ? float(HP_WRITEBACK_REPROJECT) : float(HP_WRITEBACK_INDEX));
   // The shared offset: the Halton point of this frame, Cranley-Patterson-rotated by the seed so that a
   // different seed gives a different (still low-discrepancy) sequence.
   const glm::vec2 h = halton23(sample_index + 1);
@@ -236,9 +236,9 @@ void RtResources::save_accumulation(vk::Context& ctx) {
   if (!images_initialised_) return;  // nothing accumulated yet: the next frame starts from UNDEFINED anyway
   ctx.submit_and_wait([&](VkCommandBuffer cmd) {
     if (accum_saved_.handle() == VK_NULL_HANDLE) {
-      accum_saved_ = vk::Image(ctx, accum_.width(), accum_.height(), accum_.format(),
-                               VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
-                                   VK_IMAGE_USAGE_TRANSFER_DST_BIT);
+      accum_saved_ =
+          vk::Image(ctx, accum_.width(), accum_.height(), accum_.format(),
+                    VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT);
       vk::transition(cmd, accum_saved_, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_NONE, 0,
                      VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT);
     }
@@ -258,7 +258,7 @@ void RtResources::bind(VkCommandBuffer cmd, const vk::Pipeline& p) const {
 }
 
 void RtResources::dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h,
-                                bool then_barrier) const {
+                           bool then_barrier) const {
   bind(cmd, p);
   vkCmdDispatch(cmd, (w + 7) / 8, (h + 7) / 8, 1);
   if (!then_barrier) return;

@@ -14,9 +14,8 @@ ShadowPass::ShadowPass(vk::Context& ctx, RtResources& rt) : rt_(rt), pipeline_(r
 void ShadowPass::record(VkCommandBuffer cmd, bool then_barrier) const {
   const RayTracingOptions& o = rt_.options();
   const uint32_t h = rt_.height();
-  const uint32_t rows = o.inject_shadow_fraction > 0.0f
-                            ? std::min(h, uint32_t(std::ceil(h * o.inject_shadow_fraction)))
-                            : 0u;
+  const uint32_t rows =
+      o.inject_shadow_fraction > 0.0f ? std::min(h, uint32_t(std::ceil(h * o.inject_shadow_fraction))) : 0u;
   // The injected re-trace writes the same texels: a barrier between the two dispatches.
   rt_.dispatch(cmd, pipeline_, rt_.width(), h, then_barrier || rows > 0);
   if (rows > 0) rt_.dispatch(cmd, pipeline_, rt_.width(), rows, then_barrier);

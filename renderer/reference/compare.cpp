@@ -92,7 +92,10 @@ json compare_with_reference(const FrameReadback& gpu, const ReferenceImage& ref,
   }
   out["coverage_mismatch"] = mismatch;
   if (!gpu.shadow.rgba.empty()) {
-    out["shadow"] = {{"compared", compared}, {"acne", acne}, {"leaks", leaks}, {"wrong", acne + leaks},
+    out["shadow"] = {{"compared", compared},
+                     {"acne", acne},
+                     {"leaks", leaks},
+                     {"wrong", acne + leaks},
                      {"coverage_mismatch", mismatch}};
   }
 

@@ -17,10 +17,10 @@ namespace hp {
 /// What the GPU frame produced, read back (Frame::read_color / read_aov / read_depth).
 struct FrameReadback {
   Image4f color;
-  Image4f shadow;              ///< shadow AOV (r: 1 lit, 0 shadowed); empty when the pass is off
-  Image4f normal;              ///< normal AOV (rgb world normal, a 0 on background)
-  std::vector<float> depth;    ///< raw depth-buffer values
-  View view;                   ///< the GPU frame's matrices and eye
+  Image4f shadow;            ///< shadow AOV (r: 1 lit, 0 shadowed); empty when the pass is off
+  Image4f normal;            ///< normal AOV (rgb world normal, a 0 on background)
+  std::vector<float> depth;  ///< raw depth-buffer values
+  View view;                 ///< the GPU frame's matrices and eye
 };
 
 /// The GPU frame's world is the reference's world scaled by `scale` about the origin, then translated
@@ -32,7 +32,7 @@ struct WorldTransform {
 
 struct CompareOptions {
   ErrorOptions image;
-  uint32_t depth_bins = 12;            ///< log-spaced over the foreground's distance range
+  uint32_t depth_bins = 12;  ///< log-spaced over the foreground's distance range
   /// A foreground pixel whose reconstructed position is this far off (relative to its distance), or whose
   /// normal differs by more than acos(min_normal_dot), saw another surface than the reference: a coverage
   /// mismatch, left out of the acne/leak and depth statistics and counted on its own.

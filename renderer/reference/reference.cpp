@@ -9,9 +9,9 @@
 #include <nlohmann/json.hpp>
 
 #include <atomic>
-#include <limits>
 #include <chrono>
 #include <filesystem>
+#include <limits>
 #include <thread>
 #include <vector>
 
@@ -32,10 +32,10 @@ glm::vec2 halton23(uint32_t i) {
 }
 
 struct SurfacePoint {
-  glm::vec3 pos;      // exact hit, rounded once to float
-  glm::dvec3 pos_d;   // exact hit in double
-  glm::vec3 ng;       // geometric normal (unit, unoriented)
-  glm::vec3 ns;       // interpolated shading normal (unit, unoriented; ng where it degenerates)
+  glm::vec3 pos;     // exact hit, rounded once to float
+  glm::dvec3 pos_d;  // exact hit in double
+  glm::vec3 ng;      // geometric normal (unit, unoriented)
+  glm::vec3 ns;      // interpolated shading normal (unit, unoriented; ng where it degenerates)
   uint32_t material;
 };
 
@@ -63,7 +63,8 @@ class Tracer {
     const glm::dvec3 ng = glm::cross(p1 - p0, p2 - p0);
     const double ngl = glm::length(ng);
     sp.ng = ngl > 0.0 ? glm::vec3(ng / ngl) : glm::vec3(0.0f, 1.0f, 0.0f);
-    const glm::dvec3 ns = b0 * glm::dvec3(w.normals[i0]) + u * glm::dvec3(w.normals[i1]) + v * glm::dvec3(w.normals[i2]);
+    const glm::dvec3 ns =
+        b0 * glm::dvec3(w.normals[i0]) + u * glm::dvec3(w.normals[i1]) + v * glm::dvec3(w.normals[i2]);
     const double nsl = glm::length(ns);
     sp.ns = nsl > 1e-10 ? glm::vec3(ns / nsl) : sp.ng;
     sp.material = w.material[size_t(h.prim)];
@@ -242,7 +243,8 @@ std::string reference_id(const std::string& scene_spec, const Scene& scene, cons
   j["scene"] = scene_spec;
   j["camera"] = {{"position", v3(c.position)}, {"target", v3(c.target)}, {"up", v3(c.up)},
                  {"fov", c.vfov_deg},          {"near", c.znear},        {"far", c.zfar}};
-  j["light"] = {{"direction", v3(scene.light.direction)}, {"color", v3(scene.light.color)},
+  j["light"] = {{"direction", v3(scene.light.direction)},
+                {"color", v3(scene.light.color)},
                 {"intensity", scene.light.intensity}};
   j["sky"] = v3(scene.sky_color);
   j["size"] = {s.width, s.height};

@@ -31,15 +31,15 @@ struct ReferenceSettings {
   uint32_t width = 1280, height = 720;
   bool shadows = true;
   bool reflections = true;
-  bool reflection_shadows = true;   ///< shadow rays at reflection hits
+  bool reflection_shadows = true;  ///< shadow rays at reflection hits
   float roughness_threshold = 0.35f;
-  uint32_t samples = 256;           ///< reflection directions per reflective pixel
-  int threads = 0;                  ///< 0 = all cores
+  uint32_t samples = 256;  ///< reflection directions per reflective pixel
+  int threads = 0;         ///< 0 = all cores
 };
 
 /// What the reference knows per pixel.
 struct ReferenceImage {
-  Image4f color;     ///< linear radiance, alpha 1
+  Image4f color;  ///< linear radiance, alpha 1
   /// r: shadow visibility of the light (1 lit, 0 shadowed; 0 for surfaces facing away; -1 background);
   /// gba: the shading normal (world, unit, toward the camera).
   Image4f shading;

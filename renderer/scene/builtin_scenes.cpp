@@ -83,14 +83,14 @@ Scene make_pica_scene() {
   const Mesh box = make_box();
   const Mesh sphere = make_uv_sphere(pica::kSphereSegments, pica::kSphereRings, 1.0f);
   std::size_t objects = 0;
-  auto add_box = [&](const std::string& name, glm::vec3 color, float metallic, float roughness,
-                     glm::vec3 center, float yaw, glm::vec3 size) {
+  auto add_box = [&](const std::string& name, glm::vec3 color, float metallic, float roughness, glm::vec3 center,
+                     float yaw, glm::vec3 size) {
     const uint32_t mat = add_material(s, name, color, metallic, roughness);
     add_instance(s, add_mesh(s, box, name, mat), place(center, yaw, size));
     ++objects;
   };
-  auto add_sphere = [&](const std::string& name, glm::vec3 color, float metallic, float roughness,
-                        glm::vec3 center, float radius) {
+  auto add_sphere = [&](const std::string& name, glm::vec3 color, float metallic, float roughness, glm::vec3 center,
+                        float radius) {
     const uint32_t mat = add_material(s, name, color, metallic, roughness);
     add_instance(s, add_mesh(s, sphere, name, mat), place(center, 0.0f, glm::vec3(radius)));
     ++objects;
@@ -155,8 +155,7 @@ Scene make_pica_scene() {
     const std::string name = "arc_" + std::to_string(i);
     if (i % 2 == 0) {
       const float size = rng.range(0.35f, 0.55f);
-      add_box(name + "_cube", color, metallic, rough, {p.x, 0.5f * size, p.z}, rng.range(0.0f, 90.0f),
-              glm::vec3(size));
+      add_box(name + "_cube", color, metallic, rough, {p.x, 0.5f * size, p.z}, rng.range(0.0f, 90.0f), glm::vec3(size));
     } else {
       const float r = rng.range(0.18f, 0.3f);
       add_sphere(name + "_sphere", color, metallic, rough, {p.x, r, p.z}, r);

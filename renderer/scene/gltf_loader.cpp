@@ -15,8 +15,8 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <map>
 #include <iostream>
+#include <map>
 #include <optional>
 #include <string_view>
 
@@ -76,8 +76,7 @@ std::string_view glb_json_chunk(const std::string& path, const std::vector<unsig
   if (read_u32(b, 0) != kMagic) fail(path, "GLB header.magic", "not 'glTF'");
   if (const uint32_t v = read_u32(b, 4); v != 2) fail(path, "GLB header.version", std::to_string(v) + ", expected 2");
   if (const uint32_t len = read_u32(b, 8); len != b.size())
-    fail(path, "GLB header.length",
-         std::to_string(len) + " does not match the file size " + std::to_string(b.size()));
+    fail(path, "GLB header.length", std::to_string(len) + " does not match the file size " + std::to_string(b.size()));
   if (b.size() < 20) fail(path, "GLB chunks[0]", "missing (the JSON chunk must follow the header)");
   const uint32_t json_len = read_u32(b, 12);
   if (read_u32(b, 16) != kJson) fail(path, "GLB chunks[0].chunkType", "not JSON");
@@ -175,13 +174,16 @@ class ReferenceChecker {
     each("accessors", [&](const json& a, const std::string& f) {
       ref(a, "bufferView", f + ".bufferView", "bufferViews");
       if (const auto s = a.find("sparse"); s != a.end() && s->is_object()) {
-        if (const auto i = s->find("indices"); i != s->end()) ref(*i, "bufferView", f + ".sparse.indices.bufferView", "bufferViews");
-        if (const auto v = s->find("values"); v != s->end()) ref(*v, "bufferView", f + ".sparse.values.bufferView", "bufferViews");
+        if (const auto i = s->find("indices"); i != s->end())
+          ref(*i, "bufferView", f + ".sparse.indices.bufferView", "bufferViews");
+        if (const auto v = s->find("values"); v != s->end())
+          ref(*v, "bufferView", f + ".sparse.values.bufferView", "bufferViews");
       }
     });
     each("bufferViews", [&](const json& v, const std::string& f) { ref(v, "buffer", f + ".buffer", "buffers"); });
     each("textures", [&](const json& t, const std::string& f) { ref(t, "source", f + ".source", "images"); });
-    each("images", [&](const json& im, const std::string& f) { ref(im, "bufferView", f + ".bufferView", "bufferViews"); });
+    each("images",
+         [&](const json& im, const std::string& f) { ref(im, "bufferView", f + ".bufferView", "bufferViews"); });
   }
 
  private:
@@ -212,7 +214,8 @@ class ReferenceChecker {
       fail(path_, f + "." + key, "expected an array of numbers");
   }
   void number(const json& obj, const char* key, const std::string& f) const {
-    if (const auto it = obj.find(key); it != obj.end() && !it->is_number()) fail(path_, f + "." + key, "expected a number");
+    if (const auto it = obj.find(key); it != obj.end() && !it->is_number())
+      fail(path_, f + "." + key, "expected a number");
   }
   void count(const json& obj, const char* key, const std::string& f) const {
     const auto it = obj.find(key);
@@ -248,8 +251,7 @@ bool regular_file_exists(const std::string& path, void*) {
 
 /// Textures are never decoded: the renderer uses material factors only. Accepting every image also means
 /// a referenced image file that is missing (the shared scenes ship without textures) is not an error.
-bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int,
-                void*) {
+bool skip_image(tinygltf::Image*, const int, std::string*, std::string*, int, int, const unsigned char*, int, void*) {
   return true;
 }
 
@@ -418,7 +420,8 @@ class Converter {
       if (!(len > 0.0)) fail(path_, f + ".rotation", "zero quaternion");
       m = m * glm::mat4_cast(q / len);
     }
-    if (!node.scale.empty()) m = m * glm::scale(glm::dmat4(1.0), glm::dvec3(node.scale[0], node.scale[1], node.scale[2]));
+    if (!node.scale.empty())
+      m = m * glm::scale(glm::dmat4(1.0), glm::dvec3(node.scale[0], node.scale[1], node.scale[2]));
     return m;
   }
 
@@ -476,8 +479,8 @@ class Converter {
         if (!(std::abs(w[k]) <= kLimit)) {
           char at[32];
           std::snprintf(at, sizeof at, "%.3g", w[k]);
-          fail(path_, node, "its world transform puts mesh '" + mesh.name + "' at " + at +
-                                " (positions must stay within +-1e18)");
+          fail(path_, node,
+               "its world transform puts mesh '" + mesh.name + "' at " + at + " (positions must stay within +-1e18)");
         }
       }
     }
@@ -502,15 +505,17 @@ class Converter {
 
   AccessorView view(int accessor, const std::string& field, int want_type, std::initializer_list<int> want_ct) const {
     if (accessor < 0 || std::size_t(accessor) >= model_.accessors.size())
-      fail(path_, field, "accessor index " + std::to_string(accessor) + " out of range (accessors has " +
-                             std::to_string(model_.accessors.size()) + " entries)");
+      fail(path_, field,
+           "accessor index " + std::to_string(accessor) + " out of range (accessors has " +
+               std::to_string(model_.accessors.size()) + " entries)");
     const auto& acc = model_.accessors[accessor];
     const std::string af = idx("accessors", accessor);
     if (acc.type != want_type || std::find(want_ct.begin(), want_ct.end(), acc.componentType) == want_ct.end()) {
       std::string want;
       for (int ct : want_ct) want += std::string(want.empty() ? "" : " or ") + component_name(ct);
-      fail(path_, field, af + " is " + type_name(acc.type) + " of " + component_name(acc.componentType) +
-                             ", expected " + type_name(want_type) + " of " + want);
+      fail(path_, field,
+           af + " is " + type_name(acc.type) + " of " + component_name(acc.componentType) + ", expected " +
+               type_name(want_type) + " of " + want);
     }
     if (acc.sparse.isSparse) fail(path_, field, af + " is sparse, which is not supported");
     const std::size_t elem = std::size_t(component_size(acc.componentType)) * component_count(acc.type);
@@ -522,8 +527,9 @@ class Converter {
       // No bufferView means all zeros (glTF 3.6.2.4): nothing bounds the count, so cap it before allocating.
       constexpr std::size_t kMaxImplicit = std::size_t(1) << 24;
       if (acc.count > kMaxImplicit)
-        fail(path_, field, af + " has no bufferView and " + std::to_string(acc.count) + " elements (at most " +
-                               std::to_string(kMaxImplicit) + " implicit zeros are accepted)");
+        fail(path_, field,
+             af + " has no bufferView and " + std::to_string(acc.count) + " elements (at most " +
+                 std::to_string(kMaxImplicit) + " implicit zeros are accepted)");
       return v;
     }
     if (std::size_t(acc.bufferView) >= model_.bufferViews.size())
@@ -535,22 +541,25 @@ class Converter {
     const auto& buf = model_.buffers[bv.buffer];
     std::size_t view_end;
     if (__builtin_add_overflow(bv.byteOffset, bv.byteLength, &view_end) || view_end > buf.data.size())
-      fail(path_, bf, "byteOffset " + std::to_string(bv.byteOffset) + " + byteLength " + std::to_string(bv.byteLength) +
-                          " runs past the end of " + idx("buffers", bv.buffer) + " (" + std::to_string(buf.data.size()) +
-                          " bytes)");
+      fail(path_, bf,
+           "byteOffset " + std::to_string(bv.byteOffset) + " + byteLength " + std::to_string(bv.byteLength) +
+               " runs past the end of " + idx("buffers", bv.buffer) + " (" + std::to_string(buf.data.size()) +
+               " bytes)");
     if (bv.byteStride != 0) {
       if (bv.byteStride < elem)
         fail(path_, bf + ".byteStride",
-             std::to_string(bv.byteStride) + " is smaller than an element of " + af + " (" + std::to_string(elem) + " bytes)");
+             std::to_string(bv.byteStride) + " is smaller than an element of " + af + " (" + std::to_string(elem) +
+                 " bytes)");
       v.stride = bv.byteStride;
     }
     // Last byte read: byteOffset + stride * (count - 1) + elem, which must fit in the view.
     std::size_t need;
     if (__builtin_mul_overflow(v.stride, acc.count - 1, &need) || __builtin_add_overflow(need, elem, &need) ||
         __builtin_add_overflow(need, acc.byteOffset, &need) || need > bv.byteLength)
-      fail(path_, field, af + " (" + std::to_string(acc.count) + " x " + std::to_string(elem) + " bytes at byteOffset " +
-                             std::to_string(acc.byteOffset) + ", stride " + std::to_string(v.stride) + ") runs past the end of " +
-                             bf + " (" + std::to_string(bv.byteLength) + " bytes)");
+      fail(path_, field,
+           af + " (" + std::to_string(acc.count) + " x " + std::to_string(elem) + " bytes at byteOffset " +
+               std::to_string(acc.byteOffset) + ", stride " + std::to_string(v.stride) + ") runs past the end of " +
+               bf + " (" + std::to_string(bv.byteLength) + " bytes)");
     v.data = buf.data.data() + bv.byteOffset + acc.byteOffset;
     return v;
   }
@@ -565,8 +574,8 @@ class Converter {
   std::optional<Mesh> convert_primitive(Scene& scene, const tinygltf::Primitive& prim, const std::string& f) {
     const int mode = prim.mode < 0 ? TINYGLTF_MODE_TRIANGLES : prim.mode;
     if (mode != TINYGLTF_MODE_TRIANGLES) {
-      static const char* const kModes[] = {"POINTS", "LINES", "LINE_LOOP", "LINE_STRIP", "TRIANGLES", "TRIANGLE_STRIP",
-                                           "TRIANGLE_FAN"};
+      static const char* const kModes[] = {"POINTS",    "LINES",          "LINE_LOOP",   "LINE_STRIP",
+                                           "TRIANGLES", "TRIANGLE_STRIP", "TRIANGLE_FAN"};
       std::cerr << "warning: " << path_ << ": " << f << ".mode: " << mode << " ("
                 << (mode >= 0 && mode <= 6 ? kModes[mode] : "unknown") << ") is not TRIANGLES; primitive skipped\n";
       return std::nullopt;
@@ -579,9 +588,10 @@ class Converter {
     for (std::size_t i = 0; i < m.positions.size(); ++i) {
       const glm::vec3& p = m.positions[i];
       if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-        fail(path_, pf, idx("accessors", pos_it->second) + " element " + std::to_string(i) + " is " +
-                            (std::isnan(p.x) || std::isnan(p.y) || std::isnan(p.z) ? "NaN" : "Inf") + " (" +
-                            std::to_string(p.x) + ", " + std::to_string(p.y) + ", " + std::to_string(p.z) + ")");
+        fail(path_, pf,
+             idx("accessors", pos_it->second) + " element " + std::to_string(i) + " is " +
+                 (std::isnan(p.x) || std::isnan(p.y) || std::isnan(p.z) ? "NaN" : "Inf") + " (" + std::to_string(p.x) +
+                 ", " + std::to_string(p.y) + ", " + std::to_string(p.z) + ")");
     }
     const std::size_t vertex_count = m.positions.size();
 
@@ -608,9 +618,9 @@ class Converter {
       }
       for (std::size_t i = 0; i < m.indices.size(); ++i)
         if (m.indices[i] >= vertex_count)
-          fail(path_, inf, idx("accessors", prim.indices) + " element " + std::to_string(i) + " is vertex " +
-                               std::to_string(m.indices[i]) + ", but POSITION has " + std::to_string(vertex_count) +
-                               " vertices");
+          fail(path_, inf,
+               idx("accessors", prim.indices) + " element " + std::to_string(i) + " is vertex " +
+                   std::to_string(m.indices[i]) + ", but POSITION has " + std::to_string(vertex_count) + " vertices");
     } else {
       if (vertex_count > std::numeric_limits<uint32_t>::max()) fail(path_, pf, "more than 2^32 vertices");
       m.indices.resize(vertex_count);
@@ -626,8 +636,9 @@ class Converter {
       const std::string nf = f + ".attributes.NORMAL";
       m.normals = read_vec3(view(nrm_it->second, nf, TINYGLTF_TYPE_VEC3, {TINYGLTF_COMPONENT_TYPE_FLOAT}));
       if (m.normals.size() != vertex_count)
-        fail(path_, nf, idx("accessors", nrm_it->second) + " has " + std::to_string(m.normals.size()) +
-                            " elements, POSITION has " + std::to_string(vertex_count));
+        fail(path_, nf,
+             idx("accessors", nrm_it->second) + " has " + std::to_string(m.normals.size()) +
+                 " elements, POSITION has " + std::to_string(vertex_count));
     }
     fill_normals(m);
 

@@ -28,8 +28,8 @@ Mesh make_box() {
       const glm::vec3 v = glm::cross(n, u);
       const glm::vec3 c = 0.5f * n;
       const auto base = static_cast<uint32_t>(m.positions.size());
-      for (const glm::vec3& p : {c - 0.5f * u - 0.5f * v, c + 0.5f * u - 0.5f * v, c + 0.5f * u + 0.5f * v,
-                                 c - 0.5f * u + 0.5f * v}) {
+      for (const glm::vec3& p :
+           {c - 0.5f * u - 0.5f * v, c + 0.5f * u - 0.5f * v, c + 0.5f * u + 0.5f * v, c - 0.5f * u + 0.5f * v}) {
         m.positions.push_back(p);
         m.normals.push_back(n);
       }

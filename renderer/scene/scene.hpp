@@ -105,11 +105,11 @@ void transform_world(Scene& scene, Camera& camera, double scale, const glm::dvec
 /// its mesh's index order. This order is the one `hybridprof bvh --export-triangles` writes and the one
 /// primitive ids refer to everywhere outside the BVH.
 struct WorldGeometry {
-  std::vector<glm::vec3> positions;  ///< per vertex, world space
-  std::vector<glm::vec3> normals;    ///< per vertex, world space, normalised
-  std::vector<uint32_t> indices;     ///< 3 per triangle, into positions
-  std::vector<uint32_t> material;    ///< per triangle
-  std::vector<uint32_t> instance;    ///< per triangle: the instance it came from
+  std::vector<glm::vec3> positions;               ///< per vertex, world space
+  std::vector<glm::vec3> normals;                 ///< per vertex, world space, normalised
+  std::vector<uint32_t> indices;                  ///< 3 per triangle, into positions
+  std::vector<uint32_t> material;                 ///< per triangle
+  std::vector<uint32_t> instance;                 ///< per triangle: the instance it came from
   std::vector<uint32_t> instance_first_triangle;  ///< per instance: its first triangle (size instances+1)
 
   std::size_t triangle_count() const { return indices.size() / 3; }

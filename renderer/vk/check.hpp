@@ -13,8 +13,8 @@ const char* result_name(VkResult r);
 
 }  // namespace hp::vk
 
-#define HP_VK(call)                                                   \
-  do {                                                                \
-    VkResult hp_vk_r_ = (call);                                       \
+#define HP_VK(call)                                                                  \
+  do {                                                                               \
+    VkResult hp_vk_r_ = (call);                                                      \
     if (hp_vk_r_ != VK_SUCCESS) ::hp::vk::fail(hp_vk_r_, #call, __FILE__, __LINE__); \
   } while (0)

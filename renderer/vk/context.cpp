@@ -15,8 +15,7 @@ namespace hp::vk {
 const char* result_name(VkResult r) {
   switch (r) {
 #define HP_CASE(x) \
-  case x:          \
-    return #x;
+  case x: return #x;
     HP_CASE(VK_SUCCESS)
     HP_CASE(VK_NOT_READY)
     HP_CASE(VK_TIMEOUT)
@@ -33,8 +32,7 @@ const char* result_name(VkResult r) {
     HP_CASE(VK_ERROR_TOO_MANY_OBJECTS)
     HP_CASE(VK_ERROR_FORMAT_NOT_SUPPORTED)
 #undef HP_CASE
-    default:
-      return "VkResult(unknown)";
+    default: return "VkResult(unknown)";
   }
 }
 
@@ -169,7 +167,8 @@ VkInstance create_instance(bool validate, Context::MessageLog* log, VkDebugUtils
     }
     layers.push_back(kValidationLayer);
     extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
-    dci.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+    dci.messageSeverity =
+        VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
     dci.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
                       VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
     dci.pfnUserCallback = on_message;
@@ -292,7 +291,8 @@ Context::Context(const ContextOptions& options) {
     }
     // The watertight triangle test recomputes edge functions in double on exact zeros (Woop et al. 2013).
     if (!supported.features.shaderFloat64) {
-      throw DeviceError("Vulkan device '" + info_.name + "' lacks shaderFloat64 (the watertight ray/triangle test needs it)");
+      throw DeviceError("Vulkan device '" + info_.name +
+                        "' lacks shaderFloat64 (the watertight ray/triangle test needs it)");
     }
     VkPhysicalDeviceVulkan13Features e13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
     e13.dynamicRendering = VK_TRUE;

@@ -16,8 +16,8 @@ VkShaderModule create_shader_module(VkDevice device, std::span<const uint32_t> s
 class DescriptorSet {
  public:
   DescriptorSet() = default;
-  DescriptorSet(Context& ctx, const std::vector<VkDescriptorSetLayoutBinding>& bindings,
-                uint32_t push_constant_bytes, VkShaderStageFlags push_stages);
+  DescriptorSet(Context& ctx, const std::vector<VkDescriptorSetLayoutBinding>& bindings, uint32_t push_constant_bytes,
+                VkShaderStageFlags push_stages);
   ~DescriptorSet();
   DescriptorSet(DescriptorSet&& o) noexcept;
   DescriptorSet& operator=(DescriptorSet&& o) noexcept;

@@ -14,9 +14,10 @@ namespace {
 // that does not fit this device, so an InputError naming it, not a missing device.
 void check_fits(VkResult r, const std::string& what, VkDeviceSize bytes) {
   if (r != VK_ERROR_OUT_OF_DEVICE_MEMORY && r != VK_ERROR_OUT_OF_HOST_MEMORY) return;
-  throw InputError(what + " (" + std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB) does not fit in the device's memory (" +
-                   (r == VK_ERROR_OUT_OF_DEVICE_MEMORY ? "VK_ERROR_OUT_OF_DEVICE_MEMORY" : "VK_ERROR_OUT_OF_HOST_MEMORY") +
-                   "); a smaller resolution or scene needs less");
+  throw InputError(
+      what + " (" + std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB) does not fit in the device's memory (" +
+      (r == VK_ERROR_OUT_OF_DEVICE_MEMORY ? "VK_ERROR_OUT_OF_DEVICE_MEMORY" : "VK_ERROR_OUT_OF_HOST_MEMORY") +
+      "); a smaller resolution or scene needs less");
 }
 
 }  // namespace
@@ -32,9 +33,9 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size_bytes, VkBufferUsageFlags usage, 
   vkGetBufferMemoryRequirements(device_, buffer_, &req);
   VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
   ai.allocationSize = req.size;
-  ai.memoryTypeIndex = ctx.find_memory_type(
-      req.memoryTypeBits, host_visible ? VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT
-                                       : VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  ai.memoryTypeIndex = ctx.find_memory_type(req.memoryTypeBits, host_visible ? VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT |
+                                                                                   VK_MEMORY_PROPERTY_HOST_COHERENT_BIT
+                                                                             : VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
   VkResult r = vkAllocateMemory(device_, &ai, nullptr, &memory_);
   if (r != VK_SUCCESS) {
     reset();
@@ -107,15 +108,11 @@ uint32_t format_size_bytes(VkFormat format) {
     case VK_FORMAT_R8G8B8A8_SRGB:
     case VK_FORMAT_D32_SFLOAT:
     case VK_FORMAT_R32_SFLOAT:
-    case VK_FORMAT_R32_UINT:
-      return 4;
+    case VK_FORMAT_R32_UINT: return 4;
     case VK_FORMAT_R16G16B16A16_SFLOAT:
-    case VK_FORMAT_R32G32_SFLOAT:
-      return 8;
-    case VK_FORMAT_R32G32B32A32_SFLOAT:
-      return 16;
-    default:
-      throw std::logic_error("format_size_bytes: unhandled VkFormat " + std::to_string(format));
+    case VK_FORMAT_R32G32_SFLOAT: return 8;
+    case VK_FORMAT_R32G32B32A32_SFLOAT: return 16;
+    default: throw std::logic_error("format_size_bytes: unhandled VkFormat " + std::to_string(format));
   }
 }
 

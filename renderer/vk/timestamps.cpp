@@ -60,8 +60,8 @@ std::vector<TimestampQueries::Interval> TimestampQueries::read(Context&) const {
   std::vector<Interval> out;
   if (!pool_ || used_ == 0) return out;
   std::vector<uint64_t> ticks(used_);
-  HP_VK(vkGetQueryPoolResults(device_, pool_, 0, used_, ticks.size() * sizeof(uint64_t), ticks.data(),
-                              sizeof(uint64_t), VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
+  HP_VK(vkGetQueryPoolResults(device_, pool_, 0, used_, ticks.size() * sizeof(uint64_t), ticks.data(), sizeof(uint64_t),
+                              VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT));
   auto unwrap = [&](uint64_t t) { return unwrapped_timestamp_ns(t, ticks[0], mask_, period_ns_); };
   for (size_t p = 0; p < slots_.size(); ++p) {
     Interval iv;

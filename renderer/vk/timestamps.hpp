@@ -56,8 +56,8 @@ class TimestampQueries {
   double period_ns_ = 1.0;
   std::vector<std::string> names_;
   std::vector<std::pair<uint32_t, uint32_t>> slots_;  // per pass: begin and end query index
-  bool open_ = false;                                  // a pass is between begin() and end()
-  bool boundary_ = false;                              // the last query written was an end()
+  bool open_ = false;                                 // a pass is between begin() and end()
+  bool boundary_ = false;                             // the last query written was an end()
 };
 
 }  // namespace hp::vk

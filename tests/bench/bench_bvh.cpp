@@ -14,9 +14,9 @@
 // rtcCommitScene) and embree/trace/<scene>/... (rtcIntersect1 / rtcOccluded1). After the runs a table
 // prints ours, Embree's and ours / Embree per scene and row (medians over repetitions). disagree_per_M:
 // closest hits whose triangle differs from ours, per million rays (counted once, outside the timing).
+#include "../unit/bvh/bvh_test_scenes.hpp"
 #include "bvh/bvh.hpp"
 #include "bvh/traverse.hpp"
-#include "../unit/bvh/bvh_test_scenes.hpp"
 
 #include <benchmark/benchmark.h>
 
@@ -63,7 +63,7 @@ struct BenchScene {
   double sah_sweep = 0.0, sah_binned = 0.0, sah_largest_axis = 0.0;
   std::vector<Ray> primary, random;
 #if HP_BENCH_HAVE_EMBREE
-  RTCScene embree = nullptr;  // medium quality, robust: what embree/trace/* traces
+  RTCScene embree = nullptr;                             // medium quality, robust: what embree/trace/* traces
   double disagree_primary = 0.0, disagree_random = 0.0;  // per million rays, closest hit
 #endif
 };
@@ -272,7 +272,8 @@ void build_bench(benchmark::State& state, const BenchScene* s, int threads, bool
     state.ResumeTiming();
   }
   const double iters = static_cast<double>(state.iterations());
-  state.counters["Mtri/s"] = benchmark::Counter(static_cast<double>(s->tris.size()) * iters / 1e6, benchmark::Counter::kIsRate);
+  state.counters["Mtri/s"] =
+      benchmark::Counter(static_cast<double>(s->tris.size()) * iters / 1e6, benchmark::Counter::kIsRate);
   state.counters["triangles"] = static_cast<double>(s->tris.size());
   state.counters["sah"] = sah;
   state.counters["sah_vs_sweep_%"] = 100.0 * (sah / s->sah_sweep - 1.0);
@@ -293,7 +294,8 @@ void trace_bench(benchmark::State& state, const BenchScene* s, bool primary, boo
     benchmark::DoNotOptimize(hits);
   }
   const double n = static_cast<double>(rays.size());
-  state.counters["Mrays/s"] = benchmark::Counter(n * static_cast<double>(state.iterations()) / 1e6, benchmark::Counter::kIsRate);
+  state.counters["Mrays/s"] =
+      benchmark::Counter(n * static_cast<double>(state.iterations()) / 1e6, benchmark::Counter::kIsRate);
   state.counters["nodes/ray"] = static_cast<double>(ts.nodes_visited) / n;
   state.counters["tris/ray"] = static_cast<double>(ts.triangles_tested) / n;
   state.counters["hit_%"] = 100.0 * static_cast<double>(hits) / n;
@@ -308,7 +310,8 @@ void embree_build_bench(benchmark::State& state, const BenchScene* s, RTCBuildQu
     state.ResumeTiming();
   }
   const double iters = static_cast<double>(state.iterations());
-  state.counters["Mtri/s"] = benchmark::Counter(static_cast<double>(s->tris.size()) * iters / 1e6, benchmark::Counter::kIsRate);
+  state.counters["Mtri/s"] =
+      benchmark::Counter(static_cast<double>(s->tris.size()) * iters / 1e6, benchmark::Counter::kIsRate);
   state.counters["triangles"] = static_cast<double>(s->tris.size());
 }
 
@@ -332,7 +335,8 @@ void embree_trace_bench(benchmark::State& state, const BenchScene* s, bool prima
     benchmark::DoNotOptimize(hits);
   }
   const double n = static_cast<double>(rays.size());
-  state.counters["Mrays/s"] = benchmark::Counter(n * static_cast<double>(state.iterations()) / 1e6, benchmark::Counter::kIsRate);
+  state.counters["Mrays/s"] =
+      benchmark::Counter(n * static_cast<double>(state.iterations()) / 1e6, benchmark::Counter::kIsRate);
   state.counters["hit_%"] = 100.0 * static_cast<double>(hits) / n;
   if (!any) state.counters["disagree_per_M"] = primary ? s->disagree_primary : s->disagree_random;
 }
@@ -350,7 +354,7 @@ std::map<std::string, PairKey>& pair_keys() {
 
 /// The console output plus, at the end, ours vs Embree per row: medians of the runs' rate counters.
 class RatioReporter : public benchmark::ConsoleReporter {
-public:
+ public:
   void ReportRuns(const std::vector<Run>& runs) override {
     ConsoleReporter::ReportRuns(runs);
     for (const Run& run : runs) {
@@ -379,7 +383,7 @@ public:
     }
   }
 
-private:
+ private:
   static double median(std::vector<double> v) {
     std::sort(v.begin(), v.end());
     const std::size_t n = v.size();
@@ -416,21 +420,24 @@ int main(int argc, char** argv) {
     // Single-thread builds report CPU time (robust to other load on the machine); threaded ones wall time.
     benchmark::RegisterBenchmark(("build/" + s->name + "/threads:1").c_str(), build_bench, s, 1, false)
         ->Unit(benchmark::kMillisecond);
-    benchmark::RegisterBenchmark(("build/" + s->name + "/threads:" + std::to_string(all)).c_str(), build_bench, s, all, false)
+    benchmark::RegisterBenchmark(("build/" + s->name + "/threads:" + std::to_string(all)).c_str(), build_bench, s, all,
+                                 false)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
-    benchmark::RegisterBenchmark(("build_full_sweep/" + s->name + "/threads:" + std::to_string(all)).c_str(), build_bench, s,
-                                 all, true)
+    benchmark::RegisterBenchmark(("build_full_sweep/" + s->name + "/threads:" + std::to_string(all)).c_str(),
+                                 build_bench, s, all, true)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime()
         ->Iterations(1);
     for (const bool primary : {true, false}) {
       for (const bool any : {false, true}) {
-        const std::string name = std::string("trace/") + s->name + (primary ? "/primary" : "/random") + (any ? "/any" : "/closest");
+        const std::string name =
+            std::string("trace/") + s->name + (primary ? "/primary" : "/random") + (any ? "/any" : "/closest");
         benchmark::RegisterBenchmark(name.c_str(), trace_bench, s, primary, any)->Unit(benchmark::kMillisecond);
 #if HP_BENCH_HAVE_EMBREE
         const std::string theirs = "embree/" + name;
-        benchmark::RegisterBenchmark(theirs.c_str(), embree_trace_bench, s, primary, any)->Unit(benchmark::kMillisecond);
+        benchmark::RegisterBenchmark(theirs.c_str(), embree_trace_bench, s, primary, any)
+            ->Unit(benchmark::kMillisecond);
         pair_keys()[name] = PairKey{name, "", "Mrays/s"};
         pair_keys()[theirs] = PairKey{name, "embree", "Mrays/s"};
 #endif
@@ -439,7 +446,8 @@ int main(int argc, char** argv) {
 #if HP_BENCH_HAVE_EMBREE
     const std::string ours_build = "build/" + s->name + "/threads:1";
     pair_keys()[ours_build] = PairKey{"build/" + s->name + "/threads:1", "", "Mtri/s"};
-    for (const auto& [quality, label] : {std::pair{RTC_BUILD_QUALITY_MEDIUM, "medium"}, std::pair{RTC_BUILD_QUALITY_HIGH, "high"}}) {
+    for (const auto& [quality, label] :
+         {std::pair{RTC_BUILD_QUALITY_MEDIUM, "medium"}, std::pair{RTC_BUILD_QUALITY_HIGH, "high"}}) {
       const std::string name = std::string("embree/build_") + label + "/" + s->name + "/threads:1";
       benchmark::RegisterBenchmark(name.c_str(), embree_build_bench, s, quality)->Unit(benchmark::kMillisecond);
       pair_keys()[name] = PairKey{ours_build, std::string("embree ") + label, "Mtri/s"};

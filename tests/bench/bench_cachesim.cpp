@@ -66,7 +66,7 @@ struct Fixture {
   hp::trace::Trace trace;
   Preset preset;
   std::vector<std::pair<uint32_t, Request>> requests;  // coalesced, in issue order
-  std::vector<uint64_t> l2_lines;                       // the L2's request stream
+  std::vector<uint64_t> l2_lines;                      // the L2's request stream
   // The same requests and their CUs as two arrays, the way Simulator::run_pass hands them to
   // Hierarchy::issue(span, cus, out).
   std::vector<Request> flat;
@@ -146,8 +146,9 @@ void Hierarchy_L1L2(benchmark::State& state) {
   state.counters["lane_accesses"] =
       benchmark::Counter(double(f.trace.records[0].size()), benchmark::Counter::kIsIterationInvariantRate);
   state.SetLabel(state.range(0) == 0 ? "one by one"
-                 : state.range(0) == 1 ? (h_avx2() ? "batched, as the simulator issues (AVX2 L2)" : "batched, as the simulator issues")
-                                       : "batched, portable L2 code");
+                 : state.range(0) == 1
+                     ? (h_avx2() ? "batched, as the simulator issues (AVX2 L2)" : "batched, as the simulator issues")
+                     : "batched, portable L2 code");
 }
 BENCHMARK(Hierarchy_L1L2)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
@@ -236,7 +237,9 @@ void EndToEnd(benchmark::State& state) {
   }
   state.SetItemsProcessed(int64_t(state.iterations() * f.trace.records[0].size()));
   state.counters["lane_accesses"] = double(f.trace.records[0].size());
-  state.SetLabel(so.per_invocation ? "with per-invocation counts" : so.l2_mrc ? "totals + exact L1 and L2 curves" : "totals only");
+  state.SetLabel(so.per_invocation ? "with per-invocation counts"
+                 : so.l2_mrc       ? "totals + exact L1 and L2 curves"
+                                   : "totals only");
 }
 BENCHMARK(EndToEnd)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
@@ -247,7 +250,8 @@ struct Files {
   uint64_t din_records = 0;
   Files() {
     const Fixture& f = fixture();
-    const std::string tmp = std::filesystem::temp_directory_path().string() + "/hp_bench_cachesim_" + std::to_string(::getpid());
+    const std::string tmp =
+        std::filesystem::temp_directory_path().string() + "/hp_bench_cachesim_" + std::to_string(::getpid());
     if (const char* t = std::getenv("HP_BENCH_TRACE")) {
       trace_path = t;
     } else {
@@ -297,7 +301,8 @@ void TraceFileRead(benchmark::State& state) {
     hp::trace::TraceReader reader(fs.trace_path);
     records = 0;
     for (uint32_t p = 0; p < reader.passes().size(); ++p)
-      reader.read_slices(p, [&](std::span<const hp::trace::TraceRecord> r, uint64_t, uint64_t) { records += r.size(); });
+      reader.read_slices(p,
+                         [&](std::span<const hp::trace::TraceRecord> r, uint64_t, uint64_t) { records += r.size(); });
     benchmark::DoNotOptimize(records);
   }
   state.SetItemsProcessed(int64_t(state.iterations() * records));

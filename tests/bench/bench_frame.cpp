@@ -59,7 +59,7 @@ struct Setup {
   std::vector<bvh::Ray> rays;  // the rays the GPU cast in this pass (from a dumped frame)
   double nodes_per_ray = 0, tris_per_ray = 0;
   double node_lane_use = 0, tri_lane_use = 0;  // the SIMD lane-use model above
-  std::unique_ptr<RayBatchTracer> batch;        // the rays uploaded for Trace/*, on first use
+  std::unique_ptr<RayBatchTracer> batch;       // the rays uploaded for Trace/*, on first use
 };
 
 // The work per ray and the lane-use model, from the dumped cells (row-major, width a multiple of 8 lanes
@@ -186,8 +186,8 @@ void cpu_pass(benchmark::State& state, const std::string& spec, Pass pass) {
 std::vector<std::string> scenes() {
   std::vector<std::string> out = {"builtin:pica"};
   const std::filesystem::path root = std::filesystem::path(HP_SHARED_DIR) / "scenes";
-  for (const char* f : {"DamagedHelmet/DamagedHelmet.gltf", "WaterBottle/WaterBottle.gltf", "Balloon/scene.gltf",
-                        "Pine/scene.gltf"}) {
+  for (const char* f :
+       {"DamagedHelmet/DamagedHelmet.gltf", "WaterBottle/WaterBottle.gltf", "Balloon/scene.gltf", "Pine/scene.gltf"}) {
     if (std::filesystem::exists(root / f)) out.push_back((root / f).string());
   }
   return out;

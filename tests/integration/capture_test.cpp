@@ -4,17 +4,17 @@
 #include "vulkan_env.hpp"
 
 #include "cache_analysis.hpp"
-#include "gpu/trace_buffers.h"
 #include "error.hpp"
 #include "frame.hpp"
+#include "gpu/trace_buffers.h"
 #include "scene/load.hpp"
 
 #include <algorithm>
 #include <cstring>
-#include <map>
-#include <tuple>
 #include <filesystem>
+#include <map>
 #include <set>
+#include <tuple>
 
 namespace hp {
 namespace {
@@ -274,8 +274,8 @@ TEST(Capture, CompactionSubPassesAreTracedWithoutLosingRays) {
   // buffers; each of its dispatches is a traced pass of its own.
   std::vector<std::string> names;
   for (const auto& p : big.passes) names.push_back(p.pass);
-  ASSERT_EQ(names, (std::vector<std::string>{"compact", "sort_histogram_0", "sort_scan_0", "sort_scatter_0", "sort_copy",
-                                             "consume"}));
+  ASSERT_EQ(names, (std::vector<std::string>{"compact", "sort_histogram_0", "sort_scan_0", "sort_scatter_0",
+                                             "sort_copy", "consume"}));
   EXPECT_EQ(plain.captured_pass_names(CaptureOptions{}), names) << "what a command checks names against";
   const auto& consume = big.passes.back();
   EXPECT_EQ(consume.workgroups, (rays + 63) / 64) << "one consume thread per compacted ray";

@@ -58,12 +58,12 @@ void expect_bad_input(const CmdResult& r, const std::string& what) {
 bool have_vulkan() { return run("devices").code == 0; }
 
 // Skips a test without a Vulkan device, or fails it where HP_TESTS_REQUIRE_VULKAN=1 (scripts/test under CI).
-#define HP_CLI_REQUIRE_VULKAN()                                                                    \
-  do {                                                                                             \
-    if (have_vulkan()) break;                                                                      \
-    const char* hp_req_ = std::getenv("HP_TESTS_REQUIRE_VULKAN");                                  \
+#define HP_CLI_REQUIRE_VULKAN()                                                                       \
+  do {                                                                                                \
+    if (have_vulkan()) break;                                                                         \
+    const char* hp_req_ = std::getenv("HP_TESTS_REQUIRE_VULKAN");                                     \
     if (hp_req_ && std::string(hp_req_) == "1") GTEST_FAIL() << "no Vulkan device: `devices` failed"; \
-    GTEST_SKIP() << "no Vulkan device";                                                            \
+    GTEST_SKIP() << "no Vulkan device";                                                               \
   } while (0)
 
 TEST(Cli, HelpListsSubcommands) {
@@ -84,7 +84,8 @@ TEST(Cli, RenderWritesPngAndAov) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_TRUE(fs::exists(d / "z.exr"));
   // No temporary files left beside the outputs.
-  for (const auto& e : fs::directory_iterator(d)) EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos);
+  for (const auto& e : fs::directory_iterator(d))
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos);
   fs::remove_all(d);
 }
 
@@ -94,7 +95,8 @@ TEST(Cli, HostTimingSaysSoAndLabelsTheTimes) {
   CmdResult r = run("render --scene builtin:cornell --width 32 --height 24 --frames 2 --host-timing --out " +
                     (d / "c.png").string());
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("hybridprof: passes timed on the host as asked (--host-timing)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("hybridprof: passes timed on the host as asked (--host-timing)"), std::string::npos)
+      << r.output;
   EXPECT_NE(r.output.find("measured frames (cpu-wall)"), std::string::npos) << r.output;
   r = run("render --scene builtin:cornell --width 32 --height 24 --frames 2 --out " + (d / "c.png").string());
   ASSERT_EQ(r.code, 0) << r.output;
@@ -126,8 +128,10 @@ TEST(Cli, CachesimExportsOneComputeUnitOrNamesTheLimitAndWritesNothing) {
   EXPECT_GT(lines, 0u);
   EXPECT_FALSE(hp::atomic_temporary_exists(din));
   // The sort's dispatches are traced passes too: `trace` can export one (checked before the capture).
-  r = run("trace --scene builtin:cornell --width 32 --height 24 --reflection-path compact --sort octant --passes reflections "
-          "--out " + trace.string() + " --export-din " + (d / "sort.din").string() + " --din-pass sort_scatter_0");
+  r = run(
+      "trace --scene builtin:cornell --width 32 --height 24 --reflection-path compact --sort octant --passes reflections "
+      "--out " +
+      trace.string() + " --export-din " + (d / "sort.din").string() + " --din-pass sort_scatter_0");
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("pass sort_scatter_0"), std::string::npos) << r.output;
   EXPECT_TRUE(fs::exists(d / "sort.din"));
@@ -150,10 +154,10 @@ TEST(Cli, BvhGpuCastsTheRaysAndAgreesWithTheReference) {
     const float nan = std::numeric_limits<float>::quiet_NaN();
     for (int i = 0; i < 1000; ++i) {
       float r[8] = {next() * 2 - 1, next() * 2 - 1, next() * 2 - 1, 0.0f,
-                    next() - 0.5f, next() - 0.5f, next() - 0.5f, 1e30f};
-      if (i % 10 == 1) r[4] = r[5] = 0.0f;           // along z
-      if (i % 10 == 2) r[4] = -0.0f, r[6] = 0.0f;    // along y, signed zeros
-      if (i == 3) r[5] = nan;                        // never hits
+                    next() - 0.5f,  next() - 0.5f,  next() - 0.5f,  1e30f};
+      if (i % 10 == 1) r[4] = r[5] = 0.0f;         // along z
+      if (i % 10 == 2) r[4] = -0.0f, r[6] = 0.0f;  // along y, signed zeros
+      if (i == 3) r[5] = nan;                      // never hits
       f.write(reinterpret_cast<const char*>(r), sizeof(r));
     }
   }
@@ -161,7 +165,8 @@ TEST(Cli, BvhGpuCastsTheRaysAndAgreesWithTheReference) {
     const CmdResult r = run("bvh --scene builtin:cornell --rays " + rays.string() + " --hits " +
                             (dir / "hits.bin").string() + " --gpu " + extra);
     EXPECT_EQ(r.code, 0) << extra << "\n" << r.output;
-    EXPECT_NE(r.output.find("gpu vs reference: 1000 of 1000 rays equal"), std::string::npos) << extra << "\n" << r.output;
+    EXPECT_NE(r.output.find("gpu vs reference: 1000 of 1000 rays equal"), std::string::npos) << extra << "\n"
+                                                                                             << r.output;
     EXPECT_NE(r.output.find("by timestamps"), std::string::npos) << extra << "\n" << r.output;
   }
   fs::remove_all(dir);
@@ -239,7 +244,8 @@ TEST(Cli, OutputsAndOptionsAreCheckedBeforeAnyWork) {
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_EQ(line_count(r.output), 1u) << r.output;
   EXPECT_NE(r.output.find("--timings " + under_file + ": " + (d / "afile").string() + " is not a folder"),
-            std::string::npos) << r.output;
+            std::string::npos)
+      << r.output;
   EXPECT_FALSE(fs::exists(d / "f.png")) << "the image was written before the bad --timings path was noticed";
   // A special file is never replaced (a FIFO here; /dev/null in the audit).
   const fs::path fifo = d / "fifo";
@@ -257,10 +263,11 @@ TEST(Cli, OutputsAndOptionsAreCheckedBeforeAnyWork) {
   expect_bad_input(r, "--timings excludes --cpu-reference");
   // trace: a bad --image, an export of a pass that is not traced, an absurd frame count: no trace file.
   const std::string trace = (d / "t.hptrace").string();
-  for (const std::string& bad : {std::string("--image x.jpg"), std::string("--passes shadows --export-din d.din --din-pass reflections"),
-                                 std::string("--frames-before 4294967295"), std::string("--preset h100"),
-                                 // the compaction path traces passes named compact and consume
-                                 std::string("--reflection-path compact --passes reflections --export-din d.din --din-pass reflections")}) {
+  for (const std::string& bad :
+       {std::string("--image x.jpg"), std::string("--passes shadows --export-din d.din --din-pass reflections"),
+        std::string("--frames-before 4294967295"), std::string("--preset h100"),
+        // the compaction path traces passes named compact and consume
+        std::string("--reflection-path compact --passes reflections --export-din d.din --din-pass reflections")}) {
     r = run("trace --scene builtin:cornell --width 32 --height 24 --out " + trace + " " + bad);
     EXPECT_EQ(r.code, 2) << bad << ": " << r.output;
     EXPECT_EQ(line_count(r.output), 1u) << r.output;
@@ -292,7 +299,7 @@ TEST(Cli, UnknownSubcommandAndOptionsOfAnotherModeAreNamed) {
 TEST(Cli, NoVulkanDeviceIsExit3WithHowToInstall) {
   // An ICD list that names no existing driver: the loader finds no device.
   CmdResult r = run("render --scene builtin:cornell --width 8 --height 8 --out /tmp/never.png",
-              "VK_ICD_FILENAMES=/nonexistent/icd.json VK_DRIVER_FILES=/nonexistent/icd.json");
+                    "VK_ICD_FILENAMES=/nonexistent/icd.json VK_DRIVER_FILES=/nonexistent/icd.json");
   EXPECT_EQ(r.code, 3) << r.output;
   EXPECT_EQ(line_count(r.output), 1u) << r.output;
   EXPECT_NE(r.output.find("mesa-vulkan-drivers"), std::string::npos) << r.output;

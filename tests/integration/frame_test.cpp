@@ -61,8 +61,8 @@ TEST(Frame, SharedScenes) {
   const std::filesystem::path root = std::filesystem::path(HP_SHARED_DIR) / "scenes";
   if (!std::filesystem::exists(root)) GTEST_SKIP() << root << " is absent";
   int n = 0;
-  for (const char* f : {"DamagedHelmet/DamagedHelmet.gltf", "WaterBottle/WaterBottle.gltf", "Balloon/scene.gltf",
-                        "Pine/scene.gltf"}) {
+  for (const char* f :
+       {"DamagedHelmet/DamagedHelmet.gltf", "WaterBottle/WaterBottle.gltf", "Balloon/scene.gltf", "Pine/scene.gltf"}) {
     if (!std::filesystem::exists(root / f)) continue;
     SCOPED_TRACE(f);
     render_and_check((root / f).string(), 160, 120);

@@ -15,8 +15,8 @@ namespace hp {
 namespace {
 
 struct Plane {
-  int axis;       // 0 x, 1 y, 2 z
-  float value;    // the plane is p[axis] == value
+  int axis;     // 0 x, 1 y, 2 z
+  float value;  // the plane is p[axis] == value
   glm::vec3 normal;
 };
 
@@ -26,8 +26,11 @@ std::optional<std::pair<glm::vec3, glm::vec3>> analytic_hit(const View& view, ui
   const glm::vec3 far_point = unproject(view, float(x), float(y), w, h, view.reversed_z ? 0.0f : 1.0f);
   const glm::vec3 d = glm::normalize(far_point - eye);
   using namespace cornell;
-  const Plane planes[] = {{1, kFloorY, {0, 1, 0}},  {1, kCeilingY, {0, -1, 0}}, {2, kBackZ, {0, 0, 1}},
-                          {0, kLeftX, {1, 0, 0}},   {0, kRightX, {-1, 0, 0}}};
+  const Plane planes[] = {{1, kFloorY, {0, 1, 0}},
+                          {1, kCeilingY, {0, -1, 0}},
+                          {2, kBackZ, {0, 0, 1}},
+                          {0, kLeftX, {1, 0, 0}},
+                          {0, kRightX, {-1, 0, 0}}};
   float best = INFINITY;
   std::optional<std::pair<glm::vec3, glm::vec3>> hit;
   for (const Plane& p : planes) {

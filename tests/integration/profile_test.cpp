@@ -53,7 +53,8 @@ TEST(Profile, RealRunGivesNestedTimelineAndStableCounters) {
   // Reflection work varies with the per-frame jitter offset, so only its presence is checked.
   const auto& frames = t.measured();
   for (const auto& f : frames) {
-    EXPECT_EQ(f.counters.get("shadows", counter::nodes_visited), frames[0].counters.get("shadows", counter::nodes_visited));
+    EXPECT_EQ(f.counters.get("shadows", counter::nodes_visited),
+              frames[0].counters.get("shadows", counter::nodes_visited));
     EXPECT_EQ(f.counters.get("shadows", counter::rays_cast), frames[0].counters.get("shadows", counter::rays_cast));
     EXPECT_GT(f.counters.get("reflections", counter::rays_cast), 0u);
   }

@@ -30,8 +30,7 @@ struct Sorted {
 
 // Uploads `keys` (padded with `pad_keys` up to `capacity`) and values = index (padding values = a
 // sentinel), sorts `count` of them on the GPU (the count lives in a GPU buffer), reads everything back.
-Sorted gpu_sort(vk::Context& ctx, std::vector<uint32_t> keys, uint32_t key_bits, uint32_t count,
-                uint32_t capacity) {
+Sorted gpu_sort(vk::Context& ctx, std::vector<uint32_t> keys, uint32_t key_bits, uint32_t count, uint32_t capacity) {
   keys.resize(capacity, 0xDEADBEEFu);
   std::vector<uint32_t> values(capacity);
   std::iota(values.begin(), values.end(), 0u);
@@ -125,9 +124,7 @@ TEST(RadixSort, IgnoresBitsAboveKeyBits) {
   check(random_keys(20'000, 98, 32), 16);
 }
 
-TEST(RadixSort, OneMillionKeys) {
-  check(random_keys(1'000'003, 7, 30), 30);
-}
+TEST(RadixSort, OneMillionKeys) { check(random_keys(1'000'003, 7, 30), 30); }
 
 // The count comes from the GPU buffer: a capacity-sized sorter and buffers, a smaller live count.
 TEST(RadixSort, CountFromGpuBufferSmallerThanCapacity) {

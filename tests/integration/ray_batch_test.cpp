@@ -78,21 +78,21 @@ std::vector<bvh::Ray> test_rays(const RtGeometry& g, size_t random_count) {
   }
   const glm::vec3 o = centre + glm::vec3(0.0f, 0.0f, radius);
   const glm::vec3 d = glm::vec3(0.01f, -0.02f, -1.0f);
-  rays.push_back({o, 0.0f, glm::vec3(0.0f), 3.402823466e+38f});     // zero direction
-  rays.push_back({o, 0.0f, glm::vec3(-0.0f), 3.402823466e+38f});    // negative zeros
-  rays.push_back({o, 0.0f, glm::vec3(kNaN, 0.0f, -1.0f), 1e30f});   // NaN direction
-  rays.push_back({o, 0.0f, glm::vec3(0.0f, kInf, -1.0f), 1e30f});   // infinite direction
-  rays.push_back({glm::vec3(kNaN), 0.0f, d, 1e30f});                // NaN origin
-  rays.push_back({glm::vec3(kInf, 0.0f, 0.0f), 0.0f, d, 1e30f});    // infinite origin
-  rays.push_back({o, kNaN, d, 1e30f});                              // NaN tmin
-  rays.push_back({o, 0.0f, d, kNaN});                               // NaN tmax
-  rays.push_back({o, 5.0f, d, 1.0f});                               // tmin > tmax
-  rays.push_back({o, 0.0f, d, 0.0f});                               // empty segment at the origin
-  rays.push_back({o, 0.0f, d, kInf});                               // infinite tmax
-  rays.push_back({o, -kInf, d, kInf});                              // the whole line
-  rays.push_back({o, 0.0f, d * 1e-30f, 3.402823466e+38f});          // tiny direction
-  rays.push_back({o, 0.0f, d * 1e30f, 3.402823466e+38f});           // huge direction
-  rays.push_back({o * 1e6f, 0.0f, -o, 3.402823466e+38f});           // far away, aimed back at the scene
+  rays.push_back({o, 0.0f, glm::vec3(0.0f), 3.402823466e+38f});    // zero direction
+  rays.push_back({o, 0.0f, glm::vec3(-0.0f), 3.402823466e+38f});   // negative zeros
+  rays.push_back({o, 0.0f, glm::vec3(kNaN, 0.0f, -1.0f), 1e30f});  // NaN direction
+  rays.push_back({o, 0.0f, glm::vec3(0.0f, kInf, -1.0f), 1e30f});  // infinite direction
+  rays.push_back({glm::vec3(kNaN), 0.0f, d, 1e30f});               // NaN origin
+  rays.push_back({glm::vec3(kInf, 0.0f, 0.0f), 0.0f, d, 1e30f});   // infinite origin
+  rays.push_back({o, kNaN, d, 1e30f});                             // NaN tmin
+  rays.push_back({o, 0.0f, d, kNaN});                              // NaN tmax
+  rays.push_back({o, 5.0f, d, 1.0f});                              // tmin > tmax
+  rays.push_back({o, 0.0f, d, 0.0f});                              // empty segment at the origin
+  rays.push_back({o, 0.0f, d, kInf});                              // infinite tmax
+  rays.push_back({o, -kInf, d, kInf});                             // the whole line
+  rays.push_back({o, 0.0f, d * 1e-30f, 3.402823466e+38f});         // tiny direction
+  rays.push_back({o, 0.0f, d * 1e30f, 3.402823466e+38f});          // huge direction
+  rays.push_back({o * 1e6f, 0.0f, -o, 3.402823466e+38f});          // far away, aimed back at the scene
   return rays;
 }
 
@@ -175,8 +175,8 @@ TEST(RayBatch, TheTimestampsBracketTheDispatch) {
   tracer.trace(*ctx, bvh::HitMode::closest);  // warm-up
   const auto t0 = std::chrono::steady_clock::now();
   const uint64_t gpu_ns = tracer.trace(*ctx, bvh::HitMode::closest);
-  const double host_ns = double(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                    std::chrono::steady_clock::now() - t0).count());
+  const double host_ns =
+      double(std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count());
   if (!ctx->info().timestamp_valid_bits) GTEST_SKIP() << "no timestamps on this queue";
   std::printf("trace of %zu rays: %.3f ms by timestamps, %.3f ms on the host\n", rays.size(), gpu_ns * 1e-6,
               host_ns * 1e-6);

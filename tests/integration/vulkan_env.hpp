@@ -21,21 +21,23 @@ vk::Context* vulkan_context(std::string* why_not = nullptr);
 
 /// Skips the current test when there is no Vulkan device.
 // clang-format off: clang-format 14 breaks the struct declared at the macro's end
-#define HP_REQUIRE_VULKAN(ctx_var)                                        \
-  std::string hp_why_;                                                    \
-  ::hp::vk::Context* ctx_var = ::hp::test::vulkan_context(&hp_why_);      \
-  if (!ctx_var && ::hp::test::vulkan_required())                          \
+#define HP_REQUIRE_VULKAN(ctx_var)                                               \
+  std::string hp_why_;                                                           \
+  ::hp::vk::Context* ctx_var = ::hp::test::vulkan_context(&hp_why_);             \
+  if (!ctx_var && ::hp::test::vulkan_required())                                 \
     GTEST_FAIL() << "no Vulkan device (HP_TESTS_REQUIRE_VULKAN=1): " << hp_why_; \
-  if (!ctx_var) GTEST_SKIP() << "no Vulkan device: " << hp_why_;         \
-  const uint64_t hp_msgs_before_ = ctx_var->validation_message_count();   \
-  struct HpValidationCheck_ {                                             \
-    ::hp::vk::Context* c;                                                 \
-    uint64_t before;                                                      \
-    ~HpValidationCheck_() {                                               \
-      EXPECT_EQ(c->validation_message_count(), before)                    \
-          << "validation messages; last: " << c->last_validation_message(); \
-    }                                                                     \
-  } hp_validation_check_{ctx_var, hp_msgs_before_}
+  if (!ctx_var) GTEST_SKIP() << "no Vulkan device: " << hp_why_;                 \
+  const uint64_t hp_msgs_before_ = ctx_var->validation_message_count();          \
+  struct HpValidationCheck_ {                                                    \
+    ::hp::vk::Context* c;                                                        \
+    uint64_t before;                                                             \
+    ~HpValidationCheck_() {                                                      \
+      EXPECT_EQ(c->validation_message_count(), before)                           \
+          << "validation messages; last: " << c->last_validation_message();      \
+    }                                                                            \
+  } hp_validation_check_ {                                                       \
+    ctx_var, hp_msgs_before_                                                     \
+  }
 // clang-format on
 
 }  // namespace hp::test

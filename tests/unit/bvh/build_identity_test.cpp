@@ -59,8 +59,8 @@ std::string hex(uint64_t h) {
 void expect_pinned(const char* what, const Bvh& b, const Pinned& want) {
   EXPECT_EQ(b.nodes.size(), want.nodes) << what;
   EXPECT_EQ(b.depth_limited_splits, want.depth_limited) << what;
-  EXPECT_EQ(hex(tree_hash(b)), hex(want.hash)) << what << " (nodes " << b.nodes.size() << ", depth-limited splits "
-                                              << b.depth_limited_splits << ")";
+  EXPECT_EQ(hex(tree_hash(b)), hex(want.hash))
+      << what << " (nodes " << b.nodes.size() << ", depth-limited splits " << b.depth_limited_splits << ")";
 }
 
 BuildOptions with_threads(int threads) {
@@ -74,19 +74,22 @@ TEST(BvhBuildIdentity, ProceduralScenesBuildThePinnedTrees) {
   const auto sphere = uv_sphere(300, 400).triangles();
   for (const int threads : {1, 2, 3, 8}) {
     const Pinned want{286607, 0, 0x53d1155c800e1dc0ull};
-    expect_pinned(("sphere threads " + std::to_string(threads)).c_str(), build_bvh(sphere, with_threads(threads)), want);
+    expect_pinned(("sphere threads " + std::to_string(threads)).c_str(), build_bvh(sphere, with_threads(threads)),
+                  want);
   }
   {
     BuildOptions o;
     o.all_axes = false;
-    expect_pinned("terrain largest axis", build_bvh(terrain(150).triangles(), o), Pinned{54765, 0, 0x223054e7d2d6a478ull});
+    expect_pinned("terrain largest axis", build_bvh(terrain(150).triangles(), o),
+                  Pinned{54765, 0, 0x223054e7d2d6a478ull});
   }
   {
     BuildOptions o;
     o.buckets = 32;
     o.max_leaf_size = 1;
     o.threads = 2;
-    expect_pinned("soup 32 buckets leaf 1", build_bvh(random_soup(50000, 9), o), Pinned{99999, 0, 0x727535b226de0647ull});
+    expect_pinned("soup 32 buckets leaf 1", build_bvh(random_soup(50000, 9), o),
+                  Pinned{99999, 0, 0x727535b226de0647ull});
   }
   {
     BuildOptions o;
@@ -99,7 +102,8 @@ TEST(BvhBuildIdentity, ProceduralScenesBuildThePinnedTrees) {
     // Exponential clusters under a tight depth bound: the median-split fallback and its counter.
     BuildOptions o;
     o.max_depth = 16;
-    expect_pinned("clusters depth 16", build_bvh(exponential_clusters(-20, 20, 500, 5), o), Pinned{19709, 1254, 0x135d55557eeebf2cull});
+    expect_pinned("clusters depth 16", build_bvh(exponential_clusters(-20, 20, 500, 5), o),
+                  Pinned{19709, 1254, 0x135d55557eeebf2cull});
   }
   {
     // Coincident centroids: no axis can be binned, count splits only.
@@ -156,14 +160,18 @@ TEST(BvhBuildIdentity, BuiltinScenesBuildThePinnedTrees) {
   expect_pinned("sphere-1m threads 2", build_bvh(sphere, with_threads(2)), Pinned{1155631, 0, 0x97d6d399854a0b9dull});
   expect_pinned("terrain-1m", build_bvh(scene_triangles("builtin:terrain-1m"), with_threads(2)),
                 Pinned{1043661, 0, 0x996888922b234ec2ull});
-  expect_pinned("pica", build_bvh(scene_triangles("builtin:pica"), BuildOptions{}), Pinned{69227, 0, 0x6db8123d3ae98ffdull});
+  expect_pinned("pica", build_bvh(scene_triangles("builtin:pica"), BuildOptions{}),
+                Pinned{69227, 0, 0x6db8123d3ae98ffdull});
 }
 
 TEST(BvhBuildIdentity, SharedScenesBuildThePinnedTrees) {
   const std::filesystem::path root = std::filesystem::path(HP_SHARED_DIR) / "scenes";
-  const std::filesystem::path balloon = root / "Balloon" / "scene.gltf", helmet = root / "DamagedHelmet" / "DamagedHelmet.gltf";
-  if (!std::filesystem::exists(balloon) || !std::filesystem::exists(helmet)) GTEST_SKIP() << root << ": scenes not found";
-  expect_pinned("Balloon", build_bvh(scene_triangles(balloon.string()), BuildOptions{}), Pinned{37999, 0, 0xb2b85552d62c9ff4ull});
+  const std::filesystem::path balloon = root / "Balloon" / "scene.gltf",
+                              helmet = root / "DamagedHelmet" / "DamagedHelmet.gltf";
+  if (!std::filesystem::exists(balloon) || !std::filesystem::exists(helmet))
+    GTEST_SKIP() << root << ": scenes not found";
+  expect_pinned("Balloon", build_bvh(scene_triangles(balloon.string()), BuildOptions{}),
+                Pinned{37999, 0, 0xb2b85552d62c9ff4ull});
   expect_pinned("DamagedHelmet", build_bvh(scene_triangles(helmet.string()), BuildOptions{}),
                 Pinned{20459, 0, 0xfa4e737639afdc5dull});
 }

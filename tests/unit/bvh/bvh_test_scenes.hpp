@@ -31,8 +31,8 @@ inline IndexedMesh uv_sphere(int stacks, int slices, float radius = 1.0f, glm::v
     const float phi = pi * static_cast<float>(i) / static_cast<float>(stacks);
     for (int j = 0; j < slices; ++j) {
       const float theta = 2.0f * pi * static_cast<float>(j) / static_cast<float>(slices);
-      m.positions.push_back(center + radius * glm::vec3(std::sin(phi) * std::cos(theta), std::cos(phi),
-                                                        std::sin(phi) * std::sin(theta)));
+      m.positions.push_back(
+          center + radius * glm::vec3(std::sin(phi) * std::cos(theta), std::cos(phi), std::sin(phi) * std::sin(theta)));
     }
   }
   m.positions.push_back(center + glm::vec3(0, -radius, 0));
@@ -45,7 +45,8 @@ inline IndexedMesh uv_sphere(int stacks, int slices, float radius = 1.0f, glm::v
       m.indices.insert(m.indices.end(), {a, b, d, a, d, c});
     }
   }
-  for (int j = 0; j < slices; ++j) m.indices.insert(m.indices.end(), {south, ring(stacks - 1, j), ring(stacks - 1, j + 1)});
+  for (int j = 0; j < slices; ++j)
+    m.indices.insert(m.indices.end(), {south, ring(stacks - 1, j), ring(stacks - 1, j + 1)});
   return m;
 }
 
@@ -56,15 +57,16 @@ inline IndexedMesh terrain(int n, float size = 100.0f, float height = 10.0f) {
     for (int j = 0; j <= n; ++j) {
       const float x = size * static_cast<float>(i) / static_cast<float>(n);
       const float z = size * static_cast<float>(j) / static_cast<float>(n);
-      const float y = height * (0.5f * std::sin(x * 0.11f) * std::cos(z * 0.07f) + 0.3f * std::sin(x * 0.37f + z * 0.23f) +
-                                0.2f * std::sin(z * 0.91f));
+      const float y = height * (0.5f * std::sin(x * 0.11f) * std::cos(z * 0.07f) +
+                                0.3f * std::sin(x * 0.37f + z * 0.23f) + 0.2f * std::sin(z * 0.91f));
       m.positions.emplace_back(x, y, z);
     }
   }
   const auto at = [&](int i, int j) { return static_cast<uint32_t>(i * (n + 1) + j); };
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < n; ++j) {
-      m.indices.insert(m.indices.end(), {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+      m.indices.insert(m.indices.end(),
+                       {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)});
     }
   }
   return m;

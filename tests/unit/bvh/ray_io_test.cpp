@@ -14,7 +14,9 @@ namespace hp::bvh {
 namespace {
 
 std::string temp_path(const char* name) {
-  return (std::filesystem::temp_directory_path() / (std::string("hp_bvh_io_") + std::to_string(::getpid()) + "_" + name)).string();
+  return (std::filesystem::temp_directory_path() /
+          (std::string("hp_bvh_io_") + std::to_string(::getpid()) + "_" + name))
+      .string();
 }
 
 std::vector<unsigned char> bytes_of(const std::string& path) {
@@ -23,7 +25,8 @@ std::vector<unsigned char> bytes_of(const std::string& path) {
 }
 
 TEST(BvhRayIo, RoundTripsBitExactly) {
-  const std::vector<Triangle> tris{{{1, 2, 3}, {-4, 5.5f, 6}, {7, 8, -0.0f}}, {{1e-30f, 1e30f, 0}, {0, 0, 0}, {1, 1, 1}}};
+  const std::vector<Triangle> tris{{{1, 2, 3}, {-4, 5.5f, 6}, {7, 8, -0.0f}},
+                                   {{1e-30f, 1e30f, 0}, {0, 0, 0}, {1, 1, 1}}};
   std::vector<Ray> rays(3);
   rays[1].origin = glm::vec3(1, -2, 3);
   rays[1].tmin = 0.5f;

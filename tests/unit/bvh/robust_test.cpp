@@ -118,7 +118,8 @@ TEST(BvhRobust, TessellatedGridEdgesAndVerticesNeverFallThrough) {
   const auto at = [&](int i, int j) { return static_cast<uint32_t>(i * (n + 1) + j); };
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < n; ++j) {
-      grid.indices.insert(grid.indices.end(), {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+      grid.indices.insert(grid.indices.end(),
+                          {at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)});
     }
   }
   const auto tris = grid.triangles();
@@ -128,7 +129,7 @@ TEST(BvhRobust, TessellatedGridEdgesAndVerticesNeverFallThrough) {
   for (int i = 1; i < n; ++i) {
     for (int j = 1; j < n; ++j) {
       const glm::vec3 p = grid.positions[at(i, j)];
-      targets.push_back(p);                                                   // vertex
+      targets.push_back(p);                                                    // vertex
       targets.push_back(p + s(rng) * (grid.positions[at(i + 1, j)] - p));      // edge along x
       targets.push_back(p + s(rng) * (grid.positions[at(i, j + 1)] - p));      // edge along y
       targets.push_back(p + s(rng) * (grid.positions[at(i + 1, j + 1)] - p));  // diagonal
@@ -343,7 +344,8 @@ ScaleCase scale_case(float scale, float shift) {
 
 TEST(BvhRobust, ScaleAndTranslationInvariance) {
   std::size_t base_random_hits = 0;
-  for (const auto& [scale, shift] : std::vector<std::pair<float, float>>{{1.0f, 0.0f}, {1e-4f, 0.0f}, {1e4f, 0.0f}, {1.0f, 1e5f}}) {
+  for (const auto& [scale, shift] :
+       std::vector<std::pair<float, float>>{{1.0f, 0.0f}, {1e-4f, 0.0f}, {1e4f, 0.0f}, {1.0f, 1e5f}}) {
     const ScaleCase c = scale_case(scale, shift);
     const Built b = build(c.tris);
     const std::vector<Hit> in = cast_rays(b.bvh, b.lt, c.inside, HitMode::closest, 2);
@@ -372,15 +374,15 @@ TEST(BvhRobust, DegenerateTrianglesNeverHitNeverCrash) {
   const float nan = std::nanf("");
   const float inf = std::numeric_limits<float>::infinity();
   std::vector<Triangle> tris = {
-      {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}},        // 0: a real one
-      {{2, 2, 0}, {2, 2, 0}, {2, 2, 0}},        // 1: a point
-      {{3, 0, 0}, {4, 1, 0}, {4, 1, 0}},        // 2: two equal vertices
-      {{5, 0, 0}, {6, 1, 0}, {7, 2, 0}},        // 3: collinear
-      {{0, 3, 0}, {0.5f, 3.5f, 0}, {1, 4, 0}},  // 4: collinear, through the ray targets below
-      {{nan, 0, 0}, {1, 1, 1}, {0, 1, 1}},      // 5: NaN vertex
-      {{inf, 0, 0}, {1, 1, 1}, {0, 1, 1}},      // 6: infinite vertex
-      {{-inf, 0, 0}, {inf, 1, 1}, {0, nan, 1}}, // 7: all bad
-      {{0, 0, 2}, {1, 0, 2}, {0, 1, 2}},        // 8: a real one above 0
+      {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}},         // 0: a real one
+      {{2, 2, 0}, {2, 2, 0}, {2, 2, 0}},         // 1: a point
+      {{3, 0, 0}, {4, 1, 0}, {4, 1, 0}},         // 2: two equal vertices
+      {{5, 0, 0}, {6, 1, 0}, {7, 2, 0}},         // 3: collinear
+      {{0, 3, 0}, {0.5f, 3.5f, 0}, {1, 4, 0}},   // 4: collinear, through the ray targets below
+      {{nan, 0, 0}, {1, 1, 1}, {0, 1, 1}},       // 5: NaN vertex
+      {{inf, 0, 0}, {1, 1, 1}, {0, 1, 1}},       // 6: infinite vertex
+      {{-inf, 0, 0}, {inf, 1, 1}, {0, nan, 1}},  // 7: all bad
+      {{0, 0, 2}, {1, 0, 2}, {0, 1, 2}},         // 8: a real one above 0
   };
   std::vector<uint32_t> expected_valid{0, 8};
   Built b = build(tris);
@@ -402,7 +404,8 @@ TEST(BvhRobust, DegenerateTrianglesNeverHitNeverCrash) {
     rays.push_back(straight);
   }
   for (const Ray& r : rays) {
-    for (const Hit h : {intersect_closest(b.bvh, b.lt, r), intersect_any(b.bvh, b.lt, r), brute_force_closest(tris, r)}) {
+    for (const Hit h :
+         {intersect_closest(b.bvh, b.lt, r), intersect_any(b.bvh, b.lt, r), brute_force_closest(tris, r)}) {
       if (h.hit()) {
         EXPECT_TRUE(h.prim == 0 || h.prim == 8) << "hit degenerate triangle " << h.prim;
       }

@@ -27,20 +27,19 @@ struct GroupScratch {
 // lanes' records only, so they are fixed here, once, while the workgroup's records are hot in the host's
 // caches; the scheduler then streams through them. Freed when the workgroup retires.
 struct GroupAccesses {
-  uint64_t first_invocation = 0;  // global index of the workgroup's first invocation
-  std::vector<uint64_t> address;  // byte address, in issue order
-  std::vector<uint32_t> info;     // the record's info word (size, kind, buffer)
-  std::vector<uint16_t> lane;     // the issuing lane within its wavefront
-  std::vector<uint32_t> step_end; // per step (all wavefronts' steps in order): end of its entries
+  uint64_t first_invocation = 0;         // global index of the workgroup's first invocation
+  std::vector<uint64_t> address;         // byte address, in issue order
+  std::vector<uint32_t> info;            // the record's info word (size, kind, buffer)
+  std::vector<uint16_t> lane;            // the issuing lane within its wavefront
+  std::vector<uint32_t> step_end;        // per step (all wavefronts' steps in order): end of its entries
   std::vector<uint32_t> wave_steps_end;  // per wavefront: end of its steps in step_end
 };
 
 // Splits one slice's records (already checked to lie in its workgroups) into per-workgroup issue orders;
 // workgroups without records get none. `scratch` is reused from slice to slice (no fresh pages each time).
-std::vector<std::unique_ptr<GroupAccesses>> group(std::span<const trace::TraceRecord> records,
-                                                  uint64_t first_group, uint64_t end_group, uint64_t per_group,
-                                                  uint32_t wave_width, const trace::BufferInfo* const* buffers,
-                                                  GroupScratch& scratch) {
+std::vector<std::unique_ptr<GroupAccesses>> group(std::span<const trace::TraceRecord> records, uint64_t first_group,
+                                                  uint64_t end_group, uint64_t per_group, uint32_t wave_width,
+                                                  const trace::BufferInfo* const* buffers, GroupScratch& scratch) {
   const uint64_t first_invocation = first_group * per_group;
   const uint64_t invocations = (end_group - first_group) * per_group;
   // Counting sort of record indices by invocation, stable, so one invocation's records keep their buffer
@@ -98,7 +97,8 @@ std::vector<std::unique_ptr<GroupAccesses>> group(std::span<const trace::TraceRe
             const trace::TraceRecord& r = recs[c[l]];
             const trace::BufferInfo& b = *buffers[gpu::trace_buffer(r.info)];
             // Plain buffers inline (most records); images apply their declared layout.
-            ga->address.push_back(b.kind == trace::BufferKind::buffer ? b.base_address + r.offset : b.address(r.offset));
+            ga->address.push_back(b.kind == trace::BufferKind::buffer ? b.base_address + r.offset
+                                                                      : b.address(r.offset));
             ga->info.push_back(r.info);
             ga->lane.push_back(uint16_t(l));
             ++c[l];
@@ -244,7 +244,7 @@ struct BaselineSimulator::PassState {
   uint64_t fed_end = 0;                        // workgroups below this are known (fed or empty)
   bool final = false;                          // end_pass: every workgroup is known
   uint64_t next_group = 0;
-  uint64_t resident_records = 0;               // records held: fed, not yet retired
+  uint64_t resident_records = 0;  // records held: fed, not yet retired
   // Refill position, kept when a refill stops for data: sweep index and whether this sweep placed work.
   uint32_t refill_cu = 0;
   bool refill_progress = false;
@@ -277,10 +277,13 @@ struct BaselineSimulator::PassState {
 };
 
 BaselineSimulator::BaselineSimulator(const Preset& preset, const trace::TraceHeader& header, SimOptions options)
-    : preset_(preset), buffer_storage_(header.buffers), options_(std::move(options)),
+    : preset_(preset),
+      buffer_storage_(header.buffers),
+      options_(std::move(options)),
       hierarchy_(preset.l1, preset.compute_units, preset.l2) {
   for (const auto& b : buffer_storage_) buffers_[b.id & 0xFF] = &b;
-  if (options_.l1_mrc || options_.l2_mrc) hierarchy_.enable_mrc(options_.l1_mrc, options_.l2_mrc, options_.mrc_sampling_rate);
+  if (options_.l1_mrc || options_.l2_mrc)
+    hierarchy_.enable_mrc(options_.l1_mrc, options_.l2_mrc, options_.mrc_sampling_rate);
 }
 
 BaselineSimulator::~BaselineSimulator() = default;
@@ -312,7 +315,8 @@ void BaselineSimulator::begin_pass(const trace::PassInfo& pass) {
   hierarchy_.begin_pass();
 }
 
-void BaselineSimulator::feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup) {
+void BaselineSimulator::feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup,
+                             uint64_t end_workgroup) {
   if (!pass_ || pass_->final) throw std::logic_error("BaselineSimulator::feed outside begin_pass / end_pass");
   PassState& ps = *pass_;
   const std::string& name = ps.info.name;
@@ -321,8 +325,8 @@ void BaselineSimulator::feed(std::span<const trace::TraceRecord> records, uint64
                      std::to_string(end_workgroup) + ") outside the dispatch of " + std::to_string(ps.groups));
   if (first_workgroup < ps.fed_end)
     throw InputError("pass '" + name + "': slice [" + std::to_string(first_workgroup) + ", " +
-                     std::to_string(end_workgroup) + ") overlaps or precedes workgroup " +
-                     std::to_string(ps.fed_end) + " (slices must come in dispatch order)");
+                     std::to_string(end_workgroup) + ") overlaps or precedes workgroup " + std::to_string(ps.fed_end) +
+                     " (slices must come in dispatch order)");
   const uint64_t first_inv = first_workgroup * ps.per_group, end_inv = end_workgroup * ps.per_group;
   for (const auto& r : records)
     if (!buffers_[gpu::trace_buffer(r.info)] || r.invocation < first_inv || r.invocation >= end_inv)

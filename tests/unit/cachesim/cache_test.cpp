@@ -29,7 +29,9 @@ void compare(const CacheConfig& c, const std::vector<std::tuple<uint64_t, uint32
   ref::RefCache ref(c);
   for (size_t i = 0; i < stream.size(); ++i) {
     auto [line, sectors, mode] = stream[i];
-    Outcome o = mode == 0 ? cache.load(line, sectors) : mode == 1 ? cache.store(line, sectors) : cache.update(line, sectors);
+    Outcome o = mode == 0   ? cache.load(line, sectors)
+                : mode == 1 ? cache.store(line, sectors)
+                            : cache.update(line, sectors);
     ref::RefOutcome r = ref.access(line, sectors, mode);
     ASSERT_EQ(o.missing, r.missing) << "access " << i << " line " << line;
     ASSERT_EQ(o.line_hit, r.line_hit) << "access " << i;
@@ -39,7 +41,7 @@ void compare(const CacheConfig& c, const std::vector<std::tuple<uint64_t, uint32
 }
 
 std::vector<std::tuple<uint64_t, uint32_t, int>> random_stream(uint64_t seed, size_t n, uint64_t lines,
-                                                                uint32_t full_mask, bool mixed) {
+                                                               uint32_t full_mask, bool mixed) {
   std::mt19937_64 rng(seed);
   std::vector<std::tuple<uint64_t, uint32_t, int>> s;
   for (size_t i = 0; i < n; ++i) {
@@ -100,9 +102,9 @@ TEST(Cache, CompactEngineMatchesReferenceAtEveryAssociativity) {
         const CacheConfig c = make(uint64_t(64) * ways * 8, 64, sector, ways, r);  // 8 sets
         SCOPED_TRACE(describe(c));
         Cache probe(c);
-        ASSERT_EQ(probe.engine(), sector != 64  ? Cache::Engine::compact
-                                  : ways <= 4 ? Cache::Engine::ordered32
-                                              : Cache::Engine::ordered16);
+        ASSERT_EQ(probe.engine(), sector != 64 ? Cache::Engine::compact
+                                  : ways <= 4  ? Cache::Engine::ordered32
+                                               : Cache::Engine::ordered16);
         compare(c, random_stream(seed++, 6000, c.lines() * 4, probe.full_mask(), true));
       }
     }
@@ -116,10 +118,10 @@ TEST(Cache, CompactEngineMatchesReferenceAtEveryAssociativity) {
 // the state carried over (contents, recency order, valid and dirty sectors) must be exact.
 TEST(Cache, WideTagConvertsCompactStateExactly) {
   const std::vector<CacheConfig> configs = {
-      make(4 << 20, 64, 64, 16, Replacement::lru, 16),          // vega56 L2
-      make(16 << 10, 64, 64, 4),                                // vega56 L1
-      make(128 << 10, 128, 32, 8, Replacement::fifo),           // sectored
-      make(48 << 10, 64, 64, 4, Replacement::lru, 3, 256),      // non-power-of-two channels
+      make(4 << 20, 64, 64, 16, Replacement::lru, 16),         // vega56 L2
+      make(16 << 10, 64, 64, 4),                               // vega56 L1
+      make(128 << 10, 128, 32, 8, Replacement::fifo),          // sectored
+      make(48 << 10, 64, 64, 4, Replacement::lru, 3, 256),     // non-power-of-two channels
       make(6 << 20, 128, 32, 16, Replacement::lru, 12, 1024),  // ga102-like L2
   };
   uint64_t seed = 300;
@@ -144,9 +146,10 @@ TEST(Cache, WideTagConvertsCompactStateExactly) {
 // (2^15 - 1 itself, not only 2^16 and up) widens the entries, the first beyond 32 bits converts to the
 // general engine, each exactly (contents, order, dirt), and lines just below the limits stay put.
 TEST(Cache, OrderedEngineTagLimitsAreExact) {
-  for (const CacheConfig& c : {make(4 << 20, 64, 64, 16, Replacement::lru, 16), make(16 << 10, 64, 64, 4),
-                               make(48 << 10, 64, 64, 4, Replacement::fifo, 3, 256),
-                               make(16 << 10, 64, 64, 8, Replacement::fifo), make(36 << 10, 64, 64, 12, Replacement::lru, 3)}) {
+  for (const CacheConfig& c :
+       {make(4 << 20, 64, 64, 16, Replacement::lru, 16), make(16 << 10, 64, 64, 4),
+        make(48 << 10, 64, 64, 4, Replacement::fifo, 3, 256), make(16 << 10, 64, 64, 8, Replacement::fifo),
+        make(36 << 10, 64, 64, 12, Replacement::lru, 3)}) {
     SCOPED_TRACE(describe(c));
     Cache x(c);
     const bool narrow = c.ways > 4;
@@ -239,9 +242,9 @@ TEST(Cache, SectorsFillLazily) {
 }
 
 TEST(Cache, DirtySectorsAreWrittenBackOnEvictionAndFlush) {
-  Cache c(make(128, 128, 32, 1));  // one line
+  Cache c(make(128, 128, 32, 1));                  // one line
   EXPECT_EQ(c.store(1, 0b0110).missing, 0b0110u);  // write-validate: reported missing, nothing fetched
-  EXPECT_EQ(c.load(1, 0b0010).missing, 0u);       // written sector is valid
+  EXPECT_EQ(c.load(1, 0b0010).missing, 0u);        // written sector is valid
   EXPECT_EQ(c.load(2, 0b0001).written_back_sectors, 2u);
   c.update(3, 0b1111);
   EXPECT_EQ(c.flush_dirty_sectors(), 4u);

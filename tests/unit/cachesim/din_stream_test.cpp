@@ -4,12 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <functional>
-#include <unistd.h>
 #include <fstream>
+#include <functional>
 #include <random>
 #include <sstream>
 #include <string>
+#include <unistd.h>
 #include <vector>
 
 #include "cachesim/din_replay.hpp"
@@ -106,9 +106,9 @@ TEST(DinStream, SameAccessesAsTheWholeFileParserAcrossBufferBoundaries) {
 }
 
 TEST(DinStream, LastLineWithoutNewlineAndTinyFiles) {
-  for (const std::string& text : {std::string(""), std::string("\n"), std::string("r 10 4"), std::string("w 0x20 1\r"),
-                                  std::string("# only a comment"), std::string("r 10 4\nw 20 8"),
-                                  std::string("r 1 1\n\n\n")}) {
+  for (const std::string& text :
+       {std::string(""), std::string("\n"), std::string("r 10 4"), std::string("w 0x20 1\r"),
+        std::string("# only a comment"), std::string("r 10 4\nw 20 8"), std::string("r 1 1\n\n\n")}) {
     const TempFile f("tiny.din", text);
     expect_same(streamed(f.path, 3), whole(f.path));
   }
@@ -120,14 +120,17 @@ TEST(DinStream, ErrorsNameTheFileAndTheLineLikeTheWholeFileParser) {
   size_t good_lines = 0;
   for (char c : good) good_lines += c == '\n';
   for (const std::string bad : {"x 10 4", "r 1g 4", "r 10", "r 10 0", "w 10 4 9", "r 10 100000000", "r",
-                                 "r 10000000000000000f 4", "r 0x 4", "r 10 4\v"}) {
+                                "r 10000000000000000f 4", "r 0x 4", "r 10 4\v"}) {
     // Lines follow it, so the fast parser sees the bad line before the full parser does.
     const TempFile f("bad.din", good + bad + "\n" + mixed_trace(100, 4));
     const std::string want = error_of([&] { whole(f.path); });
     ASSERT_EQ(want.rfind(f.path.string() + ":" + std::to_string(good_lines + 1) + ": ", 0), 0u) << want;
     EXPECT_EQ(error_of([&] { streamed(f.path, 16384); }), want) << bad;
   }
-  EXPECT_EQ(error_of([&] { trace::DinReader r("/nonexistent/x.din"); }).rfind("/nonexistent/x.din: cannot open Dinero trace", 0), 0u);
+  EXPECT_EQ(error_of([&] {
+              trace::DinReader r("/nonexistent/x.din");
+            }).rfind("/nonexistent/x.din: cannot open Dinero trace", 0),
+            0u);
   EXPECT_EQ(error_of([&] { trace::DinReader r(fs::temp_directory_path()); }),
             fs::temp_directory_path().string() + ": is a directory, not a Dinero trace");
 }
@@ -135,13 +138,15 @@ TEST(DinStream, ErrorsNameTheFileAndTheLineLikeTheWholeFileParser) {
 TEST(DinStream, LongCommentAndBlankLinesAreSkippedALongAccessLineIsAnError) {
   const size_t big = trace::DinReader::kBufferBytes * 2 + 123;
   {
-    const TempFile f("longcomment.din", "r 10 4\n  # " + std::string(big, 'c') + "\nw 20 8\n" + "#" + std::string(big, 'z'));
+    const TempFile f("longcomment.din",
+                     "r 10 4\n  # " + std::string(big, 'c') + "\nw 20 8\n" + "#" + std::string(big, 'z'));
     const auto got = streamed(f.path, 16);
     expect_same(got, whole(f.path));
     EXPECT_EQ(got.size(), 2u);
   }
   {
-    const TempFile f("longblank.din", "r 10 4\n" + std::string(big, ' ') + "w 20 8\n" + std::string(big, '\t') + "\nr 1 1\n");
+    const TempFile f("longblank.din",
+                     "r 10 4\n" + std::string(big, ' ') + "w 20 8\n" + std::string(big, '\t') + "\nr 1 1\n");
     const auto got = streamed(f.path, 16);
     expect_same(got, whole(f.path));
     EXPECT_EQ(got.size(), 3u);

@@ -65,11 +65,11 @@ TEST(Din, ReplayCountsLikeDinero) {
   auto l1 = cachesim::parse_cache_spec("128:64:1", "--l1");
   auto l2 = cachesim::parse_cache_spec("1k:64:4", "--l2");
   std::vector<trace::DinAccess> a = {
-      {false, 0, 4},    // block 0: L1 miss, L2 miss
-      {false, 60, 8},   // spans blocks 0 and 1: two fetches; 0 hits, 1 misses (L2 miss)
-      {true, 128, 4},   // block 2 -> set 0, evicts block 0; write-allocate: miss, L2 miss
-      {false, 0, 4},    // block 0 again: L1 miss (evicted), L2 hit
-      {true, 130, 2},   // block 2: evicted by block 0 just now -> L1 miss, L2 hit
+      {false, 0, 4},   // block 0: L1 miss, L2 miss
+      {false, 60, 8},  // spans blocks 0 and 1: two fetches; 0 hits, 1 misses (L2 miss)
+      {true, 128, 4},  // block 2 -> set 0, evicts block 0; write-allocate: miss, L2 miss
+      {false, 0, 4},   // block 0 again: L1 miss (evicted), L2 hit
+      {true, 130, 2},  // block 2: evicted by block 0 just now -> L1 miss, L2 hit
   };
   auto r = cachesim::replay_din(a, l1, l2);
   EXPECT_EQ(r.l1.fetches, 6u);

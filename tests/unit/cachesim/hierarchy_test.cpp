@@ -181,8 +181,8 @@ TEST(Hierarchy, MatchesReferenceVegaShapedAndFifo) {
   run_random(l1, l2, 3, 15, true);
   CacheConfig vl1 = cfg(16 << 10, 64, 64, 4), vl2 = cfg(4 << 20, 64, 64, 16, 16);
   vl1.replacement = vl2.replacement = Replacement::fifo;
-  run_random(vl1, vl2, 8, 20, true);                 // FIFO through the AVX2 L2 path where present
-  run_random(vl1, vl2, 8, 21, true, -1, 0, false);   // and through the portable one
+  run_random(vl1, vl2, 8, 20, true);                // FIFO through the AVX2 L2 path where present
+  run_random(vl1, vl2, 8, 21, true, -1, 0, false);  // and through the portable one
 }
 
 // A line too wide for the caches' entries in the middle of the stream: the caches it reaches widen
@@ -193,10 +193,10 @@ TEST(Hierarchy, WideLineMidBatchStaysExact) {
   // vega56's shape (32-bit 4-way L1s, 16-bit 16-way L2) and 8-way L1s that start at 16 bits too.
   const CacheConfig vega_l1 = cfg(16 << 10, 64, 64, 4), l2 = cfg(4 << 20, 64, 64, 16, 16);
   const CacheConfig l1_8 = cfg(16 << 10, 64, 64, 8);
-  const uint64_t l2_wide = Cache(l2).ordered_line_limit() + 7;   // beyond 16-bit L2 tags
+  const uint64_t l2_wide = Cache(l2).ordered_line_limit() + 7;    // beyond 16-bit L2 tags
   const uint64_t l1_wide = Cache(l1_8).ordered_line_limit() + 7;  // beyond 16-bit L1 tags only
   ASSERT_LT(l1_wide, Cache(l2).ordered_line_limit());
-  const uint64_t general = (uint64_t(1) << 45) + 3;               // beyond every narrow engine
+  const uint64_t general = (uint64_t(1) << 45) + 3;  // beyond every narrow engine
   uint64_t seed = 16;
   for (const auto& [l1, line] : {std::pair{vega_l1, l2_wide}, std::pair{vega_l1, general}, std::pair{l1_8, l1_wide},
                                  std::pair{l1_8, l2_wide}, std::pair{l1_8, general}}) {
@@ -218,7 +218,8 @@ TEST(Hierarchy, MatchesReferenceInEverySetWidthBatched) {
   uint64_t seed = 40;
   for (const auto& w : widths) {
     SCOPED_TRACE(std::to_string(w[0]) + "-way L1, " + std::to_string(w[1]) + "-way L2");
-    const CacheConfig l1 = cfg(uint64_t(w[0]) * 64 * 16, 64, 64, w[0]), l2 = cfg(uint64_t(w[1]) * 64 * 64 * 4, 64, 64, w[1], 4);
+    const CacheConfig l1 = cfg(uint64_t(w[0]) * 64 * 16, 64, 64, w[0]),
+                      l2 = cfg(uint64_t(w[1]) * 64 * 64 * 4, 64, 64, w[1], 4);
     run_random(l1, l2, 3, ++seed, false);
     run_random(l1, l2, 3, ++seed, true);
     // vega56's shape has an AVX2 L2 path too (used where the CPU has AVX2): the portable one as well.
@@ -260,8 +261,8 @@ TEST(Hierarchy, L1IsPrivatePerComputeUnit) {
   EXPECT_TRUE(h.issue(0, {100, 1, AccessKind::load, 0}).l1_miss);
   EXPECT_FALSE(h.issue(0, {100, 1, AccessKind::load, 0}).l1_miss);
   IssueResult other = h.issue(1, {100, 1, AccessKind::load, 0});
-  EXPECT_TRUE(other.l1_miss);    // CU 1's L1 never saw the line
-  EXPECT_FALSE(other.l2_miss);   // but the shared L2 did
+  EXPECT_TRUE(other.l1_miss);   // CU 1's L1 never saw the line
+  EXPECT_FALSE(other.l2_miss);  // but the shared L2 did
   EXPECT_EQ(h.stats().l2.requests, 2u);
 }
 

@@ -68,14 +68,17 @@ TEST(Preset, ValidOneParses) {
 }
 
 TEST(Preset, ErrorsNameFileAndKeyPath) {
-  EXPECT_EQ(error_of(replace(kValid, "\"ways\": 4}", "\"ways\": 4, \"assoc\": 2}")), "custom.json: l1.assoc: unknown key");
+  EXPECT_EQ(error_of(replace(kValid, "\"ways\": 4}", "\"ways\": 4, \"assoc\": 2}")),
+            "custom.json: l1.assoc: unknown key");
   EXPECT_EQ(error_of(replace(kValid, "\"compute_units\": 2", "\"compute_units\": \"2\"")),
             "custom.json: compute_units: expected a positive integer, got \"2\"");
   EXPECT_EQ(error_of(replace(kValid, "\"line_bytes\": 64, \"ways\": 4", "\"line_bytes\": 48, \"ways\": 4")),
             "custom.json: l1.line_bytes: 48 is not a power of two");
-  EXPECT_NE(error_of(replace(kValid, "\"size_bytes\": 16384", "\"size_bytes\": 16000")).find("custom.json: l1.size_bytes:"),
-            std::string::npos);
-  EXPECT_EQ(error_of(replace(kValid, "\"fifo\"", "\"plru\"")), "custom.json: l2.replacement: 'plru' is not lru, fifo or random");
+  EXPECT_NE(
+      error_of(replace(kValid, "\"size_bytes\": 16384", "\"size_bytes\": 16000")).find("custom.json: l1.size_bytes:"),
+      std::string::npos);
+  EXPECT_EQ(error_of(replace(kValid, "\"fifo\"", "\"plru\"")),
+            "custom.json: l2.replacement: 'plru' is not lru, fifo or random");
   EXPECT_EQ(error_of(replace(kValid, "\"coalescing\": \"line\",", "")), "custom.json: coalescing: missing");
   EXPECT_EQ(error_of(replace(kValid, "\"name\"", "\"nme\"")), "custom.json: name: missing");
   EXPECT_NE(error_of("{ not json").find("custom.json: invalid JSON"), std::string::npos);
@@ -90,7 +93,8 @@ TEST(Preset, ErrorsNameFileAndKeyPath) {
 TEST(Preset, SizesBeyondTheSimulatorsLimitsAreNamed) {
   EXPECT_EQ(error_of(replace(kValid, "\"size_bytes\": 65536", "\"size_bytes\": 17592186044416")),
             "custom.json: l2.size_bytes: 17592186044416 exceeds the limit of 1 GiB");
-  EXPECT_EQ(error_of(replace(kValid, "\"ways\": 16", "\"ways\": 8192")), "custom.json: l2.ways: 8192 exceeds the limit of 4096");
+  EXPECT_EQ(error_of(replace(kValid, "\"ways\": 16", "\"ways\": 8192")),
+            "custom.json: l2.ways: 8192 exceeds the limit of 4096");
   EXPECT_EQ(error_of(replace(kValid, "\"compute_units\": 2", "\"compute_units\": 1000000000")),
             "custom.json: compute_units: at most 4096");
   // Each CU has its own L1: 4096 CUs of 512 KiB are 2 GiB of L1 in all.
@@ -126,8 +130,8 @@ TEST(Preset, ScaledForSamplingKeepsPerCuResourcesAndShrinksTheShared) {
   EXPECT_EQ(scale_for_sampling(v, 1).compute_units, v.compute_units);
   EXPECT_EQ(scale_for_sampling(v, 1).name, v.name);
   const Preset s = scale_for_sampling(v, 4);
-  EXPECT_EQ(s.compute_units, 14u);              // 56 / 4
-  EXPECT_EQ(s.l1.size_bytes, v.l1.size_bytes);  // each CU keeps its L1 ...
+  EXPECT_EQ(s.compute_units, 14u);                    // 56 / 4
+  EXPECT_EQ(s.l1.size_bytes, v.l1.size_bytes);        // each CU keeps its L1 ...
   EXPECT_EQ(s.max_waves_per_cu, v.max_waves_per_cu);  // ... and its occupancy
   EXPECT_EQ(s.l2.size_bytes, v.l2.size_bytes / 4);
   EXPECT_EQ(s.l2.ways, v.l2.ways);

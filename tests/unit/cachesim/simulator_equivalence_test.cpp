@@ -35,11 +35,13 @@ struct Replay {
 
 // One feed per slice: slices[k] = [cuts[k], cuts[k+1]) with the records of those workgroups.
 template <typename Sim>
-std::vector<Replay> replay(const Preset& p, const trace::Trace& t, SimOptions so, const std::vector<std::vector<uint64_t>>& cuts,
-                           uint32_t shuffle_seed) {
+std::vector<Replay> replay(const Preset& p, const trace::Trace& t, SimOptions so,
+                           const std::vector<std::vector<uint64_t>>& cuts, uint32_t shuffle_seed) {
   std::vector<Replay> out(t.passes.size());
   size_t pass = 0;
-  so.observer = [&](uint32_t cu, const Request& r) { out[pass].requests.push_back({cu, r.line, r.sectors, r.kind, r.buffer}); };
+  so.observer = [&](uint32_t cu, const Request& r) {
+    out[pass].requests.push_back({cu, r.line, r.sectors, r.kind, r.buffer});
+  };
   Sim sim(p, t.header, so);
   std::mt19937 rng(shuffle_seed);
   for (pass = 0; pass < t.passes.size(); ++pass) {
@@ -207,9 +209,12 @@ trace::Trace awkward_trace(uint32_t seed) {
         const uint32_t kind = rng() % 10 == 0 ? HP_TRACE_STORE : rng() % 20 == 0 ? HP_TRACE_ATOMIC : HP_TRACE_LOAD;
         const uint32_t size = 1 + rng() % 16;
         uint32_t offset;
-        if (which == 0) offset = (rng() % 2 ? (inv * 16) : uint32_t(rng() % 4096) * 64 + 60) % ((1 << 20) - 16);
-        else if (which == 3) offset = uint32_t(rng() % 1000) * 61;
-        else offset = uint32_t(rng() % (100 * 64)) * 8 + uint32_t(rng() % (9 - std::min<uint32_t>(size, 8)));
+        if (which == 0)
+          offset = (rng() % 2 ? (inv * 16) : uint32_t(rng() % 4096) * 64 + 60) % ((1 << 20) - 16);
+        else if (which == 3)
+          offset = uint32_t(rng() % 1000) * 61;
+        else
+          offset = uint32_t(rng() % (100 * 64)) * 8 + uint32_t(rng() % (9 - std::min<uint32_t>(size, 8)));
         const uint32_t sz = which == 1 || which == 2 ? std::min<uint32_t>(size, 8) : size;
         recs.push_back(TraceRecord{inv, seq, HP_TRACE_INFO(ids[which], kind, sz), offset});
         const uint32_t step = rng() % 6;
@@ -248,7 +253,8 @@ TEST(SimulatorEquivalence, RecordsAlreadyInWorkgroupOrderAndOneRecordSlices) {
   // In workgroup order the grouping uses the records in place: the same results as shuffled.
   trace::Trace t = awkward_trace(4);
   for (auto& recs : t.records)
-    std::stable_sort(recs.begin(), recs.end(), [](const TraceRecord& a, const TraceRecord& b) { return a.invocation / 80 < b.invocation / 80; });
+    std::stable_sort(recs.begin(), recs.end(),
+                     [](const TraceRecord& a, const TraceRecord& b) { return a.invocation / 80 < b.invocation / 80; });
   SimOptions so;
   so.per_invocation = true;
   expect_same_replays(preset_named("vega56"), t, so, whole(t), 0);

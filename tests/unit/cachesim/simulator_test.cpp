@@ -72,7 +72,8 @@ std::vector<Seen> observe(const Preset& p, const trace::PassInfo& pass, const st
 constexpr uint64_t kBaseLine64 = 0x10000 / 64, kBaseLine128 = 0x10000 / 128;
 
 TEST(Simulator, CoalescesLanesIntoUniqueLines) {
-  auto seen = observe(small_preset(1, 4, 8), pass_of(4, 1), {load(0, 0, 0), load(1, 0, 4), load(2, 0, 8), load(3, 0, 64)});
+  auto seen =
+      observe(small_preset(1, 4, 8), pass_of(4, 1), {load(0, 0, 0), load(1, 0, 4), load(2, 0, 8), load(3, 0, 64)});
   ASSERT_EQ(seen.size(), 2u);
   EXPECT_EQ(seen[0].line, kBaseLine64);
   EXPECT_EQ(seen[1].line, kBaseLine64 + 1);
@@ -120,8 +121,12 @@ TEST(Simulator, LanesIssueTheirKthAccessesTogetherRegardlessOfRecordOrder) {
 TEST(Simulator, SequenceNumbersRealignDivergedLanes) {
   // Lane 0 makes three accesses, lane 1 one, then both store at seq 9 (the same line): the stores
   // issue together in one request after lane 0's extra accesses.
-  std::vector<TraceRecord> recs = {load(0, 0, 0),   load(0, 1, 128), load(0, 2, 256), load(1, 0, 0),
-                                   load(0, 9, 512, 4, HP_TRACE_STORE), load(1, 9, 516, 4, HP_TRACE_STORE)};
+  std::vector<TraceRecord> recs = {load(0, 0, 0),
+                                   load(0, 1, 128),
+                                   load(0, 2, 256),
+                                   load(1, 0, 0),
+                                   load(0, 9, 512, 4, HP_TRACE_STORE),
+                                   load(1, 9, 516, 4, HP_TRACE_STORE)};
   PassResult r;
   auto seen = observe(small_preset(1, 2, 8), pass_of(2, 1), recs, &r);
   ASSERT_EQ(seen.size(), 4u);
@@ -135,8 +140,10 @@ TEST(Simulator, WorkgroupsGoToComputeUnitsInDispatchOrder) {
   std::vector<TraceRecord> recs = {load(0, 0, 64), load(0, 1, 64 * 10), load(1, 0, 128), load(2, 0, 192),
                                    load(3, 0, 256)};
   auto seen = observe(small_preset(2, 1, 1), pass_of(1, 4), recs);
-  std::vector<Seen> want = {{0, kBaseLine64 + 1, 1, AccessKind::load}, {1, kBaseLine64 + 2, 1, AccessKind::load},
-                            {0, kBaseLine64 + 10, 1, AccessKind::load}, {1, kBaseLine64 + 3, 1, AccessKind::load},
+  std::vector<Seen> want = {{0, kBaseLine64 + 1, 1, AccessKind::load},
+                            {1, kBaseLine64 + 2, 1, AccessKind::load},
+                            {0, kBaseLine64 + 10, 1, AccessKind::load},
+                            {1, kBaseLine64 + 3, 1, AccessKind::load},
                             {0, kBaseLine64 + 4, 1, AccessKind::load}};
   EXPECT_EQ(seen, want);
 }
@@ -259,7 +266,8 @@ TEST(Simulator, SlicedReplayEqualsWholeReplayAndHoldsOnlyAFewSlices) {
       expect_same(ref, r);
       EXPECT_LE(r.peak_resident_records, t.records[0].size());
       const uint64_t waves_per_group = (per_group + p.wave_width - 1) / p.wave_width;
-      const uint64_t resident_groups = uint64_t(p.compute_units) * std::max<uint64_t>(1, p.max_waves_per_cu / waves_per_group);
+      const uint64_t resident_groups =
+          uint64_t(p.compute_units) * std::max<uint64_t>(1, p.max_waves_per_cu / waves_per_group);
       if (trial == 3 && resident_groups * 4 < groups) {
         // Many slices on a machine that holds a fraction of the dispatch: the replay never held it all.
         EXPECT_LT(r.peak_resident_records, t.records[0].size() * 3 / 4) << r.slices << " slices";
@@ -295,9 +303,9 @@ TEST(Simulator, SlicesOutOfOrderOrOutsideTheirRangeAreRejected) {
   Simulator sim(small_preset(2, 16, 8), one_buffer());
   sim.begin_pass(pass);
   sim.feed(std::vector<TraceRecord>{load(130, 0, 0)}, 2, 3);
-  EXPECT_THROW(sim.feed(std::vector<TraceRecord>{load(10, 0, 0)}, 0, 1), InputError);   // before the last slice
-  EXPECT_THROW(sim.feed(std::vector<TraceRecord>{load(10, 0, 0)}, 3, 4), InputError);   // record not in [3, 4)
-  EXPECT_THROW(sim.feed(std::vector<TraceRecord>{}, 3, 5), InputError);                 // past the dispatch
+  EXPECT_THROW(sim.feed(std::vector<TraceRecord>{load(10, 0, 0)}, 0, 1), InputError);  // before the last slice
+  EXPECT_THROW(sim.feed(std::vector<TraceRecord>{load(10, 0, 0)}, 3, 4), InputError);  // record not in [3, 4)
+  EXPECT_THROW(sim.feed(std::vector<TraceRecord>{}, 3, 5), InputError);                // past the dispatch
   sim.feed(std::vector<TraceRecord>{load(200, 0, 64)}, 3, 4);
   const PassResult r = sim.end_pass();
   EXPECT_EQ(r.lane_accesses, 2u);
@@ -328,7 +336,10 @@ TEST(Simulator, DineroExportReplaysToTheSameL1Counts) {
     EXPECT_EQ(d.l1.misses, r.stats.l1.misses);
   }
   EXPECT_THROW(
-      { std::stringstream s; export_din(s, small_preset(1, 16, 4), t.header, t.passes[0], t.records[0], 3); },
+      {
+        std::stringstream s;
+        export_din(s, small_preset(1, 16, 4), t.header, t.passes[0], t.records[0], 3);
+      },
       hp::InputError);
 }
 

@@ -157,8 +157,8 @@ TEST(StackDistance, HierarchyL2CurveMatchesItsRequestStream) {
   const MissRatioCurve c2 = h.l2_curve(), c1 = h.l1_curve();
   for (uint64_t lines : {1ull, 16ull, 256ull, 1024ull}) {
     EXPECT_EQ(c2.misses(lines), ref::fully_associative_misses(l2_stream, lines));
-    EXPECT_EQ(c1.misses(lines), ref::fully_associative_misses(l1_stream[0], lines) +
-                                    ref::fully_associative_misses(l1_stream[1], lines));
+    EXPECT_EQ(c1.misses(lines),
+              ref::fully_associative_misses(l1_stream[0], lines) + ref::fully_associative_misses(l1_stream[1], lines));
   }
 }
 

@@ -238,7 +238,8 @@ TEST(TraceFile, NameLengthPastTheChunkIsAnErrorNotAnAllocation) {
   ASSERT_EQ(bytes[100], 5);  // "nodes"
   bytes[103] = char(0xfb);
   write_bytes(good, bytes);
-  EXPECT_EQ(error_reading(good), good.string() + ": malformed BUFS chunk at byte 32: name of entry 0 runs past the chunk");
+  EXPECT_EQ(error_reading(good),
+            good.string() + ": malformed BUFS chunk at byte 32: name of entry 0 runs past the chunk");
 }
 
 // A RECS count of 2^60 + n wraps count * 16 to the chunk's true size; with END agreeing, read_pass then

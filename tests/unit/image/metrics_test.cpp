@@ -258,9 +258,7 @@ Lab lab_of(double r, double g, double b) {
   const double x = 0.4124564 * r + 0.3575761 * g + 0.1804375 * b;
   const double y = 0.2126729 * r + 0.7151522 * g + 0.0721750 * b;
   const double z = 0.0193339 * r + 0.1191920 * g + 0.9503041 * b;
-  const auto f = [](double t) {
-    return t > 216.0 / 24389.0 ? std::cbrt(t) : (24389.0 / 27.0 * t + 16.0) / 116.0;
-  };
+  const auto f = [](double t) { return t > 216.0 / 24389.0 ? std::cbrt(t) : (24389.0 / 27.0 * t + 16.0) / 116.0; };
   const double fx = f(x / 0.9504700), fy = f(y / 1.0), fz = f(z / 1.0888300);
   return {116.0 * fy - 16.0, 500.0 * (fx - fy), 200.0 * (fy - fz)};
 }
@@ -275,7 +273,7 @@ TEST(Flip, UniformColoursMatchHuntAdjustedHyAB) {
   struct Pair {
     float t[3], r[3];
   };
-  const Pair pairs[] = {{{1, 0, 0}, {0, 1, 0}},              // red vs green: above the knee
+  const Pair pairs[] = {{{1, 0, 0}, {0, 1, 0}},                     // red vs green: above the knee
                         {{0.55f, 0.5f, 0.5f}, {0.5f, 0.5f, 0.5f}},  // slightly reddish grey: below
                         {{0.2f, 0.3f, 0.6f}, {0.25f, 0.3f, 0.5f}},
                         {{0.9f, 0.8f, 0.1f}, {0.1f, 0.2f, 0.9f}}};  // yellow vs blue
@@ -286,10 +284,8 @@ TEST(Flip, UniformColoursMatchHuntAdjustedHyAB) {
         set_rgb(t, x, y, p.t[0], p.t[1], p.t[2]);
         set_rgb(r, x, y, p.r[0], p.r[1], p.r[2]);
       }
-    const double expected =
-        expected_uniform_flip(lab_of(p.t[0], p.t[1], p.t[2]), lab_of(p.r[0], p.r[1], p.r[2]));
-    EXPECT_NEAR(map_at(flip_error_map(t, r), 2, 2), expected, 5e-4)
-        << p.t[0] << "," << p.t[1] << "," << p.t[2];
+    const double expected = expected_uniform_flip(lab_of(p.t[0], p.t[1], p.t[2]), lab_of(p.r[0], p.r[1], p.r[2]));
+    EXPECT_NEAR(map_at(flip_error_map(t, r), 2, 2), expected, 5e-4) << p.t[0] << "," << p.t[1] << "," << p.t[2];
   }
   EXPECT_GT(expected_uniform_flip(lab_of(1, 0, 0), lab_of(0, 1, 0)), 0.95);
 }
@@ -382,8 +378,7 @@ TEST(Flip, BlueYellowHasTheWidestContrastSensitivityFilter) {
   ErrorOptions o;
   o.flip_ppd = 20.0;
   const auto ratio = [&](const float d[3]) {
-    return compare_images(pattern(d, true), ref, o).flip_mean /
-           compare_images(pattern(d, false), ref, o).flip_mean;
+    return compare_images(pattern(d, true), ref, o).flip_mean / compare_images(pattern(d, false), ref, o).flip_mean;
   };
   const double ach = ratio(achromatic), rg = ratio(red_green), by = ratio(blue_yellow);
   EXPECT_LT(by, 0.75);
@@ -403,8 +398,8 @@ TEST(Flip, EdgesRaiseTheErrorAboveTheColourTerm) {
   const Image4f map = flip_error_map(test, ref);
   const double uniform_err = expected_ec(lstar(0.6) - lstar(0.5));
   EXPECT_NEAR(map_at(map, n - 3, n / 2), uniform_err, 2e-3);  // far from the step
-  EXPECT_LT(map_at(map, 10, n / 2), 1e-3);                     // far on the unchanged side
-  EXPECT_GT(map_max(map), 1.3 * uniform_err);                  // near the step
+  EXPECT_LT(map_at(map, 10, n / 2), 1e-3);                    // far on the unchanged side
+  EXPECT_GT(map_max(map), 1.3 * uniform_err);                 // near the step
   float best = 0;
   uint32_t best_x = 0;
   for (uint32_t x = 0; x < n; ++x)

@@ -11,8 +11,8 @@ namespace hp {
 namespace {
 
 TEST(Environment, CapturedFieldsAreFilled) {
-  const DeviceDescription dev{"llvmpipe (LLVM 15.0.6, 256 bits)", "cpu", "llvmpipe",
-                              "Mesa 22.3.6 (LLVM 15.0.6)", "22.3.6", "1.3.230"};
+  const DeviceDescription dev{"llvmpipe (LLVM 15.0.6, 256 bits)", "cpu",    "llvmpipe",
+                              "Mesa 22.3.6 (LLVM 15.0.6)",        "22.3.6", "1.3.230"};
   const Environment env = capture_environment(dev);
   EXPECT_FALSE(env.cpu_model.empty());
   EXPECT_GT(env.core_count, 0u);
@@ -61,8 +61,7 @@ TEST(Environment, CpuModelParsing) {
   EXPECT_EQ(parse_cpu_model("processor\t: 0\nBogoMIPS\t: 108.00\nCPU part\t: 0xd0c\n\n"
                             "Hardware\t: BCM2835\nModel\t\t: Raspberry Pi 4 Model B Rev 1.4\n"),
             "Raspberry Pi 4 Model B Rev 1.4");
-  EXPECT_EQ(parse_cpu_model("Hardware\t: Qualcomm Technologies, Inc SM8150\n"),
-            "Qualcomm Technologies, Inc SM8150");
+  EXPECT_EQ(parse_cpu_model("Hardware\t: Qualcomm Technologies, Inc SM8150\n"), "Qualcomm Technologies, Inc SM8150");
   EXPECT_EQ(parse_cpu_model("model name\t:\nmodel\t: 85\n"), "unknown");
   EXPECT_EQ(parse_cpu_model(""), "unknown");
 }

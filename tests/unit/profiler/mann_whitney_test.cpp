@@ -24,8 +24,8 @@ TEST(MannWhitney, CompleteSeparationIsExact) {
   EXPECT_DOUBLE_EQ(s.u, 9.0);
   EXPECT_NEAR(s.p_value, 0.1, 1e-12);
   // 4 vs 4: 2 / C(8,4) = 2/70.
-  EXPECT_NEAR(mann_whitney_u(std::vector<double>{1, 2, 3, 4}, std::vector<double>{5, 6, 7, 8}).p_value,
-              2.0 / 70.0, 1e-12);
+  EXPECT_NEAR(mann_whitney_u(std::vector<double>{1, 2, 3, 4}, std::vector<double>{5, 6, 7, 8}).p_value, 2.0 / 70.0,
+              1e-12);
 }
 
 TEST(MannWhitney, HollanderWolfeExampleFromRDocs) {
@@ -50,7 +50,10 @@ double brute_force_two_sided_p(std::size_t m, std::size_t n, std::size_t u_obs) 
   do {
     std::size_t u = 0, ys = 0;
     for (bool b : is_x) {
-      if (b) u += ys; else ++ys;
+      if (b)
+        u += ys;
+      else
+        ++ys;
     }
     ++total;
     if (u <= u_obs) ++le;
@@ -68,8 +71,7 @@ TEST(MannWhitney, ExactDistributionMatchesEnumeration) {
     const std::vector<double> x{5.5 + shift, 12.5 + shift, 17.5 + shift, 33.5 + shift};
     const MannWhitneyResult r = mann_whitney_u(x, y);
     ASSERT_TRUE(r.exact);
-    EXPECT_NEAR(r.p_value, brute_force_two_sided_p(4, 5, static_cast<std::size_t>(r.u)), 1e-12)
-        << "U = " << r.u;
+    EXPECT_NEAR(r.p_value, brute_force_two_sided_p(4, 5, static_cast<std::size_t>(r.u)), 1e-12) << "U = " << r.u;
   }
 }
 

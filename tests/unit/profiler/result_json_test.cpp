@@ -177,9 +177,7 @@ TEST(ResultJson, BadDocumentsNameTheField) {
 TEST(ResultJson, UnreadableOrUnwritablePathsAreInputErrors) {
   TempDir dir;
   EXPECT_THROW(read_timing_result(dir.path / "absent.json"), InputError);
-  {
-    std::ofstream(dir.path / "broken.json") << "{ not json";
-  }
+  { std::ofstream(dir.path / "broken.json") << "{ not json"; }
   EXPECT_THROW(read_timing_result(dir.path / "broken.json"), InputError);
   EXPECT_THROW(write_timing_result(dir.path / "no" / "such" / "dir.json", fixed_environment(), finished_run()),
                InputError);

@@ -64,8 +64,8 @@ TEST(Timeline, OverlappedFramesGetATrackOfTheirOwnWithNoPassInside) {
     const std::uint64_t b = 5'000'000'000ull + i * 1'000'000 + 650'000;
     overlapped.push_back({b, b + 300'000});
   }
-  const FrameTimings t = FrameTimings::from_measured(0, TimingSource::GpuTimestamps, frames, std::nullopt, {},
-                                                     overlapped);
+  const FrameTimings t =
+      FrameTimings::from_measured(0, TimingSource::GpuTimestamps, frames, std::nullopt, {}, overlapped);
   TimelineFixes fixes;
   const json trace = build_timeline(t, &fixes);
   EXPECT_TRUE(check_timeline(trace).empty());
@@ -76,8 +76,11 @@ TEST(Timeline, OverlappedFramesGetATrackOfTheirOwnWithNoPassInside) {
   ASSERT_EQ(spans.size(), 3u);
   const int tid = spans[0]["tid"];
   for (const json& e : events_of(trace, "X", "pass")) EXPECT_NE(e["tid"], tid) << "no pass on the overlapped track";
-  for (const json& e : events_of(trace, "X", "frame"))
-    if (e["name"] == "frame") EXPECT_NE(e["tid"], tid);
+  for (const json& e : events_of(trace, "X", "frame")) {
+    if (e["name"] == "frame") {
+      EXPECT_NE(e["tid"], tid);
+    }
+  }
   EXPECT_DOUBLE_EQ(spans[1]["ts"].get<double>(), 1650.0);  // time base: the first measured frame's start
   EXPECT_DOUBLE_EQ(spans[1]["dur"].get<double>(), 300.0);
   bool named = false;
@@ -159,7 +162,10 @@ TEST(Timeline, OverlappingPassesAreFixedDeterministically) {
   // The raw samples overlap: written as they are, the checker rejects them.
   json raw = {{"traceEvents", json::array()}};
   for (const PassSample& p : f.passes)
-    raw["traceEvents"].push_back({{"ph", "X"}, {"name", p.pass}, {"pid", 1}, {"tid", 1},
+    raw["traceEvents"].push_back({{"ph", "X"},
+                                  {"name", p.pass},
+                                  {"pid", 1},
+                                  {"tid", 1},
                                   {"ts", static_cast<double>(p.begin_ns - t) / 1000.0},
                                   {"dur", static_cast<double>(p.end_ns - p.begin_ns) / 1000.0}});
   EXPECT_FALSE(check_timeline(raw).empty());

@@ -70,8 +70,8 @@ TEST(Reference, CornellFactsHold) {
 }
 
 TEST(Reference, AxisAlignedAndGrazingLightsGiveNoNaN) {
-  for (const glm::vec3 dir : {glm::vec3(0, 1, 0), glm::vec3(1, 0, 0), glm::vec3(0, 0, 1),
-                              glm::normalize(glm::vec3(1.0f, 1e-4f, 0.0f))}) {
+  for (const glm::vec3 dir :
+       {glm::vec3(0, 1, 0), glm::vec3(1, 0, 0), glm::vec3(0, 0, 1), glm::normalize(glm::vec3(1.0f, 1e-4f, 0.0f))}) {
     Scene scene = make_pica_scene();
     scene.light.direction = dir;
     const Camera cam = auto_frame(scene, 64.0f / 36.0f);
@@ -97,7 +97,8 @@ TEST(Reference, ScaleInvariant) {
     for (uint32_t i = 0; i < 64 * 48; ++i) differ += (r.shading.rgba[4 * i] > 0.5f) != (r1.shading.rgba[4 * i] > 0.5f);
     EXPECT_LE(differ, 3) << scale;  // edge pixels at most
     // Positions scale with the world.
-    EXPECT_NEAR(r.position.at(32, 24)[2] / scale, r1.position.at(32, 24)[2], 1e-3 * std::abs(r1.position.at(32, 24)[2]));
+    EXPECT_NEAR(r.position.at(32, 24)[2] / scale, r1.position.at(32, 24)[2],
+                1e-3 * std::abs(r1.position.at(32, 24)[2]));
   }
 }
 

@@ -61,18 +61,22 @@ TEST(Gate, PlantedThirtyPercentSlowdownFails) {
 }
 
 TEST(Gate, ModerateSlowdownWarns) {
-  const GateOutcome o = run_gate(side({with_passes(50, 1, 0.02)}, "a"), side({with_passes(50, 2, 0.02, 1.07)}, "b"), {});
+  const GateOutcome o =
+      run_gate(side({with_passes(50, 1, 0.02)}, "a"), side({with_passes(50, 2, 0.02, 1.07)}, "b"), {});
   EXPECT_EQ(o.exit_code, 0) << format_gate(o);
   EXPECT_EQ(row(o, "time shadows (ms)")->verdict, "WARN");
   EXPECT_EQ(o.warns, 1u);
   // The same change fails under a threshold below it.
   GateOptions strict;
   strict.policy.threshold = 0.06;
-  EXPECT_EQ(run_gate(side({with_passes(50, 1, 0.02)}, "a"), side({with_passes(50, 2, 0.02, 1.07)}, "b"), strict).exit_code, 1);
+  EXPECT_EQ(
+      run_gate(side({with_passes(50, 1, 0.02)}, "a"), side({with_passes(50, 2, 0.02, 1.07)}, "b"), strict).exit_code,
+      1);
 }
 
 TEST(Gate, TinySignificantChangePasses) {
-  const GateOutcome o = run_gate(side({with_passes(100, 1, 0.005)}, "a"), side({with_passes(100, 2, 0.005, 1.02)}, "b"), {});
+  const GateOutcome o =
+      run_gate(side({with_passes(100, 1, 0.005)}, "a"), side({with_passes(100, 2, 0.005, 1.02)}, "b"), {});
   EXPECT_EQ(o.exit_code, 0) << format_gate(o);
   const GateRow* r = row(o, "time shadows (ms)");
   ASSERT_TRUE(r && r->p_holm);
@@ -150,17 +154,21 @@ TEST(Gate, TheCannotFailNoteFollowsTheSmallestPossibleP) {
       if (n.find("cannot fail") != std::string::npos) return true;
     return false;
   };
-  const GateOutcome enough = run_gate(side({cell(0, 4, 1), cell(1, 20, 1)}, "a"), side({cell(0, 4, 2), cell(1, 20, 2)}, "b"), {});
+  const GateOutcome enough =
+      run_gate(side({cell(0, 4, 1), cell(1, 20, 1)}, "a"), side({cell(0, 4, 2), cell(1, 20, 2)}, "b"), {});
   EXPECT_FALSE(note(enough));
   EXPECT_EQ(enough.exit_code, 0) << format_gate(enough);
   // A comparison that cannot fail has not passed: the gate is INCONCLUSIVE (exit 4), its row says so.
-  const GateOutcome few = run_gate(side({cell(0, 3, 1), cell(1, 20, 1)}, "a"), side({cell(0, 3, 2), cell(1, 20, 2)}, "b"), {});
+  const GateOutcome few =
+      run_gate(side({cell(0, 3, 1), cell(1, 20, 1)}, "a"), side({cell(0, 3, 2), cell(1, 20, 2)}, "b"), {});
   EXPECT_TRUE(note(few));
   EXPECT_EQ(few.cannot_fail, 1u);
   EXPECT_EQ(few.exit_code, 4) << format_gate(few);
   EXPECT_NE(format_gate(few).find("result: INCONCLUSIVE: 1 timing comparison(s) could not have failed (exit 4)"),
             std::string::npos);
-  EXPECT_EQ(std::count_if(few.rows.begin(), few.rows.end(), [](const GateRow& r) { return r.verdict == "cannot fail"; }), 1);
+  EXPECT_EQ(std::count_if(few.rows.begin(), few.rows.end(),
+                          [](const GateRow& r) { return r.verdict == "cannot fail"; }),
+            1);
 }
 
 TEST(Gate, DifferentDevicesCannotCompareTimings) {

@@ -82,8 +82,8 @@ TEST(GbenchExport, CompareScriptReadsTwoExports) {
   test::write_results(dir + "/b", {test::line(cell("indexed", 2, 1.3))});
   write_gbench_export(dir + "/a", dir + "/a.json");
   write_gbench_export(dir + "/b", dir + "/b.json");
-  const std::string cmd = python + " " + script + " benchmarks " + dir + "/a.json " + dir + "/b.json > " + dir +
-                          "/out.txt 2>&1";
+  const std::string cmd =
+      python + " " + script + " benchmarks " + dir + "/a.json " + dir + "/b.json > " + dir + "/out.txt 2>&1";
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   std::ifstream in(dir + "/out.txt");
   const std::string out((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -44,8 +44,8 @@ std::vector<CellResult> matrix() {
 TEST(Report, HasEverySection) {
   const Report r = build_report(matrix());
   const std::string& md = r.markdown;
-  for (const char* s : {"# hybridprof report: synth", "## Environment", "## Charts", "## Cells", "## Comparisons along each axis",
-                        "### `geometry`", "### `resolution`", "## Cache simulation"})
+  for (const char* s : {"# hybridprof report: synth", "## Environment", "## Charts", "## Cells",
+                        "## Comparisons along each axis", "### `geometry`", "### `resolution`", "## Cache simulation"})
     EXPECT_NE(md.find(s), std::string::npos) << s;
   EXPECT_NE(md.find("llvmpipe (LLVM 15.0.6, 256 bits)"), std::string::npos);
   EXPECT_NE(md.find("| LP_NUM_THREADS | unset |"), std::string::npos);
@@ -54,7 +54,8 @@ TEST(Report, HasEverySection) {
   // Per cell: the timing table with 21 frames and a valid CI, the counters, the BVH, the images.
   EXPECT_NE(md.find("| pass | median (ms) | 95% CI of the median (ms) | frames | CV |"), std::string::npos);
   EXPECT_TRUE(std::regex_search(md, std::regex(R"(\| shadows \| 3\.0\d\d \| \[2\.9\d\d, 3\.0\d\d\] \| 21 \| 1\.\d%)")));
-  EXPECT_TRUE(std::regex_search(md, std::regex(R"(\| shadows \| 10,000 \| 15\.00 \| 2\.50 \| 3\.3\d \|)"))) << "Mrays/s";
+  EXPECT_TRUE(std::regex_search(md, std::regex(R"(\| shadows \| 10,000 \| 15\.00 \| 2\.50 \| 3\.3\d \|)")))
+      << "Mrays/s";
   EXPECT_NE(md.find("BVH: 69,227 nodes, 34,614 leaves, depth 19"), std::string::npos);
   EXPECT_NE(md.find("(cells/" + matrix()[0].id + "/color.png)"), std::string::npos);
   EXPECT_NE(md.find("shadow mask"), std::string::npos);
@@ -76,7 +77,8 @@ TEST(Report, StatesIsolationAndWhatOverlapSaves) {
   EXPECT_NE(none.find("Passes are serialized for these times"), std::string::npos);
   EXPECT_EQ(none.find("frame as the application records it"), std::string::npos) << "not measured: not claimed";
   const std::string saves = with_saving(2e6);
-  EXPECT_NE(saves.find(": overlapping the passes saves 2.000 ms (95% CI 2.000 to 2.000 ms)"), std::string::npos) << saves;
+  EXPECT_NE(saves.find(": overlapping the passes saves 2.000 ms (95% CI 2.000 to 2.000 ms)"), std::string::npos)
+      << saves;
   const std::string slower = with_saving(-1e6);
   EXPECT_NE(slower.find("the overlapped frame is slower by 1.000 ms"), std::string::npos);
   // Savings of -1, 0 and +1 ms spread over the pairs: the CI holds 0.
@@ -96,17 +98,21 @@ TEST(Report, ComparisonsStateWhatChangedAndByHowMuch) {
   // indexed -> soup, per resolution: the shadow pass ~30% slower with a tiny p, nodes +10%.
   std::smatch m;
   ASSERT_TRUE(std::regex_search(
-      md, m, std::regex(R"(Changing geometry from indexed to soup \(with resolution=64x36\) made shadows (\d+\.\d)% slower \([0-9.]+ → [0-9.]+ ms, p < 0\.001\))")))
+      md, m,
+      std::regex(
+          R"(Changing geometry from indexed to soup \(with resolution=64x36\) made shadows (\d+\.\d)% slower \([0-9.]+ → [0-9.]+ ms, p < 0\.001\))")))
       << md;
   EXPECT_NEAR(std::stod(m[1]), 30.0, 2.0);
   EXPECT_NE(md.find("the work per frame changed: shadows nodes_visited +10.0%"), std::string::npos);
   // Same geometry, other resolution: our synthetic times do not depend on it.
-  EXPECT_NE(md.find("Changing resolution from 64x36 to 128x72 (with geometry=indexed) changed no pass time significantly"),
+  EXPECT_NE(md.find(
+                "Changing resolution from 64x36 to 128x72 (with geometry=indexed) changed no pass time significantly"),
             std::string::npos);
   EXPECT_NE(md.find("the work counters were identical"), std::string::npos);
   // The study's Table 1 beside the geometry axis, with its two headline figures.
-  for (const char* s : {"4,873,530", "6,251,450", "5,374,096", "5,979,267", "by 28.3% with a shared offset and by 11.3% without",
-                        "once GPU traces are captured: this run's cells carry no cache tables"})
+  for (const char* s :
+       {"4,873,530", "6,251,450", "5,374,096", "5,979,267", "by 28.3% with a shared offset and by 11.3% without",
+        "once GPU traces are captured: this run's cells carry no cache tables"})
     EXPECT_NE(md.find(s), std::string::npos) << s;
 }
 
@@ -140,7 +146,9 @@ TEST(Report, RendersCacheTablesWhenPresent) {
                 {{{"pass", "reflections"},
                   {"l1", level1},
                   {"l2", level2},
-                  {"buffers", {{"bvh_nodes", {{"l1_requests", 4100000}, {"l1_misses", 100000}, {"l2_requests", 100000}, {"l2_misses", 7}}}}},
+                  {"buffers",
+                   {{"bvh_nodes",
+                     {{"l1_requests", 4100000}, {"l1_misses", 100000}, {"l2_requests", 100000}, {"l2_misses", 7}}}}},
                   {"mrc", {{"l1", {{"points", {{1024, 0.5}, {2048, 0.3}, {4096, 0.1}}}}}}},
                   {"heatmaps", {{"l1_misses", "cells/x/reflections_l1_misses.png"}}}}}}};
     return test::cell(c);
@@ -148,13 +156,16 @@ TEST(Report, RendersCacheTablesWhenPresent) {
   const Report r = build_report({with_cache("indexed", 4873530, 1), with_cache("soup", 6251450, 2)});
   const std::string& md = r.markdown;
   EXPECT_NE(md.find("| pass | L1 hit | L1 miss | L2 hit | L2 miss | L1 hit rate | L2 hit rate |"), std::string::npos);
-  EXPECT_NE(md.find("| reflections | 4,873,530 | 291,719 | 115,552 | 217,475 | 94.4% | 34.7% |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| reflections | 4,873,530 | 291,719 | 115,552 | 217,475 | 94.4% | 34.7% |"), std::string::npos)
+      << md;
   EXPECT_NE(md.find("| reflections | bvh_nodes | 4,100,000 | 100,000 | 97.6% |"), std::string::npos);
   EXPECT_NE(md.find("reflections L1 hits +28.3% (4,873,530 → 6,251,450)"), std::string::npos);
   EXPECT_NE(md.find("(cells/x/reflections_l1_misses.png)"), std::string::npos);
   EXPECT_NE(md.find("2 of 2 cells carry cache tables"), std::string::npos);
   EXPECT_NE(md.find("Our L1-hit changes for the same comparison"), std::string::npos);
-  EXPECT_EQ(std::count_if(r.charts.begin(), r.charts.end(), [](const ReportFile& f) { return f.path.starts_with("charts/mrc_"); }), 2);
+  EXPECT_EQ(std::count_if(r.charts.begin(), r.charts.end(),
+                          [](const ReportFile& f) { return f.path.starts_with("charts/mrc_"); }),
+            2);
   // Cache counts are deterministic metrics; the curves are not listed.
   const auto m = deterministic_metrics(with_cache("indexed", 4873530, 1));
   EXPECT_EQ(m.at("cache/reflections/l1/hits"), 4873530);

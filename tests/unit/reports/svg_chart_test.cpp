@@ -88,8 +88,10 @@ TEST(SvgChart, BarChartHasBarsErrorBarsAndLegend) {
   for (const Element& e : els) {
     if (e.name != "rect" || e.attrs.count("class") == 0 || e.attrs.at("class") != "bar") continue;
     const double h = std::stod(e.attrs.at("height"));
-    if (h12 == 0) h12 = h;
-    else if (h3 == 0) h3 = h;
+    if (h12 == 0)
+      h12 = h;
+    else if (h3 == 0)
+      h3 = h;
   }
   EXPECT_NEAR(h3 / h12, 3.0 / 12.0, 0.01);
 }
@@ -99,7 +101,8 @@ TEST(SvgChart, LineChartHasOnePolylinePerLine) {
   c.title = "time vs pixels";
   c.x_label = "pixels";
   c.y_label = "ms";
-  c.lines = {{"shadows", {4608, 9216, 36864}, {1, 2, 8}, {}, {}}, {"reflections", {36864, 4608, 9216}, {9, 2, 3}, {8, 1, 2}, {10, 3, 4}}};
+  c.lines = {{"shadows", {4608, 9216, 36864}, {1, 2, 8}, {}, {}},
+             {"reflections", {36864, 4608, 9216}, {9, 2, 3}, {8, 1, 2}, {10, 3, 4}}};
   const auto els = parse_xml(render(c));
   EXPECT_EQ(count(els, "polyline", "line"), 2u);
   EXPECT_EQ(count(els, "circle", "point"), 6u);
@@ -143,7 +146,11 @@ TEST(SvgChart, ScatterChartHighlightsTheParetoFront) {
   c.x_label = "ms";
   c.y_label = "relMSE";
   // Front: (1, 9), (2, 4), (5, 1); (3, 6) and (6, 8) are dominated.
-  c.points = {{3, 6, "c", "", false}, {1, 9, "a", "", true}, {6, 8, "e <1>", "tip e", false}, {5, 1, "d", "", true}, {2, 4, "b", "", true}};
+  c.points = {{3, 6, "c", "", false},
+              {1, 9, "a", "", true},
+              {6, 8, "e <1>", "tip e", false},
+              {5, 1, "d", "", true},
+              {2, 4, "b", "", true}};
   const std::string svg = render(c);
   const auto els = parse_xml(svg);
   EXPECT_EQ(count(els, "circle", "point"), 2u);
@@ -177,7 +184,8 @@ TEST(SvgChart, ScatterChartLogAxes) {
   c.points = {{1e-4, 10, "a", "", true}, {1e-3, 100, "b", "", false}, {1e-2, 1000, "c", "", false}};
   const std::string svg = render(c);
   const auto els = parse_xml(svg);
-  for (const char* t : {">0.0001<", ">0.001<", ">0.01<", ">10<", ">100<", ">1000<"}) EXPECT_NE(svg.find(t), std::string::npos) << t;
+  for (const char* t : {">0.0001<", ">0.001<", ">0.01<", ">10<", ">100<", ">1000<"})
+    EXPECT_NE(svg.find(t), std::string::npos) << t;
   // Equal ratios are equal distances on log axes.
   std::vector<double> cx, cy;
   for (const Element& e : els) {

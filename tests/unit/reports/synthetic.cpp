@@ -28,8 +28,11 @@ std::vector<double> samples(double median_ns, double spread, std::size_t n, std:
 
 std::vector<std::pair<std::string, std::vector<double>>> passes(std::size_t n, std::uint64_t seed, double spread,
                                                                 double shadows_scale) {
-  const std::pair<const char*, double> medians_ms[] = {
-      {"gbuffer", 12.0}, {"shadows", 3.0 * shadows_scale}, {"reflections", 7.0}, {"accumulate", 0.2}, {"composite", 0.7}};
+  const std::pair<const char*, double> medians_ms[] = {{"gbuffer", 12.0},
+                                                       {"shadows", 3.0 * shadows_scale},
+                                                       {"reflections", 7.0},
+                                                       {"accumulate", 0.2},
+                                                       {"composite", 0.7}};
   std::vector<std::pair<std::string, std::vector<double>>> out;
   std::uint64_t s = seed * 131;
   for (const auto& [pass, ms] : medians_ms) out.push_back({pass, samples(ms * 1e6, spread, n, ++s)});
@@ -68,7 +71,9 @@ json line(const SynthCell& c) {
   }
   const FrameTimings timings =
       FrameTimings::from_measured(2, TimingSource::GpuTimestamps, frames, std::nullopt, {}, overlapped);
-  json config = {{"scene", "builtin:pica"}, {"frames", n}, {"inject", {{"pass", "shadows"}, {"fraction", c.inject_fraction}}}};
+  json config = {{"scene", "builtin:pica"},
+                 {"frames", n},
+                 {"inject", {{"pass", "shadows"}, {"fraction", c.inject_fraction}}}};
   for (const auto& [k, v] : c.axes.items()) config[k] = v;
   if (!c.config_patch.is_null()) config.merge_patch(c.config_patch);
   json j;
@@ -95,16 +100,29 @@ json line(const SynthCell& c) {
 json error_json(double relmse, std::optional<double> psnr_db, int frames, double depth_scale) {
   json bins = json::array();
   for (double near : {0.5, 1.0, 2.0, 4.0, 8.0}) {
-    bins.push_back({{"near", near}, {"far", near * 2}, {"pixels", 1000}, {"mean_rel", depth_scale * 1e-7 * near}, {"max_rel", depth_scale * 1e-6 * near}});
+    bins.push_back({{"near", near},
+                    {"far", near * 2},
+                    {"pixels", 1000},
+                    {"mean_rel", depth_scale * 1e-7 * near},
+                    {"max_rel", depth_scale * 1e-6 * near}});
   }
   return {{"reference", {{"id", "0123456789abcdef"}, {"samples", 256}, {"render_s", 12.3}, {"cached", true}}},
           {"frames", frames},
           {"image",
-           {{"pixels", 921600}, {"mse", relmse / 20}, {"relmse", relmse}, {"relmse_eps", 0.01},
-            {"psnr_db", psnr_db ? json(*psnr_db) : json(nullptr)}, {"psnr_peak", 1.0}, {"max_abs", 0.8},
-            {"over_threshold", 120}, {"threshold", 0.1}, {"non_finite", 0}, {"flip_mean", 0.05}}},
+           {{"pixels", 921600},
+            {"mse", relmse / 20},
+            {"relmse", relmse},
+            {"relmse_eps", 0.01},
+            {"psnr_db", psnr_db ? json(*psnr_db) : json(nullptr)},
+            {"psnr_peak", 1.0},
+            {"max_abs", 0.8},
+            {"over_threshold", 120},
+            {"threshold", 0.1},
+            {"non_finite", 0},
+            {"flip_mean", 0.05}}},
           {"shadow", {{"compared", 800000}, {"acne", 12}, {"leaks", 3}, {"coverage_mismatch", 40}}},
-          {"depth", {{"pixels", 900000}, {"mean_rel", depth_scale * 1e-6}, {"max_rel", depth_scale * 1e-4}, {"bins", bins}}}};
+          {"depth",
+           {{"pixels", 900000}, {"mean_rel", depth_scale * 1e-6}, {"max_rel", depth_scale * 1e-4}, {"bins", bins}}}};
 }
 
 json cache_json(const std::string& pass, double l1_hits, double l1_misses, double l2_hits, double l2_misses,
@@ -115,7 +133,12 @@ json cache_json(const std::string& pass, double l1_hits, double l1_misses, doubl
            {{{"pass", pass},
              {"l1", {{"requests", l1_hits + l1_misses}, {"hits", l1_hits}, {"misses", l1_misses}}},
              {"l2", {{"requests", l2_hits + l2_misses}, {"hits", l2_hits}, {"misses", l2_misses}}},
-             {"buffers", {{"bvh_nodes", {{"l1_requests", buffer_requests}, {"l1_misses", buffer_misses}, {"l2_requests", buffer_misses}, {"l2_misses", 7}}}}}}}}};
+             {"buffers",
+              {{"bvh_nodes",
+                {{"l1_requests", buffer_requests},
+                 {"l1_misses", buffer_misses},
+                 {"l2_requests", buffer_misses},
+                 {"l2_misses", 7}}}}}}}}};
 }
 
 CellResult cell(const SynthCell& c) { return parse_cell(line(c), "synthetic"); }

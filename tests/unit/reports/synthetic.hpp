@@ -28,7 +28,11 @@ struct SynthCell {
   std::string commit = "abc123";
   std::uint32_t cores = 2;
   std::uint64_t triangles = 59894;
-  nlohmann::json bvh = {{"build_ms", 28.0}, {"nodes", 69227}, {"leaves", 34614}, {"max_depth", 19}, {"sah_cost", 5.957}};
+  nlohmann::json bvh = {{"build_ms", 28.0},
+                        {"nodes", 69227},
+                        {"leaves", 34614},
+                        {"max_depth", 19},
+                        {"sah_cost", 5.957}};
   nlohmann::json cache;  ///< null: none
   double inject_fraction = 0.0;
   nlohmann::json config_patch;  ///< merged into the canonical config (RFC 7386), e.g. {"trace": {"sample_every": 4}}

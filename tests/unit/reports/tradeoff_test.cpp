@@ -32,7 +32,8 @@ size_t occurrences(const std::string& s, const std::string& what) {
 
 TEST(ParetoFront, MinimisesBoth) {
   // (1,9) (2,4) (5,1) are the front; (3,6) is dominated by (2,4), (6,8) by all of them.
-  EXPECT_EQ(pareto_front({{3, 6}, {1, 9}, {6, 8}, {5, 1}, {2, 4}}), (std::vector<bool>{false, true, false, true, true}));
+  EXPECT_EQ(pareto_front({{3, 6}, {1, 9}, {6, 8}, {5, 1}, {2, 4}}),
+            (std::vector<bool>{false, true, false, true, true}));
   EXPECT_TRUE(pareto_front({}).empty());
   EXPECT_EQ(pareto_front({{7, 7}}), std::vector<bool>{true});
 }
@@ -102,7 +103,7 @@ TEST(Metric, PerRayAndPointers) {
   s.cache = test::cache_json("reflections", 900, 100, 50, 50, 1000, 100, 3.2);
   const CellResult c = test::cell(s);
   EXPECT_DOUBLE_EQ(resolve_metric(c, "per_ray:shadows/nodes_visited", "t")->value, 15.0);
-  EXPECT_FALSE(resolve_metric(c, "per_ray:shadows/triangles_tested", "t"));  // not counted
+  EXPECT_FALSE(resolve_metric(c, "per_ray:shadows/triangles_tested", "t"));   // not counted
   EXPECT_FALSE(resolve_metric(c, "per_ray:reflections/nodes_visited", "t"));  // no rays counted there
   EXPECT_DOUBLE_EQ(resolve_metric(c, "/error/image/relmse", "t")->value, 0.002);
   EXPECT_DOUBLE_EQ(resolve_metric(c, "/bvh/build_ms", "t")->value, 28.0);
@@ -120,8 +121,8 @@ TEST(Metric, PerRayAndPointers) {
 }
 
 TEST(Metric, BadNamesThrowNamingThem) {
-  for (const char* bad : {"speed", "time:", "time:a++b", "time:frame+a", "per_ray:shadows", "per_ray:/rays", "per_ray:a/b/c",
-                          "/error/~2", "relmse"}) {
+  for (const char* bad : {"speed", "time:", "time:a++b", "time:frame+a", "per_ray:shadows", "per_ray:/rays",
+                          "per_ray:a/b/c", "/error/~2", "relmse"}) {
     try {
       check_metric(bad, "report spec: tradeoffs[0] \"T\"");
       ADD_FAILURE() << bad << " accepted";
@@ -169,12 +170,14 @@ TEST(TradeoffSection, TableSortedByXWithFrontMarks) {
   const std::string& md = r.markdown;
   ASSERT_NE(md.find("## Speed against error"), std::string::npos) << md;
   ASSERT_NE(md.find("### Shadow time against image error"), std::string::npos);
-  EXPECT_NE(md.find("| cell | shadow pass (ms, 95% CI) | relMSE | `/error/image/psnr_db` | `per_ray:shadows/nodes_visited` | "
-                    "`/error/shadow/acne` | Pareto |"),
-            std::string::npos)
+  EXPECT_NE(
+      md.find("| cell | shadow pass (ms, 95% CI) | relMSE | `/error/image/psnr_db` | `per_ray:shadows/nodes_visited` | "
+              "`/error/shadow/acne` | Pareto |"),
+      std::string::npos)
       << md;
   // Rows in x order with the CI, the extra columns and the front marks.
-  const std::regex row(R"(\| spp=(\d) \| (\d\.\d{3}) \[(\d\.\d{3}), (\d\.\d{3})\] \| ([0-9.]+) \| ([^|]+) \| 15 \| 12 \| (\*\*yes\*\*|no) \|)");
+  const std::regex row(
+      R"(\| spp=(\d) \| (\d\.\d{3}) \[(\d\.\d{3}), (\d\.\d{3})\] \| ([0-9.]+) \| ([^|]+) \| 15 \| 12 \| (\*\*yes\*\*|no) \|)");
   std::vector<std::string> order, marks;
   for (auto it = std::sregex_iterator(md.begin(), md.end(), row); it != std::sregex_iterator(); ++it) {
     const std::smatch& m = *it;
@@ -190,7 +193,8 @@ TEST(TradeoffSection, TableSortedByXWithFrontMarks) {
   EXPECT_NE(md.find(": spp=4 (1.8"), std::string::npos) << "the front listed in x order";
   EXPECT_NE(md.find("the other 1 are dominated"), std::string::npos);
   // The cell without error metrics is left out and named in a note.
-  EXPECT_TRUE(std::regex_search(md, std::regex(R"(\*Note:\* Not available, left out: spp=5 \(`/error/image/relmse`: missing or null\))")))
+  EXPECT_TRUE(std::regex_search(
+      md, std::regex(R"(\*Note:\* Not available, left out: spp=5 \(`/error/image/relmse`: missing or null\))")))
       << md;
   // The chart: linked, with the front highlighted on a log y axis.
   EXPECT_NE(md.find("](charts/tradeoff_1.svg)"), std::string::npos);
@@ -206,17 +210,19 @@ TEST(TradeoffSection, TableSortedByXWithFrontMarks) {
 TEST(TradeoffSection, ErrorMetricsParagraphAndCellTable) {
   const std::string md = build_report(tradeoff_matrix()).markdown;
   ASSERT_NE(md.find("## Error metrics"), std::string::npos);
-  for (const char* s : {"ε = 0.01", "peak = 1 ", "not OpenImageIO's PSNR, which uses max(1, peak)", "exceeds 0.1", "Andersson et al. 2020",
-                        "**acne** = shadowed in the frame but lit in the reference", "**leaks** = lit in the frame but shadowed",
-                        "|reconstructed − true world position| / true distance"})
+  for (const char* s :
+       {"ε = 0.01", "peak = 1 ", "not OpenImageIO's PSNR, which uses max(1, peak)", "exceeds 0.1",
+        "Andersson et al. 2020", "**acne** = shadowed in the frame but lit in the reference",
+        "**leaks** = lit in the frame but shadowed", "|reconstructed − true world position| / true distance"})
     EXPECT_NE(md.find(s), std::string::npos) << s;
   // Per cell: spp 1 has identical images (PSNR null), spp 2 a finite one.
   EXPECT_NE(md.find("| PSNR (peak 1) | ∞ |"), std::string::npos) << md;
   EXPECT_NE(md.find("| PSNR (peak 1) | 38.00 dB |"), std::string::npos);
-  for (const char* s : {"| reference | `0123456789abcdef`, 256 samples per pixel, rendered in 12.3 s (cached) |",
-                        "| frames accumulated | 16 |", "| relMSE (ε = 0.01) | 0.002 |", "| pixels over 0.1 | 120 (0.013% of 921,600) |",
-                        "| FLIP (mean) | 0.0500 |", "| shadow acne / leaks | 12 / 3 of 800,000 compared pixels |",
-                        "| shadow coverage mismatches | 40 |"})
+  for (const char* s :
+       {"| reference | `0123456789abcdef`, 256 samples per pixel, rendered in 12.3 s (cached) |",
+        "| frames accumulated | 16 |", "| relMSE (ε = 0.01) | 0.002 |", "| pixels over 0.1 | 120 (0.013% of 921,600) |",
+        "| FLIP (mean) | 0.0500 |", "| shadow acne / leaks | 12 / 3 of 800,000 compared pixels |",
+        "| shadow coverage mismatches | 40 |"})
     EXPECT_NE(md.find(s), std::string::npos) << s;
   EXPECT_EQ(occurrences(md, "Error against the reference:"), 4u);
   // No error metrics anywhere: no paragraph and no speed-against-error section without a spec.
@@ -275,14 +281,17 @@ std::vector<CellResult> sampling_matrix() {
     int k;
     double l1_hits, l2_hits, buffer_misses, sim_s;
   };
-  const Row rows[] = {{"indexed", 1, 900, 50, 100, 10.0}, {"indexed", 4, 890, 52, 120, 2.5},
-                      {"indexed", 16, 850, 60, 200, 1.0}, {"soup", 4, 700, 40, 300, 2.0}};
+  const Row rows[] = {{"indexed", 1, 900, 50, 100, 10.0},
+                      {"indexed", 4, 890, 52, 120, 2.5},
+                      {"indexed", 16, 850, 60, 200, 1.0},
+                      {"soup", 4, 700, 40, 300, 2.0}};
   std::vector<CellResult> cells;
   std::uint64_t seed = 1;
   for (const Row& r : rows) {
     test::SynthCell s = base_cell({{"geometry", r.geometry}, {"trace.sample_every", r.k}}, seed++);
     s.config_patch = {{"trace", {{"passes", {"reflections"}}, {"sample_every", r.k}}}, {"trace.sample_every", nullptr}};
-    s.cache = test::cache_json("reflections", r.l1_hits, 1000 - r.l1_hits, r.l2_hits, 100 - r.l2_hits, 1000, r.buffer_misses, r.sim_s);
+    s.cache = test::cache_json("reflections", r.l1_hits, 1000 - r.l1_hits, r.l2_hits, 100 - r.l2_hits, 1000,
+                               r.buffer_misses, r.sim_s);
     s.report = {{"cache_sampling", true}};
     cells.push_back(test::cell(s));
   }
@@ -294,15 +303,16 @@ TEST(CacheSamplingSection, ErrorsAgainstTheFullTrace) {
   const std::string& md = r.markdown;
   ASSERT_NE(md.find("### Cache simulation on sampled traces"), std::string::npos) << md;
   ASSERT_NE(md.find("#### reflections"), std::string::npos);
-  for (const char* s : {"| geometry=indexed, bursts of 1 workgroup | 1 | 90.00% | — | 50.00% | — | — | 10.00 | 1× |",
-                        "| geometry=indexed, bursts of 1 workgroup | 4 | 89.00% | 1.000 | 52.00% | 2.000 | 2.000 | 2.50 | 4.0× |",
-                        "| geometry=indexed, bursts of 1 workgroup | 16 | 85.00% | 5.000 | 60.00% | 10.000 | 10.000 | 1.00 | 10.0× |"})
+  for (const char* s :
+       {"| geometry=indexed, bursts of 1 workgroup | 1 | 90.00% | — | 50.00% | — | — | 10.00 | 1× |",
+        "| geometry=indexed, bursts of 1 workgroup | 4 | 89.00% | 1.000 | 52.00% | 2.000 | 2.000 | 2.50 | 4.0× |",
+        "| geometry=indexed, bursts of 1 workgroup | 16 | 85.00% | 5.000 | 60.00% | 10.000 | 10.000 | 1.00 | 10.0× |"})
     EXPECT_NE(md.find(s), std::string::npos) << s << "\n" << md;
   EXPECT_LT(md.find("| geometry=indexed, bursts of 1 workgroup | 4 |"),
             md.find("| geometry=indexed, bursts of 1 workgroup | 16 |"));
   // Time against error: mean |error| over L1 and L2, the full trace at 0, every point on the front here.
-  for (const char* s : {"| k=16, bursts of 1 | 1.000 | 7.500 | **yes** |", "| k=4, bursts of 1 | 2.500 | 1.500 | **yes** |",
-                        "| full trace | 10.000 | 0.000 | **yes** |"})
+  for (const char* s : {"| k=16, bursts of 1 | 1.000 | 7.500 | **yes** |",
+                        "| k=4, bursts of 1 | 2.500 | 1.500 | **yes** |", "| full trace | 10.000 | 0.000 | **yes** |"})
     EXPECT_NE(md.find(s), std::string::npos) << s << "\n" << md;
   EXPECT_LT(md.find("| k=16, bursts of 1 |"), md.find("| full trace |"));  // sorted by time
   const ReportFile* tradeoff = chart(r, "charts/cache_sampling_tradeoff.svg");

@@ -95,8 +95,11 @@ json legacy_line(const Measured& in) {
   line["load_1min"] = {{"start", in.env.load_1min ? json(*in.env.load_1min) : json(nullptr)},
                        {"end", in.load_end ? json(*in.load_end) : json(nullptr)}};
   line["scene"] = {{"triangles", in.triangles}};
-  line["bvh"] = {{"build_ms", in.build_ms}, {"nodes", in.nodes},        {"leaves", in.leaves},
-                 {"max_depth", in.max_depth}, {"sah_cost", in.sah_cost}};
+  line["bvh"] = {{"build_ms", in.build_ms},
+                 {"nodes", in.nodes},
+                 {"leaves", in.leaves},
+                 {"max_depth", in.max_depth},
+                 {"sah_cost", in.sah_cost}};
   line["cache"] = in.cache;
   line["error"] = in.error;
   line["report"] = in.report;

@@ -41,8 +41,10 @@ TEST(ScenarioKeys, ReadmeHoldsTheGeneratedTable) {
 void leaves(const json& j, const std::string& prefix, std::set<std::string>& out) {
   for (const auto& [k, v] : j.items()) {
     const std::string path = prefix.empty() ? k : prefix + "." + k;
-    if (v.is_object()) leaves(v, path, out);
-    else out.insert(path);
+    if (v.is_object())
+      leaves(v, path, out);
+    else
+      out.insert(path);
   }
 }
 
@@ -56,7 +58,8 @@ TEST(ScenarioKeys, CoverTheCanonicalFormAndEveryKeyParses) {
   // A scenario with every conditional key on: its canonical form's keys are all table keys.
   const Scenario s = parse_scenario(json::parse(R"({"reflection_path": "compact", "query_overhead": true,
       "overlap": false, "trace": {"passes": ["shadows"], "sample_every": 2, "sample_block": 4},
-      "transform": {"scale": 2}, "error": {}})"), "f.json");
+      "transform": {"scale": 2}, "error": {}})"),
+                                    "f.json");
   std::set<std::string> canonical;
   leaves(s.canonical(), "", canonical);
   for (const std::string& k : canonical) EXPECT_TRUE(table.count(k)) << k << " is canonical but not in the table";

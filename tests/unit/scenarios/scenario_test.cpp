@@ -66,8 +66,10 @@ TEST(Scenario, ValuesAreRead) {
 
 TEST(Scenario, ErrorsNameFileAndKeyPath) {
   EXPECT_EQ(error_of(json::parse(R"({"frames": 0})")), "f.json: frames: 0 is outside [1, 100000]");
-  EXPECT_NE(error_of(json::parse(R"({"geometrie": "soup"})")).find("f.json: geometrie: unknown key"), std::string::npos);
-  EXPECT_NE(error_of(json::parse(R"({"bvh": {"bucket": 3}})")).find("f.json: bvh.bucket: unknown key"), std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"geometrie": "soup"})")).find("f.json: geometrie: unknown key"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"bvh": {"bucket": 3}})")).find("f.json: bvh.bucket: unknown key"),
+            std::string::npos);
   EXPECT_EQ(error_of(json::parse(R"({"geometry": 3})")), "f.json: geometry: expected a string, got number");
   EXPECT_NE(error_of(json::parse(R"({"jitter": "random"})")).find("jitter: 'random' is not one of shared, per-thread"),
             std::string::npos);
@@ -81,7 +83,8 @@ TEST(Scenario, ErrorsNameFileAndKeyPath) {
             std::string::npos);
   EXPECT_NE(error_of(json::parse(R"({"passes": {"shadows": false}, "inject": {"fraction": 0.1}})")).find("inject"),
             std::string::npos);
-  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"geometry": []}})")).find("axes.geometry: expected a non-empty list"),
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"geometry": []}})"))
+                .find("axes.geometry: expected a non-empty list"),
             std::string::npos);
   EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"geometry": ["indexed", "sup"]}})")).find("geometry"),
             std::string::npos);
@@ -159,7 +162,8 @@ TEST(Scenario, TransformAndErrorKeys) {
   EXPECT_FALSE(d.canonical().contains("transform")) << "unset keys must not change existing ids";
   EXPECT_FALSE(d.canonical().contains("error"));
   const Scenario s = parse_scenario(json::parse(R"({"transform": {"scale": 0.001, "translate": [100000, 0, 0]},
-      "error": {"frames": 4, "reference_samples": 32, "threshold": 0.05, "flip": false}})"), "s.json");
+      "error": {"frames": 4, "reference_samples": 32, "threshold": 0.05, "flip": false}})"),
+                                    "s.json");
   EXPECT_EQ(s.world_scale, 0.001);
   EXPECT_EQ(s.world_translate, glm::dvec3(1e5, 0, 0));
   EXPECT_TRUE(s.error);
@@ -186,18 +190,24 @@ TEST(Scenario, TraceSamplingKeys) {
   EXPECT_EQ(full.trace_sample_block, 1u);
   EXPECT_FALSE(full.canonical()["trace"].contains("sample_block")) << "unset keys must not change existing ids";
   EXPECT_FALSE(full.canonical()["trace"].contains("scale_model")) << "irrelevant to a full trace";
-  const Scenario s = parse_scenario(
-      json::parse(R"({"trace": {"passes": ["shadows"], "sample_every": 16, "sample_block": 64}})"), "f.json");
+  const Scenario s =
+      parse_scenario(json::parse(R"({"trace": {"passes": ["shadows"], "sample_every": 16, "sample_block": 64}})"),
+                     "f.json");
   EXPECT_EQ(s.trace_sample_block, 64u);
   EXPECT_TRUE(s.trace_scale_model);  // the default for sampled traces
   EXPECT_EQ(s.canonical()["trace"]["scale_model"], true);
-  const Scenario u = parse_scenario(
-      json::parse(R"({"trace": {"passes": ["shadows"], "sample_every": 16, "scale_model": false}})"), "f.json");
-  EXPECT_NE(u.id(), parse_scenario(json::parse(R"({"trace": {"passes": ["shadows"], "sample_every": 16}})"), "f.json").id());
-  EXPECT_NE(error_of(json::parse(R"({"trace": {"sample_block": 48}})")).find("trace.sample_block: must be a power of two"),
+  const Scenario u =
+      parse_scenario(json::parse(R"({"trace": {"passes": ["shadows"], "sample_every": 16, "scale_model": false}})"),
+                     "f.json");
+  EXPECT_NE(u.id(),
+            parse_scenario(json::parse(R"({"trace": {"passes": ["shadows"], "sample_every": 16}})"), "f.json").id());
+  EXPECT_NE(
+      error_of(json::parse(R"({"trace": {"sample_block": 48}})")).find("trace.sample_block: must be a power of two"),
+      std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"trace": {"sample_block": 4096}})")).find("trace.sample_block"),
             std::string::npos);
-  EXPECT_NE(error_of(json::parse(R"({"trace": {"sample_block": 4096}})")).find("trace.sample_block"), std::string::npos);
-  EXPECT_NE(error_of(json::parse(R"({"trace": {"sample_every": 2000000}})")).find("trace.sample_every"), std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"trace": {"sample_every": 2000000}})")).find("trace.sample_every"),
+            std::string::npos);
 }
 
 TEST(Matrix, CellsAreNamedCasesMergedOntoTheBase) {
@@ -206,7 +216,8 @@ TEST(Matrix, CellsAreNamedCasesMergedOntoTheBase) {
                 {"name": "b", "light": {"direction": [0, 1, 0]}, "bvh": {"granularity": "object"}}],
       "axes": {"seed": [1, 2]},
       "expect": {"b": {"max_acne_fraction": 0}},
-      "report": {"depth_error": true}})"), "f.json");
+      "report": {"depth_error": true}})"),
+                                "f.json");
   ASSERT_EQ(m.axes, (std::vector<std::string>{"case", "seed"}));
   ASSERT_EQ(m.cells.size(), 4u);
   EXPECT_EQ(m.cell_axis_values[0], json::parse(R"({"case": "a", "seed": 1})"));
@@ -214,7 +225,7 @@ TEST(Matrix, CellsAreNamedCasesMergedOntoTheBase) {
   EXPECT_EQ(m.cells[0].name, "a");
   EXPECT_EQ(m.cells[2].scene, "builtin:pica");  // not inherited from cell a
   EXPECT_EQ(m.cells[2].frame.bvh.granularity, bvh::Granularity::object);
-  EXPECT_EQ(m.cells[3].frame.rt.bias, 0.5f);    // from the base
+  EXPECT_EQ(m.cells[3].frame.rt.bias, 0.5f);  // from the base
   EXPECT_EQ(m.expect["b"]["max_acne_fraction"], 0);
   EXPECT_EQ(m.report["depth_error"], true);
   EXPECT_NE(error_of(json::parse(R"({"base": {}, "cells": [{"scene": "builtin:pica"}]})")).find("cells[0].name"),
@@ -228,9 +239,11 @@ TEST(Matrix, CellsAreNamedCasesMergedOntoTheBase) {
   EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "expect": {"y": {}}})")).find("expect"),
             std::string::npos);
   EXPECT_NE(error_of(json::parse(R"({"base": {}, "cells": [], "axes": {}})")).find("cells"), std::string::npos);
-  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": 3})")).find("report"), std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": 3})")).find("report"),
+            std::string::npos);
   // The report sections are checked when the matrix is read (audit find: a typo ran the whole matrix first).
-  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": {"foo": 1}})")).find("report.foo: unknown key"),
+  EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": {"foo": 1}})"))
+                .find("report.foo: unknown key"),
             std::string::npos);
   EXPECT_NE(error_of(json::parse(R"({"base": {}, "axes": {"seed": [1]}, "report": {"tradeoffs": "x"}})"))
                 .find("report.tradeoffs: expected a list"),
@@ -247,7 +260,8 @@ TEST(Matrix, CellsAreNamedCasesMergedOntoTheBase) {
 // folder given as the scenario escaped as "basic_filebuf::underflow" (an internal error); an unknown cache
 // preset was only noticed in the middle of a run.
 TEST(Matrix, DeepNestingFoldersUnknownPresetsAndRepeatedPassesAreNamed) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("hp_matrix_bad_" + std::to_string(::getpid()));
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("hp_matrix_bad_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   auto error = [&](const std::string& text) {
     const auto p = dir / "m.json";
@@ -260,7 +274,8 @@ TEST(Matrix, DeepNestingFoldersUnknownPresetsAndRepeatedPassesAreNamed) {
     return std::string("no error");
   };
   const std::string deep = std::string(300000, '[') + std::string(300000, ']');
-  EXPECT_EQ(error("{\"base\": {\"x\": " + deep + "}}"), (dir / "m.json").string() + ": JSON nested deeper than 256 levels");
+  EXPECT_EQ(error("{\"base\": {\"x\": " + deep + "}}"),
+            (dir / "m.json").string() + ": JSON nested deeper than 256 levels");
   EXPECT_EQ(error(R"({"base": {"scene": "builtin:cornell", "cache_preset": "vega99"}, "axes": {"seed": [1]}})"),
             (dir / "m.json").string() + ": base.cache_preset: unknown preset 'vega99' (known: ga102, h100, vega56)");
   EXPECT_NE(error(R"({"base": {"trace": {"passes": ["shadows", "shadows"]}}, "axes": {"seed": [1]}})")
@@ -335,8 +350,9 @@ TEST(RunFilter, SelectsByIdAndAxisValue) {
     select_cells(m, {"jitter=shared"});
     FAIL() << "a filter on no axis was accepted";
   } catch (const InputError& e) {
-    EXPECT_STREQ(e.what(), "--filter jitter=shared: 'jitter' is not an axis of matrix 'f' (axes: geometry, resolution, "
-                           "bvh.leaf_size)");
+    EXPECT_STREQ(e.what(),
+                 "--filter jitter=shared: 'jitter' is not an axis of matrix 'f' (axes: geometry, resolution, "
+                 "bvh.leaf_size)");
   }
   try {
     select_cells(m, {"geometry=soup", "leaf_size=3"});

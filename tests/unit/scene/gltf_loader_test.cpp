@@ -131,8 +131,7 @@ TEST(GltfLoader, ReadsInterleavedStridesU8IndicesAndFileNormals) {
   // Interleaved position + normal, 24-byte stride; normals deliberately not +z (and one unnormalised) so
   // that we can tell file normals from computed ones.
   // clang-format off: two vertices a row
-  const std::vector<float> interleaved = {0, 0, 0, 0, 1, 0,  1, 0, 0, 0, 1, 0,
-                                          1, 1, 0, 0, 2, 0,  0, 1, 0, 0, 1, 0};
+  const std::vector<float> interleaved = {0, 0, 0, 0, 1, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 0, 2, 0, 0, 1, 0, 0, 1, 0};
   // clang-format on
   const std::vector<uint8_t> idx8 = {0, 1, 2, 0, 2, 3};
   test::BufferBuilder b;
@@ -144,7 +143,8 @@ TEST(GltfLoader, ReadsInterleavedStridesU8IndicesAndFileNormals) {
                           {{"buffer", 0}, {"byteOffset", vo}, {"byteLength", 96}, {"byteStride", 24}}};
   q.doc["accessors"][0]["componentType"] = 5121;
   q.doc["accessors"][1]["byteOffset"] = 0;
-  q.doc["accessors"].push_back({{"bufferView", 1}, {"byteOffset", 12}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"}});
+  q.doc["accessors"].push_back(
+      {{"bufferView", 1}, {"byteOffset", 12}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"}});
   q.doc["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = 2;
   const Scene s = load_scene(q.write(dir));
   const Mesh& m = s.meshes.at(0);
@@ -184,7 +184,9 @@ TEST(GltfLoader, MaterialFactorsAndDefaultMaterial) {
   QuadGltf q;
   q.doc["materials"] = {{{"name", "paint"},
                          {"pbrMetallicRoughness",
-                          {{"baseColorFactor", {0.1, 0.2, 0.3, 1.0}}, {"metallicFactor", 0.25}, {"roughnessFactor", 0.75},
+                          {{"baseColorFactor", {0.1, 0.2, 0.3, 1.0}},
+                           {"metallicFactor", 0.25},
+                           {"roughnessFactor", 0.75},
                            {"baseColorTexture", {{"index", 0}}}}}}};
   // The texture's image is not shipped: a missing image must not be an error.
   q.doc["textures"] = {{{"source", 0}}};
@@ -265,15 +267,28 @@ TEST(GltfErrors, WrongTypesAndWorldsOutOfRangeAreNamed) {
     std::string field, reason;
   };
   const std::vector<Case> cases = {
-      {[](nlohmann::json& d) { d["nodes"][0]["rotation"] = "abc"; }, "nodes[0].rotation", "expected an array of numbers"},
-      {[](nlohmann::json& d) { d["nodes"][0]["scale"] = {1, "x", 1}; }, "nodes[0].scale", "expected an array of numbers"},
-      {[](nlohmann::json& d) { d["bufferViews"][0]["byteOffset"] = -100; }, "bufferViews[0].byteOffset", "non-negative integer"},
+      {[](nlohmann::json& d) { d["nodes"][0]["rotation"] = "abc"; }, "nodes[0].rotation",
+       "expected an array of numbers"},
+      {[](nlohmann::json& d) {
+         d["nodes"][0]["scale"] = {1, "x", 1};
+       },
+       "nodes[0].scale", "expected an array of numbers"},
+      {[](nlohmann::json& d) { d["bufferViews"][0]["byteOffset"] = -100; }, "bufferViews[0].byteOffset",
+       "non-negative integer"},
       {[](nlohmann::json& d) { d["accessors"][0]["count"] = 2.5; }, "accessors[0].count", "non-negative integer"},
       {[](nlohmann::json& d) { d["asset"]["version"] = "1.0"; }, "asset.version", "only glTF 2.x"},
-      {[](nlohmann::json& d) { d["materials"] = {{{"pbrMetallicRoughness", {{"roughnessFactor", "x"}}}}}; },
+      {[](nlohmann::json& d) {
+         d["materials"] = {{{"pbrMetallicRoughness", {{"roughnessFactor", "x"}}}}};
+       },
        "materials[0].pbrMetallicRoughness.roughnessFactor", "expected a number"},
-      {[](nlohmann::json& d) { d["nodes"][0]["scale"] = {1e300, 1e300, 1e300}; }, "nodes[0]", "within +-1e18"},
-      {[](nlohmann::json& d) { d["nodes"][0]["translation"] = {0, 1e38, 0}; }, "nodes[0]", "within +-1e18"},
+      {[](nlohmann::json& d) {
+         d["nodes"][0]["scale"] = {1e300, 1e300, 1e300};
+       },
+       "nodes[0]", "within +-1e18"},
+      {[](nlohmann::json& d) {
+         d["nodes"][0]["translation"] = {0, 1e38, 0};
+       },
+       "nodes[0]", "within +-1e18"},
   };
   for (const Case& c : cases) {
     TempDir dir;

@@ -49,7 +49,9 @@ TEST_P(SharedScenes, LoadsWithTheListedTriangleCount) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Readme, SharedScenes, testing::ValuesIn(kScenes),
-                         [](const testing::TestParamInfo<SharedScene>& info) { return std::string(info.param.folder); });
+                         [](const testing::TestParamInfo<SharedScene>& info) {
+                           return std::string(info.param.folder);
+                         });
 
 TEST(SharedScenesFolder, EveryGltfInTheFolderIsListed) {
   if (!fs::is_directory(scenes_dir()))
@@ -59,8 +61,7 @@ TEST(SharedScenesFolder, EveryGltfInTheFolderIsListed) {
     const auto ext = entry.path().extension();
     if (ext != ".gltf" && ext != ".glb") continue;
     bool listed = false;
-    for (const SharedScene& s : kScenes)
-      listed |= entry.path() == scenes_dir() / s.folder / s.file;
+    for (const SharedScene& s : kScenes) listed |= entry.path() == scenes_dir() / s.folder / s.file;
     EXPECT_TRUE(listed) << entry.path() << " is not in the README table of this test";
   }
 }
