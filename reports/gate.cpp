@@ -43,13 +43,6 @@ double tolerance_for(const GatePolicy& p, const std::string& metric) {
   return 0.0;
 }
 
-// The smallest two-sided p-value a U test can give with n and m samples and no ties: 2 / C(n+m, n).
-double min_p(size_t n, size_t m) {
-  double c = 1.0;
-  for (size_t i = 1; i <= std::min(n, m); ++i) c = c * double(n + m - std::min(n, m) + i) / double(i);
-  return std::min(1.0, 2.0 / c);
-}
-
 std::string shell_quote(const std::string& s) {
   std::string q = "'";
   for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
@@ -277,7 +270,7 @@ void compare_timings_of(const GateSide& base, const GateSide& cand, const CellPa
     // Holm tests the largest p at alpha itself: a comparison cannot fail when even its smallest possible
     // p exceeds alpha. That bound holds for the exact test; with ties the normal approximation can go
     // lower, so nothing is claimed then.
-    if (t.exact && min_p(t.nb, t.nc) > o.policy.alpha) {
+    if (t.exact && mann_whitney_min_p(t.nb, t.nc) > o.policy.alpha) {
       undetectable = true;
       ++out.cannot_fail;
       if (row.verdict == "pass") row.verdict = "cannot fail";

@@ -411,44 +411,159 @@ void charts_section(const std::vector<CellResult>& cells, Report& r, std::string
 }
 
 // One comparison: cell b against cell a, which differ only in `axis`.
-std::string comparison(const CellResult& a, const CellResult& b, const std::string& axis) {
+// ---- the family of timing comparisons ----------------------------------------------------------
+
+constexpr double kAlpha = 0.05;
+
+// Two cells that differ in one axis only, in the order the comparisons section lists them.
+struct CellPair {
+  const CellResult* a;
+  const CellResult* b;
+  std::string axis;
+};
+
+std::vector<CellPair> axis_pairs(const std::vector<CellResult>& cells, const std::string& axis) {
+  std::vector<json> values;
+  for (const CellResult& c : cells)
+    if (c.axes.contains(axis) && std::find(values.begin(), values.end(), c.axes[axis]) == values.end())
+      values.push_back(c.axes[axis]);
+  std::vector<CellPair> out;
+  for (size_t i = 0; i < values.size(); ++i)
+    for (size_t j = i + 1; j < values.size(); ++j)
+      for (const CellResult& a : cells) {
+        if (!a.axes.contains(axis) || a.axes[axis] != values[i]) continue;
+        for (const CellResult& b : cells)
+          if (b.axes.contains(axis) && b.axes[axis] == values[j] && others_key(a, axis) == others_key(b, axis))
+            out.push_back({&a, &b, axis});
+      }
+  return out;
+}
+
+// One pass's time in two cells: the test, its Holm adjustment over every timing comparison of the report,
+// and the verdict.
+struct TimeComparison {
+  const CellResult* a;
+  const CellResult* b;
+  std::string axis, pass;
+  Summary sa, sb;
+  double p_raw = 1.0, p_holm = 1.0;
+  bool exact = false, b_slower = false;
+  size_t na = 0, nb = 0;
+  bool identical_work = false;  ///< both cells count the pass's work, and every counter is equal per frame
+  std::string verdict;          ///< "faster", "slower", "no change" or "inconclusive"
+  double ratio() const { return sb.median / sa.median; }
+};
+
+double per_frame(const CellResult& c, const std::string& pass, const std::string& name) {
+  return double(c.timing.counters.get(pass, name)) / double(c.timing.timings.measured().size());
+}
+
+// The same work in both cells: every work counter of the pass equal per frame AND its simulated L1 and L2
+// hits and misses equal. Counters alone are not enough: a change of data layout (geometry: indexed or
+// soup) casts the same rays through the same nodes with other memory traffic. Without cache tables for the
+// pass in both cells, nothing is claimed.
+bool identical_work(const CellResult& a, const CellResult& b, const std::string& pass) {
+  const Counters &ka = a.timing.counters, &kb = b.timing.counters;
+  if (!has_pass(ka, pass) || !has_pass(kb, pass)) return false;
+  const auto& ca = ka.passes().at(pass);
+  const auto& cb = kb.passes().at(pass);
+  if (ca.empty() || ca.size() != cb.size()) return false;
+  for (const auto& [name, value] : ca)
+    if (!cb.count(name) || per_frame(a, pass, name) != per_frame(b, pass, name)) return false;
+  const std::vector<CachePass> xa = cache_passes(a), xb = cache_passes(b);
+  const auto find = [&](const std::vector<CachePass>& v) {
+    return std::find_if(v.begin(), v.end(), [&](const CachePass& p) { return p.pass == pass; });
+  };
+  const auto pa = find(xa), pb = find(xb);
+  if (pa == xa.end() || pb == xb.end()) return false;
+  return pa->l1_hits == pb->l1_hits && pa->l1_misses == pb->l1_misses && pa->l2_hits == pb->l2_hits &&
+         pa->l2_misses == pb->l2_misses;
+}
+
+// A pass that did the same work in both cells did not change speed: whatever its times did is the
+// machine's. Where even the smallest p the samples allow exceeds alpha the comparison cannot tell.
+// Otherwise the U test, Holm-adjusted over the family, decides in the direction the frames moved.
+std::string time_verdict(const TimeComparison& t) {
+  if (t.identical_work) return "no change";
+  // The bound holds for the permutation test with ties too (they only coarsen its distribution); the normal
+  // approximation used with ties can go lower, but at these sizes that is the approximation, not evidence.
+  if (mann_whitney_min_p(t.na, t.nb) > kAlpha) return "inconclusive";
+  if (t.p_holm <= kAlpha && t.b_slower && t.ratio() > 1.0) return "slower";
+  if (t.p_holm <= kAlpha && !t.b_slower && t.ratio() < 1.0) return "faster";
+  return "no change";
+}
+
+std::vector<TimeComparison> time_comparisons(const std::vector<CellResult>& cells) {
+  std::vector<TimeComparison> out;
+  for (const std::string& axis : axes_of(cells))
+    for (const CellPair& cp : axis_pairs(cells, axis)) {
+      const std::vector<PassStat> sa = pass_stats(*cp.a), sb = pass_stats(*cp.b);
+      for (const PassStat& pa : sa) {
+        auto it = std::find_if(sb.begin(), sb.end(), [&](const PassStat& p) { return p.pass == pa.pass; });
+        if (it == sb.end()) continue;
+        const MannWhitneyResult mw = mann_whitney_u(it->samples, pa.samples);
+        TimeComparison t{cp.a, cp.b, axis, pa.pass, pa.summary, it->summary};
+        t.p_raw = mw.p_value;
+        t.exact = mw.exact;
+        t.na = pa.samples.size();
+        t.nb = it->samples.size();
+        t.b_slower = mw.u > 0.5 * double(t.na) * double(t.nb);
+        t.identical_work = identical_work(*cp.a, *cp.b, pa.pass);
+        out.push_back(t);
+      }
+    }
+  std::vector<double> raw;
+  for (const TimeComparison& t : out) raw.push_back(t.p_raw);
+  const std::vector<double> adj = holm_adjust(raw);
+  for (size_t i = 0; i < out.size(); ++i) {
+    out[i].p_holm = adj[i];
+    out[i].verdict = time_verdict(out[i]);
+  }
+  return out;
+}
+
+// The change's 95% interval from the two medians' distribution-free intervals (conservative: the
+// extremes of the ratio), when both are valid.
+std::optional<std::pair<double, double>> change_interval(const TimeComparison& t) {
+  const MedianCi &ca = t.sa.median_ci, &cb = t.sb.median_ci;
+  if (!ca.valid || !cb.valid || ca.low <= 0 || ca.high <= 0) return std::nullopt;
+  return std::pair{cb.low / ca.high - 1.0, cb.high / ca.low - 1.0};
+}
+
+std::string comparison(const CellResult& a, const CellResult& b, const std::string& axis,
+                       const std::vector<TimeComparison>& family) {
   const std::string va = axis_value_text(a.axes[axis]), vb = axis_value_text(b.axes[axis]);
   const std::string leaf = axis_leaf(axis);
   const std::string others = others_text(a, axis);
   std::string head = "#### " + md::escape(va) + " → " + md::escape(vb) +
                      (others.empty() ? "" : " (" + md::escape(others) + ")") + "\n\n";
 
-  const std::vector<PassStat> sa = pass_stats(a), sb = pass_stats(b);
   std::string table =
       "| pass | " + md::escape(va) + " (ms) | " + md::escape(vb) +
-      " (ms) | change | p (Mann-Whitney) | rays | nodes visited | triangles tested |\n|---|---|---|---|---|---|---|---|\n";
-  std::vector<std::string> significant;
+      " (ms) | change | p (Holm) | rays | nodes visited | triangles tested | verdict |\n|---|---|---|---|---|---|---|---|---|\n";
+  std::vector<std::string> significant, same_work;
   std::string largest;
   double largest_abs = -1.0;
-  for (const PassStat& pa : sa) {
-    auto it = std::find_if(sb.begin(), sb.end(), [&](const PassStat& p) { return p.pass == pa.pass; });
-    if (it == sb.end()) continue;
-    const double ratio = it->summary.median / pa.summary.median;
-    const MannWhitneyResult mw = mann_whitney_u(it->samples, pa.samples);
+  for (const TimeComparison& t : family) {
+    if (t.a != &a || t.b != &b || t.axis != axis) continue;
+    const double ratio = t.ratio();
     auto counter_change = [&](const char* name) -> std::string {
-      const Counters& ka = a.timing.counters;
-      const Counters& kb = b.timing.counters;
-      if (!has_pass(ka, pa.pass) || !has_pass(kb, pa.pass)) return "—";
+      if (!has_pass(a.timing.counters, t.pass) || !has_pass(b.timing.counters, t.pass)) return "—";
       // Per frame, so cells with different frame counts compare.
-      const double x = double(ka.get(pa.pass, name)) / double(a.timing.timings.measured().size());
-      const double y = double(kb.get(pa.pass, name)) / double(b.timing.timings.measured().size());
+      const double x = per_frame(a, t.pass, name), y = per_frame(b, t.pass, name);
       if (x == y) return "=";
       return x == 0 ? "new" : pct(y / x);
     };
-    table += "| " + pa.pass + " | " + ms(pa.summary.median) + " | " + ms(it->summary.median) + " | " + pct(ratio) +
-             " | " + p_text(mw.p_value) + " | " + counter_change(counter::rays_cast) + " | " +
-             counter_change(counter::nodes_visited) + " | " + counter_change(counter::triangles_tested) + " |\n";
-    const std::string desc = pa.pass + " " + fmt("%.1f%%", std::abs(ratio - 1.0) * 100.0) +
-                             (ratio >= 1.0 ? " slower" : " faster") + " (" + ms(pa.summary.median) + " → " +
-                             ms(it->summary.median) + " ms, p " +
-                             (mw.p_value < 0.001 ? "< 0.001" : "= " + p_text(mw.p_value)) + ")";
-    if (mw.p_value < 0.05) significant.push_back(desc);
-    if (std::abs(ratio - 1.0) > largest_abs) {
+    table += "| " + t.pass + " | " + ms(t.sa.median) + " | " + ms(t.sb.median) + " | " + pct(ratio) + " | " +
+             p_text(t.p_holm) + " | " + counter_change(counter::rays_cast) + " | " +
+             counter_change(counter::nodes_visited) + " | " + counter_change(counter::triangles_tested) + " | " +
+             t.verdict + " |\n";
+    const std::string desc = t.pass + " " + fmt("%.1f%%", std::abs(ratio - 1.0) * 100.0) +
+                             (ratio >= 1.0 ? " slower" : " faster") + " (" + ms(t.sa.median) + " → " + ms(t.sb.median) +
+                             " ms, Holm p " + (t.p_holm < 0.001 ? "< 0.001" : "= " + p_text(t.p_holm)) + ")";
+    if (t.verdict == "slower" || t.verdict == "faster") significant.push_back(desc);
+    if (t.identical_work) same_work.push_back(t.pass);
+    if (!t.identical_work && std::abs(ratio - 1.0) > largest_abs) {
       largest_abs = std::abs(ratio - 1.0);
       largest = desc;
     }
@@ -482,8 +597,12 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
     for (size_t i = 0; i < significant.size(); ++i)
       sentence += (i == 0 ? "" : i + 1 == significant.size() ? " and " : ", ") + significant[i];
   } else {
-    sentence += " changed no pass time significantly at p < 0.05" +
+    sentence += " changed no pass time significantly (no Holm-adjusted p at or below 0.05)" +
                 (largest.empty() ? "" : "; the largest change was " + largest);
+  }
+  if (!same_work.empty()) {
+    sentence += "; " + md::list(same_work) +
+                " did the same work in both cells (identical work counters and cache counts): no change";
   }
   if (!a.timing.counters.empty() || !b.timing.counters.empty()) {
     if (counter_changes.empty()) {
@@ -499,7 +618,8 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
   return head + sentence + ".\n\n" + table + "\n";
 }
 
-void comparisons_section(const std::vector<CellResult>& cells, std::string& s) {
+void comparisons_section(const std::vector<CellResult>& cells, const std::vector<TimeComparison>& family,
+                         std::string& s) {
   const std::vector<std::string> axes = axes_of(cells);
   s += "## Comparisons along each axis\n\n";
   if (axes.empty()) {
@@ -509,34 +629,50 @@ void comparisons_section(const std::vector<CellResult>& cells, std::string& s) {
   s +=
       "For each axis and each pair of its values, cells whose other axes are equal are compared. Change is the "
       "ratio of the medians minus one; p is a two-sided Mann-Whitney U test over the raw frame samples of the "
-      "two cells, per comparison and not corrected for multiplicity (the gate corrects; with fewer than 4 untied frames "
-      "per side no p-value can fall below 0.05; tied samples use the normal approximation). Counter changes are per frame; \"=\" means identical.\n\n";
+      "two cells, Holm-adjusted over all " +
+      std::to_string(family.size()) +
+      " pass-time comparisons of this report (tied samples use the normal approximation). Verdict: a pass whose "
+      "work counters and simulated cache counts are identical in both cells is \"no change\" whatever its time did; otherwise \"slower\" or "
+      "\"faster\" when the adjusted p is at most 0.05 in the direction the frames moved, \"inconclusive\" when "
+      "the cells have too few frames for any p to reach 0.05 (fewer than 4 untied frames a side), else \"no "
+      "change\". The same verdicts are in findings.json. Counter changes are per frame; \"=\" means identical.\n\n";
   for (const std::string& axis : axes) {
-    std::vector<json> values;
-    for (const CellResult& c : cells)
-      if (c.axes.contains(axis) && std::find(values.begin(), values.end(), c.axes[axis]) == values.end())
-        values.push_back(c.axes[axis]);
     s += "### `" + axis + "`\n\n";
-    size_t n = 0;
-    for (size_t i = 0; i < values.size(); ++i) {
-      for (size_t j = i + 1; j < values.size(); ++j) {
-        for (const CellResult& a : cells) {
-          if (!a.axes.contains(axis) || a.axes[axis] != values[i]) continue;
-          for (const CellResult& b : cells) {
-            if (!b.axes.contains(axis) || b.axes[axis] != values[j] || others_key(a, axis) != others_key(b, axis))
-              continue;
-            s += comparison(a, b, axis);
-            ++n;
-          }
-        }
-      }
-    }
-    if (n == 0) s += "No two cells differ in this axis alone.\n\n";
+    const std::vector<CellPair> pairs = axis_pairs(cells, axis);
+    for (const CellPair& p : pairs) s += comparison(*p.a, *p.b, axis, family);
+    if (pairs.empty()) s += "No two cells differ in this axis alone.\n\n";
     const bool have_cache =
         std::any_of(cells.begin(), cells.end(), [](const CellResult& c) { return !cache_passes(c).empty(); });
     const std::string note = study::comparison_note(axis_leaf(axis), have_cache);
     if (!note.empty()) s += note + "\n";
   }
+}
+
+// findings.json: the verdicts of the comparisons section, for scripts and CI bots.
+json findings(const std::vector<TimeComparison>& family) {
+  json list = json::array();
+  for (const TimeComparison& t : family) {
+    json fixed = t.a->axes;
+    fixed.erase(t.axis);
+    json e = {{"axis", t.axis},
+              {"from", t.a->axes[t.axis]},
+              {"to", t.b->axes[t.axis]},
+              {"fixed", fixed},
+              {"pass", t.pass},
+              {"metric", "time_ms"},
+              {"baseline", t.sa.median / 1e6},
+              {"candidate", t.sb.median / 1e6},
+              {"change", t.ratio() - 1.0},
+              {"ci", nullptr},
+              {"p_holm", t.p_holm},
+              {"frames", {t.na, t.nb}},
+              {"exact_test", t.exact},
+              {"identical_work", t.identical_work},
+              {"verdict", t.verdict}};
+    if (const auto ci = change_interval(t)) e["ci"] = {ci->first, ci->second};
+    list.push_back(std::move(e));
+  }
+  return {{"alpha", kAlpha}, {"correction", "holm"}, {"comparisons", std::move(list)}};
 }
 
 }  // namespace
@@ -557,7 +693,9 @@ Report build_report(const std::vector<CellResult>& cells) {
   s += tradeoff_sections(cells, r.charts);
   s += "## Cells\n\n";
   for (const CellResult& c : cells) s += cell_section(c);
-  comparisons_section(cells, s);
+  const std::vector<TimeComparison> family = time_comparisons(cells);
+  r.findings = findings(family).dump(1) + "\n";
+  comparisons_section(cells, family, s);
   s += "## Cache simulation\n\n";
   const size_t with_cache =
       size_t(std::count_if(cells.begin(), cells.end(), [](const CellResult& c) { return !cache_passes(c).empty(); }));
@@ -582,6 +720,7 @@ std::string write_report(const std::string& out_dir) {
   fs::create_directories(fs::path(out_dir) / "charts", ec);
   if (ec) throw InputError(out_dir + "/charts: cannot create: " + ec.message());
   for (const ReportFile& f : r.charts) write_file_atomically((fs::path(out_dir) / f.path).string(), f.content);
+  write_file_atomically(fs::path(out_dir) / "findings.json", r.findings);
   const std::string path = (fs::path(out_dir) / "report.md").string();
   write_file_atomically(path, r.markdown);
   return path;

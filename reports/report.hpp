@@ -26,12 +26,15 @@ struct ReportFile {
 struct Report {
   std::string markdown;
   std::vector<ReportFile> charts;  ///< "charts/*.svg"
+  /// findings.json: every pass-time comparison of the comparisons section with its verdict ("faster",
+  /// "slower", "no change", "inconclusive"), the same as the markdown says.
+  std::string findings;
 };
 
 /// Builds the report for these cells (at least one). Pure: writes nothing.
 Report build_report(const std::vector<CellResult>& cells);
 
-/// Reads OUT/results.jsonl, writes OUT/report.md and OUT/charts/*.svg (each to a temporary file
+/// Reads OUT/results.jsonl, writes OUT/report.md, OUT/findings.json and OUT/charts/*.svg (each to a temporary file
 /// renamed into place). Returns the report's path. InputError for a missing or bad results file.
 std::string write_report(const std::string& out_dir);
 

@@ -261,6 +261,12 @@ MannWhitneyResult mann_whitney_u(std::span<const double> x, std::span<const doub
   return r;
 }
 
+double mann_whitney_min_p(std::size_t n, std::size_t m) {
+  double c = 1.0;
+  for (std::size_t i = 1; i <= std::min(n, m); ++i) c = c * double(n + m - std::min(n, m) + i) / double(i);
+  return std::min(1.0, 2.0 / c);
+}
+
 std::vector<double> holm_adjust(std::span<const double> p_values) {
   const std::size_t m = p_values.size();
   for (double p : p_values) {

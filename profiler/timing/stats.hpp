@@ -107,6 +107,10 @@ struct MannWhitneyResult {
 // Both samples non-empty and finite, else std::invalid_argument.
 MannWhitneyResult mann_whitney_u(std::span<const double> x, std::span<const double> y, bool with_shift = false);
 
+// The smallest two-sided p-value the exact U test can give with n and m samples and no ties: 2 / C(n+m, n).
+// Where it exceeds alpha, no comparison of that size can be significant.
+double mann_whitney_min_p(std::size_t n, std::size_t m);
+
 // Hodges-Lehmann two-sample shift: median of the m*n differences x_i - y_j.
 double hodges_lehmann_shift(std::span<const double> x, std::span<const double> y);
 

@@ -100,7 +100,7 @@ TEST(Report, ComparisonsStateWhatChangedAndByHowMuch) {
   ASSERT_TRUE(std::regex_search(
       md, m,
       std::regex(
-          R"(Changing geometry from indexed to soup \(with resolution=64x36\) made shadows (\d+\.\d)% slower \([0-9.]+ → [0-9.]+ ms, p < 0\.001\))")))
+          R"(Changing geometry from indexed to soup \(with resolution=64x36\) made shadows (\d+\.\d)% slower \([0-9.]+ → [0-9.]+ ms, Holm p < 0\.001\))")))
       << md;
   EXPECT_NEAR(std::stod(m[1]), 30.0, 2.0);
   EXPECT_NE(md.find("the work per frame changed: shadows nodes_visited +10.0%"), std::string::npos);
@@ -133,6 +133,70 @@ TEST(Report, WarnsWhenEnvironmentsDiffer) {
   const std::string md = build_report({test::cell(a), test::cell(b)}).markdown;
   EXPECT_NE(md.find("**Warning:** the cells ran with different device, commit"), std::string::npos) << md;
   EXPECT_NE(md.find("abc123; def456"), std::string::npos);
+}
+
+// Verdicts: one family, Holm-adjusted; a pass whose work counters and cache counts are identical in both
+// cells is "no change" even when its frames moved (machine drift), and findings.json says what the
+// markdown says.
+TEST(Report, IdenticalWorkIsNoChangeAndFindingsHoldTheVerdicts) {
+  auto traced = [](const char* g, std::uint64_t seed, double shadows_scale, double l1_hits) {
+    test::SynthCell c = cell(g, json{64, 36}, seed, shadows_scale);
+    json level = {{"requests", l1_hits + 1000}, {"hits", l1_hits}, {"misses", 1000}};
+    c.cache = {{"preset", "vega56"}, {"passes", {{{"pass", "shadows"}, {"l1", level}, {"l2", level}}}}};
+    return test::cell(c);
+  };
+  // The shadow pass is 30% slower in the second cell. Same counters and cache counts: drift, no change.
+  const Report same = build_report({traced("indexed", 1, 1.0, 5000), traced("soup", 2, 1.3, 5000)});
+  EXPECT_NE(same.markdown.find("shadows did the same work in both cells (identical work counters and cache counts): "
+                               "no change"),
+            std::string::npos)
+      << same.markdown;
+  EXPECT_EQ(same.markdown.find("shadows 30"), same.markdown.find("shadows 30")) << "no slower claim for shadows";
+  EXPECT_TRUE(std::regex_search(same.markdown, std::regex(R"(\| shadows \|[^\n]*\| no change \|)"))) << same.markdown;
+  const json f = json::parse(same.findings);
+  EXPECT_EQ(f["correction"], "holm");
+  bool found = false;
+  for (const json& e : f["comparisons"]) {
+    if (e["pass"] != "shadows") continue;
+    found = true;
+    EXPECT_EQ(e["axis"], "geometry");
+    EXPECT_EQ(e["from"], "indexed");
+    EXPECT_EQ(e["to"], "soup");
+    EXPECT_EQ(e["fixed"], (json{{"resolution", {64, 36}}}));
+    EXPECT_EQ(e["metric"], "time_ms");
+    EXPECT_EQ(e["verdict"], "no change");
+    EXPECT_TRUE(e["identical_work"].get<bool>());
+    EXPECT_NEAR(e["change"].get<double>(), 0.3, 0.03);
+    ASSERT_TRUE(e["ci"].is_array());
+    EXPECT_LT(e["ci"][0].get<double>(), e["ci"][1].get<double>());
+  }
+  EXPECT_TRUE(found);
+  // Other cache counts: the work differs, and the same 30% is a real "slower", in both outputs.
+  const Report other = build_report({traced("indexed", 1, 1.0, 5000), traced("soup", 2, 1.3, 6000)});
+  EXPECT_TRUE(std::regex_search(other.markdown, std::regex(R"(made shadows \d+\.\d% slower)"))) << other.markdown;
+  const json g = json::parse(other.findings);
+  for (const json& e : g["comparisons"]) {
+    if (e["pass"] == "shadows") {
+      EXPECT_EQ(e["verdict"], "slower");
+    }
+  }
+}
+
+// Too few frames for any p to reach 0.05: "inconclusive", never "slower" or "no change".
+TEST(Report, TooFewFramesAreInconclusive) {
+  auto few = [](const char* g, std::uint64_t seed, double scale) {
+    test::SynthCell c = cell(g, json{64, 36}, seed, scale);
+    c.passes = test::passes(3, seed, 0.02, scale);
+    return test::cell(c);
+  };
+  const Report r = build_report({few("indexed", 1, 1.0), few("soup", 2, 1.5)});
+  size_t n = 0;
+  const json f = json::parse(r.findings);
+  for (const json& e : f["comparisons"]) {
+    EXPECT_EQ(e["verdict"], "inconclusive") << e.dump();
+    ++n;
+  }
+  EXPECT_GT(n, 0u);
 }
 
 TEST(Report, RendersCacheTablesWhenPresent) {
