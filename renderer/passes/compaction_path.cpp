@@ -85,9 +85,8 @@ void CompactionPath::attach_trace_sort(vk::Context& ctx, const vk::Buffer& trace
 }
 
 void CompactionPath::record_traced_compact(VkCommandBuffer cmd, uint32_t first_row, uint32_t rows) const {
-  if (!compact_traced_.handle()) throw std::logic_error("CompactionPath: attach_trace_compact first");
-  const glm::uvec2 wg = compact_workgroups();
-  rt_.dispatch_traced(cmd, compact_traced_, wg.x, std::min(rows, wg.y - first_row));
+  rt_.dispatch_traced_rows(cmd, compact_traced_, compact_workgroups(), first_row, rows,
+                           "CompactionPath: attach_trace_compact first");
 }
 
 void CompactionPath::record_traced_consume(VkCommandBuffer cmd, uint32_t groups) const {

@@ -278,6 +278,12 @@ void RtResources::dispatch_traced(VkCommandBuffer cmd, const vk::Pipeline& p, ui
                          VK_ACCESS_2_TRANSFER_READ_BIT | VK_ACCESS_2_HOST_READ_BIT);
 }
 
+void RtResources::dispatch_traced_rows(VkCommandBuffer cmd, const vk::Pipeline& p, glm::uvec2 workgroups,
+                                       uint32_t first_row, uint32_t rows, const char* unattached) const {
+  if (!p.handle()) throw std::logic_error(unattached);
+  dispatch_traced(cmd, p, workgroups.x, std::min(rows, workgroups.y - first_row));
+}
+
 uint32_t RtResources::read_compacted_count(vk::Context& ctx) const {
   const auto bytes = vk::read_buffer(ctx, ray_count_);
   uint32_t n = 0;

@@ -28,9 +28,8 @@ void ShadowPass::attach_trace(vk::Context& ctx) {
 }
 
 void ShadowPass::record_traced_slice(VkCommandBuffer cmd, uint32_t first_row, uint32_t rows) const {
-  if (!traced_.handle()) throw std::logic_error("ShadowPass::record_traced_slice: attach_trace first");
-  const glm::uvec2 wg = workgroups();
-  rt_.dispatch_traced(cmd, traced_, wg.x, std::min(rows, wg.y - first_row));
+  rt_.dispatch_traced_rows(cmd, traced_, workgroups(), first_row, rows,
+                           "ShadowPass::record_traced_slice: attach_trace first");
 }
 
 }  // namespace hp
