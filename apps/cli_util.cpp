@@ -74,6 +74,29 @@ std::pair<CLI::Option*, CLI::Option*> add_device_options(CLI::App* cmd, std::str
   return {d, v};
 }
 
+void add_traversal_options(CLI::App* cmd, std::string& traversal, std::string& as_order, bool& as_compaction) {
+  cmd->add_option("--traversal", traversal,
+                  "who walks the rays: compute (hybridprof's BVH in compute shaders), ray-query (the driver's "
+                  "acceleration structure from the same compute shaders) or pipeline (a ray-tracing pipeline)")
+      ->capture_default_str();
+  cmd->add_option("--as-order", as_order,
+                  "ray-query/pipeline: triangle order handed to the driver's build: leaf (the compute BVH's), "
+                  "scene or morton")
+      ->capture_default_str();
+  cmd->add_flag("--as-compaction", as_compaction,
+                "ray-query/pipeline: compact the bottom-level acceleration structure after its build");
+}
+
+void apply_traversal_options(RayTracingOptions& rt, const std::string& traversal, const std::string& as_order,
+                             bool as_compaction) {
+  rt.traversal = parse_traversal(traversal);
+  rt.as_order = parse_as_order(as_order);
+  rt.as_compaction = as_compaction;
+  if (rt.traversal == Traversal::compute && (rt.as_order != AsOrder::leaf || as_compaction)) {
+    throw InputError("--as-order/--as-compaction apply to --traversal ray-query or pipeline only");
+  }
+}
+
 void FrameOptions::add_to(CLI::App* cmd) {
   cmd->add_option("--scene", scene, "builtin:pica|cornell|sphere-1m|terrain-1m, or a .gltf/.glb path")
       ->capture_default_str();
@@ -107,6 +130,7 @@ void FrameOptions::add_to(CLI::App* cmd) {
   cmd->add_option("--sort", sort, "compact path: sort key none, octant, direction or origin")->capture_default_str();
   cmd->add_option("--writeback", writeback, "compact path: index (exact) or reproject (the study's)")
       ->capture_default_str();
+  add_traversal_options(cmd, traversal, as_order, as_compaction);
   add_device_options(cmd, device, validate);
   cmd->add_flag("--host-timing", host_timing,
                 "time each pass on the host (one submission per pass, labelled cpu-wall), as on a queue "
@@ -155,6 +179,7 @@ FrameSettings FrameOptions::settings() const {
       (s.rt.sort != SortKey::none || s.rt.writeback != Writeback::index)) {
     throw InputError("--sort/--writeback apply to --reflection-path compact only");
   }
+  apply_traversal_options(s.rt, traversal, as_order, as_compaction);
   return s;
 }
 

@@ -36,6 +36,12 @@ struct ViewOptions {
 /// message fails the run). Returns the two options, for `needs` constraints.
 std::pair<CLI::Option*, CLI::Option*> add_device_options(CLI::App* cmd, std::string& device, bool& validate);
 
+/// `--traversal`, `--as-order`, `--as-compaction` (render, trace, bvh --gpu), and their validation into `rt`
+/// (InputError naming the option).
+void add_traversal_options(CLI::App* cmd, std::string& traversal, std::string& as_order, bool& as_compaction);
+void apply_traversal_options(RayTracingOptions& rt, const std::string& traversal, const std::string& as_order,
+                             bool as_compaction);
+
 /// The options that describe a frame (scene, resolution, passes and their modes, BVH build, device), shared by
 /// `render` and `trace`.
 struct FrameOptions {
@@ -54,6 +60,8 @@ struct FrameOptions {
   int leaf_size = 4;
   uint32_t seed = 1;
   std::string reflection_path = "direct", sort = "none", writeback = "index";
+  std::string traversal = "compute", as_order = "leaf";
+  bool as_compaction = false;
   std::string device;
   bool validate = false;
   bool host_timing = false;

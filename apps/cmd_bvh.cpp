@@ -4,7 +4,8 @@
 // through the passes' own traversal, times that and checks every ray against the reference.
 //   hybridprof bvh --scene S [--buckets N | --full-sweep] [--largest-axis-only] [--granularity triangle|object]
 //                  [--leaf-size K] [--threads T] [--export-triangles FILE] [--rays FILE --hits FILE [--any-hit]
-//                  [--gpu [--geometry indexed|soup] [--device D] [--validate]]]
+//                  [--gpu [--geometry indexed|soup] [--traversal compute|ray-query|pipeline [--as-order O]
+//                  [--as-compaction]] [--device D] [--validate]]]
 #include "apps/cli_util.hpp"
 #include "apps/commands.hpp"
 #include "bvh/bvh.hpp"
@@ -43,6 +44,8 @@ struct BvhArgs {
   bool any_hit = false;
   bool gpu = false;
   std::string geometry = "indexed";
+  std::string traversal = "compute", as_order = "leaf";
+  bool as_compaction = false;
   std::string device;
   bool validate = false;
 };
@@ -101,26 +104,73 @@ void cast_on_cpu(const BvhArgs& a, const bvh::Bvh& tree, const bvh::LeafOrderTri
   std::printf("hits written to %s\n", a.hits.c_str());
 }
 
+// The driver traversal's answers against the reference (compare_driver_with_reference); its hits go to
+// --hits. Exit 1 when more than 0.1% of the rays disagree on hit or miss, or on the closest triangle.
+void report_driver_agreement(const BvhArgs& a, const DriverAgreement& d, const std::vector<RayBatchTracer::Result>& r) {
+  std::vector<bvh::Hit> hits;
+  hits.reserve(r.size());
+  for (const auto& x : r) hits.push_back(x.hit);
+  bvh::write_hits(a.hits, hits);
+  for (const std::string& line : d.first_differences) std::printf("  differs: %s\n", line.c_str());
+  std::printf(
+      "%s vs reference: %zu of %zu rays agree (%zu hit/miss differ, %zu other triangle, %zu t beyond %.0e relative; "
+      "%zu ties at the same t; largest relative t difference %.3g); %zu driver hits, %zu reference hits\n",
+      a.traversal.c_str(), d.agree(), d.rays, d.hit_miss_differ, d.triangle_differ, d.t_differ, d.t_tolerance, d.ties,
+      d.max_t_relative, d.gpu_hits, d.reference_hits);
+  std::printf("%s hits written to %s\n", a.traversal.c_str(), a.hits.c_str());
+  if (d.rays > 0 && double(d.rays - d.agree()) > 1e-3 * double(d.rays)) {
+    throw std::runtime_error("bvh --gpu --traversal " + a.traversal + ": " + std::to_string(d.rays - d.agree()) +
+                             " of " + std::to_string(d.rays) + " rays disagree with the reference (limit 0.1%)");
+  }
+}
+
 // The same rays through the passes' traversal on the device (shaders/trace_rays.comp): one untimed cast
 // (pipeline compilation, caches), then three timed by GPU timestamps, and the answers checked against the
-// reference bit for bit.
+// reference: bit for bit for the compute traversal, by agreement for the driver's (ray queries or a
+// ray-tracing pipeline through its acceleration structure), whose hits then go to --hits.
 void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeometry g,
                   const std::vector<bvh::Ray>& rays) {
+  RayTracingOptions rt;
+  apply_traversal_options(rt, a.traversal, a.as_order, a.as_compaction);
   const RtScene rts(ctx, scene, g, parse_geometry_layout(a.geometry), false);
-  RayBatchTracer tracer(ctx, rts, rays);
+  std::unique_ptr<AccelStructure> as;
+  if (rt.traversal != Traversal::compute) {
+    if (rt.traversal == Traversal::ray_query && !ctx.ray_query_enabled()) {
+      throw DeviceError("Vulkan device '" + ctx.info().name + "' has no ray queries (VK_KHR_ray_query)");
+    }
+    as = std::make_unique<AccelStructure>(ctx, g, rt.as_order, rt.as_compaction);
+    const AsBuildStats& s = as->stats();
+    std::printf(
+        "acceleration structure: %u triangles in %s order, build %.2f ms (%s), BLAS %.2f MiB%s, TLAS %.1f KiB, "
+        "scratch %.2f MiB\n",
+        s.triangles, to_string(rt.as_order), s.build_ms, s.build_timed_on_device ? "timestamps" : "host",
+        double(s.blas_bytes) / 1048576.0, s.compacted ? " (compacted)" : "", double(s.tlas_bytes) / 1024.0,
+        double(s.scratch_bytes) / 1048576.0);
+  }
+  RayBatchTracer tracer(ctx, rts, rays, as.get(), rt.traversal);
   const bvh::HitMode mode = a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest;
   tracer.trace(ctx, mode);
   std::vector<double> ms;
   for (int i = 0; i < 3; ++i) ms.push_back(double(tracer.trace(ctx, mode)) * 1e-6);
-  const BatchCheck check = check_against_reference(g.bvh, g.leaf, rays, mode, tracer.results(ctx));
   std::sort(ms.begin(), ms.end());
   if (ms[1] > 0.0) {
-    std::printf("gpu: %s, %s layout: %.2f ms median of 3 (%.2f-%.2f) by timestamps, %.2f M rays/s\n",
-                ctx.info().name.c_str(), a.geometry.c_str(), ms[1], ms[0], ms[2], double(rays.size()) / ms[1] / 1e3);
+    std::printf("gpu: %s, %s traversal, %s layout: %.2f ms median of 3 (%.2f-%.2f) by timestamps, %.2f M rays/s\n",
+                ctx.info().name.c_str(), a.traversal.c_str(), a.geometry.c_str(), ms[1], ms[0], ms[2],
+                double(rays.size()) / ms[1] / 1e3);
   } else {
-    std::printf("gpu: %s, %s layout: no timestamps on this queue, not timed\n", ctx.info().name.c_str(),
-                a.geometry.c_str());
+    std::printf("gpu: %s, %s traversal, %s layout: no timestamps on this queue, not timed\n", ctx.info().name.c_str(),
+                a.traversal.c_str(), a.geometry.c_str());
   }
+  if (rt.traversal != Traversal::compute) {
+    const auto results = tracer.results(ctx);
+    report_driver_agreement(a, compare_driver_with_reference(g.bvh, g.leaf, rays, mode, results), results);
+    if (ctx.validation_enabled() && ctx.validation_message_count() > 0) {
+      throw std::runtime_error("bvh --gpu: " + std::to_string(ctx.validation_message_count()) +
+                               " validation message(s); last: " + ctx.last_validation_message());
+    }
+    return;
+  }
+  const BatchCheck check = check_against_reference(g.bvh, g.leaf, rays, mode, tracer.results(ctx));
   for (const std::string& d : check.first_differences) std::printf("  differs: %s\n", d.c_str());
   std::printf("gpu vs reference: %zu of %zu rays equal (hit, t, u, v bit for bit; nodes and triangles per ray)\n",
               check.rays - check.differ, check.rays);
@@ -136,6 +186,8 @@ void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeom
 
 void run_bvh(const BvhArgs& a) {
   if (a.rays.empty() != a.hits.empty()) throw InputError("bvh: --rays and --hits go together");
+  RayTracingOptions checked;
+  apply_traversal_options(checked, a.traversal, a.as_order, a.as_compaction);  // names a bad option first
   // Outputs and the device are checked before any work: a failure leaves no file of this run behind.
   if (!a.export_triangles.empty()) check_output_path(a.export_triangles, "--export-triangles");
   if (!a.hits.empty()) check_output_path(a.hits, "--hits");
@@ -172,7 +224,8 @@ void run_bvh(const BvhArgs& a) {
   if (a.rays.empty()) return;
   const std::vector<bvh::Ray> rays = bvh::read_rays(a.rays);
   bvh::LeafOrderTriangles lt = bvh::leaf_order(tree, tris);
-  cast_on_cpu(a, tree, lt, rays);
+  // With a driver traversal --hits receives the driver's hits (trace_on_gpu), not the reference's.
+  if (a.traversal == "compute") cast_on_cpu(a, tree, lt, rays);
   if (!a.gpu) return;
   RtGeometry g;
   g.world = world;
@@ -222,6 +275,8 @@ void add_bvh_command(CLI::App& app) {
       ->check(CLI::IsMember({"indexed", "soup"}))
       ->capture_default_str()
       ->needs(gpu);
+  add_traversal_options(cmd, args->traversal, args->as_order, args->as_compaction);
+  for (const char* name : {"--traversal", "--as-order", "--as-compaction"}) cmd->get_option(name)->needs(gpu);
   const auto [device, validate] = add_device_options(cmd, args->device, args->validate);
   device->needs(gpu);
   validate->needs(gpu);

@@ -46,6 +46,36 @@ Writeback parse_writeback(const std::string& name) {
   throw InputError("--writeback " + name + ": unknown mode (choose index or reproject)");
 }
 
+Traversal parse_traversal(const std::string& name) {
+  if (name == "compute") return Traversal::compute;
+  if (name == "ray-query") return Traversal::ray_query;
+  if (name == "pipeline") return Traversal::pipeline;
+  throw InputError("--traversal " + name + ": unknown traversal (choose compute, ray-query or pipeline)");
+}
+
+AsOrder parse_as_order(const std::string& name) {
+  if (name == "leaf") return AsOrder::leaf;
+  if (name == "scene") return AsOrder::scene;
+  if (name == "morton") return AsOrder::morton;
+  throw InputError("--as-order " + name + ": unknown order (choose leaf, scene or morton)");
+}
+
+const char* to_string(Traversal t) {
+  switch (t) {
+    case Traversal::ray_query: return "ray-query";
+    case Traversal::pipeline: return "pipeline";
+    default: return "compute";
+  }
+}
+
+const char* to_string(AsOrder o) {
+  switch (o) {
+    case AsOrder::scene: return "scene";
+    case AsOrder::morton: return "morton";
+    default: return "leaf";
+  }
+}
+
 const char* to_string(ReflectionPath p) { return p == ReflectionPath::compact ? "compact" : "direct"; }
 const char* to_string(SortKey k) {
   switch (k) {

@@ -34,6 +34,18 @@ const char* to_string(JitterMode j);
 const char* to_string(ReflectionPath p);
 const char* to_string(SortKey k);
 const char* to_string(Writeback w);
+/// Who walks the rays through the scene: the compute shaders' own BVH traversal (the study's), the driver's
+/// acceleration structure through ray queries in the same compute shaders (VK_KHR_ray_query), or through a
+/// ray-tracing pipeline (VK_KHR_ray_tracing_pipeline: ray generation, miss and closest-hit shaders).
+enum class Traversal { compute, ray_query, pipeline };
+/// The triangle order handed to the driver's acceleration-structure build (driver BVHs follow their input
+/// order): the compute BVH's leaf order, the scene's order, or the Morton order of the triangle centroids.
+enum class AsOrder { leaf, scene, morton };
+Traversal parse_traversal(const std::string& name);  // throws InputError
+AsOrder parse_as_order(const std::string& name);     // throws InputError
+const char* to_string(Traversal t);
+const char* to_string(AsOrder o);
+
 /// Significant bits of a sort key mode (the radix sort's passes follow: 4 bits each).
 uint32_t sort_key_bits(SortKey k);
 
@@ -55,6 +67,9 @@ struct RayTracingOptions {
   ReflectionPath reflection_path = ReflectionPath::direct;
   SortKey sort = SortKey::none;            ///< compact path only
   Writeback writeback = Writeback::index;  ///< compact path only
+  Traversal traversal = Traversal::compute;
+  AsOrder as_order = AsOrder::leaf;  ///< driver traversals only
+  bool as_compaction = false;        ///< driver traversals: compact the bottom-level structure after its build
 };
 
 struct FrameSettings {

@@ -67,7 +67,21 @@ Frame::Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const F
       bounds.min = rt_geometry_->bvh.nodes[0].bmin;
       bounds.max = rt_geometry_->bvh.nodes[0].bmax;
     }
-    rt_ = std::make_unique<RtResources>(ctx, *rt_scene_, gbuffer_, uniforms_, sampler_.handle(), settings.rt, bounds);
+    // The driver traversals: its acceleration structure, built once here (static scene) and timed.
+    if (settings.rt.traversal != Traversal::compute) {
+      if (settings.rt.traversal == Traversal::ray_query && !ctx.ray_query_enabled()) {
+        throw DeviceError("Vulkan device '" + ctx.info().name +
+                          "' has no ray queries (VK_KHR_ray_query): --traversal ray-query needs them");
+      }
+      if (settings.rt.traversal == Traversal::pipeline && !ctx.ray_tracing_pipeline_enabled()) {
+        throw DeviceError("Vulkan device '" + ctx.info().name +
+                          "' has no ray-tracing pipelines (VK_KHR_ray_tracing_pipeline): --traversal pipeline needs "
+                          "them");
+      }
+      accel_ = std::make_unique<AccelStructure>(ctx, *rt_geometry_, settings.rt.as_order, settings.rt.as_compaction);
+    }
+    rt_ = std::make_unique<RtResources>(ctx, *rt_scene_, gbuffer_, uniforms_, sampler_.handle(), settings.rt, bounds,
+                                        accel_.get());
     // Only the pipelines the options ask for are compiled (lavapipe compiles each one with LLVM).
     if (settings.rt.shadows) shadows_ = std::make_unique<ShadowPass>(ctx, *rt_);
     if (rt_->compaction()) compaction_ = std::make_unique<CompactionPath>(ctx, *rt_);

@@ -6,6 +6,7 @@
 // settings do not ask for is neither compiled nor recorded, and no BVH is built when no ray is traced.
 #pragma once
 
+#include "accel_structure.hpp"
 #include "bvh/bvh.hpp"
 #include "frame_pass.hpp"
 #include "frame_settings.hpp"
@@ -137,6 +138,8 @@ class Frame {
   const std::vector<FramePass>& passes() const { return passes_; }
   /// The uploaded ray-tracing scene (nullptr without ray-traced passes).
   const RtScene* rt_scene() const { return rt_scene_.get(); }
+  /// The driver's acceleration structure (nullptr unless RayTracingOptions::traversal is ray-query or pipeline).
+  const AccelStructure* accel_structure() const { return accel_.get(); }
   uint32_t samples_accumulated() const { return sample_index_; }
   /// The queries of the first frame this Frame rendered (none before any): profilers keep every query out
   /// of it (see profile_frames).
@@ -178,6 +181,7 @@ class Frame {
   vk::Sampler sampler_;
   std::optional<RtGeometry> rt_geometry_;
   std::unique_ptr<RtScene> rt_scene_;
+  std::unique_ptr<AccelStructure> accel_;  // driver traversals only
   std::unique_ptr<RtResources> rt_;
   // The ray-tracing passes the settings ask for (each null otherwise); they record against rt_.
   std::unique_ptr<ShadowPass> shadows_;

@@ -72,7 +72,8 @@ void Frame::add_compaction_passes(std::vector<FramePass>& out) {
     out.push_back(std::move(sort));
   }
 
-  FramePass consume{"consume", true, false, [&cp](VkCommandBuffer cmd, bool) { cp.record_consume(cmd); }};
+  FramePass consume{"consume", settings_.rt.traversal != Traversal::pipeline, false,
+                    [&cp](VkCommandBuffer cmd, bool) { cp.record_consume(cmd); }};
   consume.traced.selected_by = reflections;
   consume.traced.attach = [&cp](vk::Context& ctx, const vk::Buffer&) { cp.attach_trace_consume(ctx); };
   TracedStep s = rt_step(
@@ -108,7 +109,8 @@ std::vector<FramePass> Frame::build_passes() {
     // records it; timed frames serialize at the boundary anyway).
     const bool next_covers = settings_.rt.reflections;
     ShadowPass& sp = *shadows_;
-    FramePass shadows{"shadows", true, false,
+    const bool compute = settings_.rt.traversal != Traversal::pipeline;  // else ray-tracing stages
+    FramePass shadows{"shadows", compute, false,
                       [&sp, next_covers](VkCommandBuffer cmd, bool alone) { sp.record(cmd, alone || !next_covers); }};
     shadows.traced.selected_by = TracedVariant::Switch::shadows;
     shadows.traced.attach = [&sp](vk::Context& ctx, const vk::Buffer&) { sp.attach_trace(ctx); };
@@ -123,7 +125,8 @@ std::vector<FramePass> Frame::build_passes() {
   if (compaction_) add_compaction_passes(out);
   if (reflections_) {
     ReflectionPass& rp = *reflections_;
-    FramePass refl{"reflections", true, false, [&rp](VkCommandBuffer cmd, bool) { rp.record(cmd); }};
+    FramePass refl{"reflections", settings_.rt.traversal != Traversal::pipeline, false,
+                   [&rp](VkCommandBuffer cmd, bool) { rp.record(cmd); }};
     refl.traced.selected_by = TracedVariant::Switch::reflections;
     refl.traced.attach = [&rp](vk::Context& ctx, const vk::Buffer&) { rp.attach_trace(ctx); };
     refl.traced.steps.push_back(rt_step(

@@ -138,8 +138,7 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   material_texels_ = view(materials_, VK_FORMAT_R32G32B32A32_UINT);  // two texels per material
 }
 
-void RtScene::add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& b) {
-  const VkShaderStageFlags cs = VK_SHADER_STAGE_COMPUTE_BIT;
+void RtScene::add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& b, VkShaderStageFlags cs) {
   for (uint32_t i :
        {HP_BIND_RT_POSITIONS, HP_BIND_RT_INDICES, HP_BIND_RT_SOUP, HP_BIND_RT_OBJECT_FIRST, HP_BIND_RT_SLOT_SCENE}) {
     b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, cs, nullptr});
@@ -165,13 +164,16 @@ void RtScene::write_traversal_bindings(vk::DescriptorSet& ds) const {
   ds.write_texel_buffer(HP_BIND_RT_SLOT_SCENE_TEXELS, tb, slot_scene_texels());
 }
 
+RtSpecialization::RtSpecialization(const RtScene& scene, uint32_t rt_flags, bool as_remap)
+    : values{scene.layout() == GeometryLayout::soup ? 1u : 0u, scene.object_leaves() ? 1u : 0u,
+             scene.geometry_texels() ? 1u : 0u, rt_flags, as_remap ? 1u : 0u},
+      entries{{0, 0, 4}, {1, 4, 4}, {2, 8, 4}, {3, 12, 4}, {4, 16, 4}},
+      info{5, entries, sizeof(values), values} {}
+
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
-                                const RtScene& scene, uint32_t rt_flags) {
-  const uint32_t values[4] = {scene.layout() == GeometryLayout::soup ? 1u : 0u, scene.object_leaves() ? 1u : 0u,
-                              scene.geometry_texels() ? 1u : 0u, rt_flags};
-  const VkSpecializationMapEntry entries[4] = {{0, 0, 4}, {1, 4, 4}, {2, 8, 4}, {3, 12, 4}};
-  const VkSpecializationInfo spec{4, entries, sizeof(values), values};
-  return vk::create_compute_pipeline(ctx, spirv, layout, &spec);
+                                const RtScene& scene, uint32_t rt_flags, bool as_remap) {
+  const RtSpecialization spec(scene, rt_flags, as_remap);
+  return vk::create_compute_pipeline(ctx, spirv, layout, &spec.info);
 }
 
 }  // namespace hp

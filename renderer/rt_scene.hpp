@@ -59,7 +59,8 @@ class RtScene {
   const vk::Buffer& materials() const { return materials_; }
   /// The bindings the traversal reads (shaders/common/traversal.glsl; gpu::kTraversalBindings of
   /// core/gpu/bindings.h): their layout entries (compute stage), and writing this scene's buffers into them.
-  static void add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& bindings);
+  static void add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& bindings,
+                                     VkShaderStageFlags stages = VK_SHADER_STAGE_COMPUTE_BIT);
   void write_traversal_bindings(vk::DescriptorSet& ds) const;
   /// Bytes uploaded for the traversal and shading (dummies excluded).
   uint64_t uploaded_bytes() const { return uploaded_bytes_; }
@@ -76,10 +77,21 @@ class RtScene {
       slot_material_texels_, material_texels_;
 };
 
-/// A ray-tracing compute pipeline specialized for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =
-/// soup layout, 1 = object leaves, 2 = geometry fetched as texels) and for what a frame records
-/// (constant_id 3 = `rt_flags`, HP_RT_COUNTERS | HP_RT_DUMP_RAYS | HP_RT_REFLECTION_SHADOWS).
+/// The specialization of a ray-tracing shader for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =
+/// soup layout, 1 = object leaves, 2 = geometry fetched as texels), for what a frame records (constant_id 3 =
+/// `rt_flags`, HP_RT_COUNTERS | HP_RT_DUMP_RAYS | HP_RT_REFLECTION_SHADOWS ...) and for the driver traversal's
+/// primitive -> slot table (constant_id 4, common/driver_traversal.glsl). Not copyable: `info` points into it.
+struct RtSpecialization {
+  RtSpecialization(const RtScene& scene, uint32_t rt_flags, bool as_remap);
+  RtSpecialization(const RtSpecialization&) = delete;
+  RtSpecialization& operator=(const RtSpecialization&) = delete;
+  uint32_t values[5];
+  VkSpecializationMapEntry entries[5];
+  VkSpecializationInfo info;
+};
+
+/// A ray-tracing compute pipeline specialized as RtSpecialization says.
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
-                                const RtScene& scene, uint32_t rt_flags = 0);
+                                const RtScene& scene, uint32_t rt_flags = 0, bool as_remap = false);
 
 }  // namespace hp

@@ -6,12 +6,20 @@
 #include "common/reflection_common.glsl"
 #include "common/compaction.glsl"
 
+// Compiled as a compute shader (BVH traversal, or HP_RAY_QUERY) and as a ray-generation shader
+// (HP_RT_PIPELINE, launched indirectly over exactly the appended rays), as shadows.comp is.
+#ifndef HP_RT_PIPELINE
 layout(local_size_x = 64) in;
+#endif
 
 void main() {
+#ifdef HP_RT_PIPELINE
+  uint i = gl_LaunchIDEXT.x;
+#else
   // rt.frame.z offsets the workgroups when the traced variant is dispatched in slices (0 otherwise).
   uint group = gl_WorkGroupID.x + rt.frame.z;
   uint i = group * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
+#endif
   HP_TRACE_BEGIN(uvec2(group, 0u), 1u, rt.frame.w);
   HP_REC_LOAD(HP_TBUF_RAY_COUNT, 0u, 4u);
   if (i >= ray_count) return;

@@ -4,12 +4,20 @@
 // ray reflected about a GGX-sampled microfacet normal, traced to the closest hit and shaded there.
 #include "common/reflection_common.glsl"
 
+// Compiled as a compute shader (BVH traversal, or HP_RAY_QUERY) and as a ray-generation shader
+// (HP_RT_PIPELINE), as shadows.comp is.
+#ifndef HP_RT_PIPELINE
 layout(local_size_x = 8, local_size_y = 8) in;
+#endif
 
 void main() {
+#ifdef HP_RT_PIPELINE
+  ivec2 q = ivec2(gl_LaunchIDEXT.xy);  // launched over exactly the reflection grid
+#else
   // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise).
   uvec2 wg = gl_WorkGroupID.xy + uvec2(0u, rt.frame.z);
   ivec2 q = ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy);
+#endif
   if (q.x >= int(rt.grid.x) || q.y >= int(rt.grid.y)) return;
   HP_TRACE_BEGIN(wg, gl_NumWorkGroups.x, rt.frame.w);
   uint cell = uint(q.y) * rt.grid.x + uint(q.x);

@@ -4,14 +4,23 @@
 #include "common/traversal.glsl"
 #include "common/ray_offset.glsl"
 
+// Compiled three ways (shaders/CMakeLists.txt): a compute shader walking the BVH (the default), the same
+// with HP_RAY_QUERY (the driver's acceleration structure through a ray query), and as a ray-generation
+// shader with HP_RT_PIPELINE (one launch per pixel, traceRayEXT). Only the invocation's pixel differs.
+#ifndef HP_RT_PIPELINE
 layout(local_size_x = 8, local_size_y = 8) in;
+#endif
 
 const float HP_FLT_MAX = 3.402823466e+38;
 
 void main() {
+#ifdef HP_RT_PIPELINE
+  ivec2 p = ivec2(gl_LaunchIDEXT.xy);  // launched over exactly the image
+#else
   // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise).
   uvec2 wg = gl_WorkGroupID.xy + uvec2(0u, rt.frame.z);
   ivec2 p = ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy);
+#endif
   // A ragged edge is covered by rounding the dispatch up and skipping here (the study truncated it).
   if (p.x >= int(frame.extent.x) || p.y >= int(frame.extent.y)) return;
   HP_TRACE_BEGIN(wg, gl_NumWorkGroups.x, rt.frame.w);

@@ -6,7 +6,12 @@
 #include "common/traversal.glsl"
 #include "gpu/bindings.h"
 
+// Compiled as a compute shader (BVH traversal, or HP_RAY_QUERY) and as a ray-generation shader
+// (HP_RT_PIPELINE: launched over groups_x * 64 x groups_y invocations, the compute dispatch's), as
+// shadows.comp is.
+#ifndef HP_RT_PIPELINE
 layout(local_size_x = 64) in;  // HP_TRAVERSAL_MAX_GROUP: the traversal stack's shared columns
+#endif
 
 layout(std430, set = 0, binding = HP_BIND_BATCH_RAYS) readonly buffer BatchRays { BatchRay batch_rays[]; };
 layout(std430, set = 0, binding = HP_BIND_BATCH_RESULTS) writeonly buffer BatchResults { BatchResult batch_results[]; };
@@ -17,7 +22,11 @@ layout(push_constant) uniform BatchParams {
 } batch;
 
 void main() {
+#ifdef HP_RT_PIPELINE
+  uint i = gl_LaunchIDEXT.y * (batch.groups_x * 64u) + gl_LaunchIDEXT.x;
+#else
   uint i = (gl_WorkGroupID.y * batch.groups_x + gl_WorkGroupID.x) * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
+#endif
   if (i >= batch.count) return;
   BatchRay ray = batch_rays[i];
   BatchResult res;

@@ -42,6 +42,8 @@
 #define HP_BIND_RT_SLOT_SCENE_TEXELS 34     // slot -> scene triangle as R32_UINT texels
 #define HP_BIND_RT_SLOT_MATERIAL_TEXELS 35  // slot -> material id as R32_UINT texels
 #define HP_BIND_RT_MATERIAL_TEXELS 36       // materials as RGBA32_UINT texels, two per material
+#define HP_BIND_RT_TLAS 37                  // the driver's top-level acceleration structure (ray-query, pipeline)
+#define HP_BIND_RT_AS_SLOT 38               // AS primitive index -> leaf-order slot (AsOrder other than leaf)
 
 // ---- the radix sort's set (shaders/sort/radix_common.glsl, RadixSort), plus HP_BIND_TRACE_RECORDS -------
 #define HP_BIND_SORT_KEYS_IN 0              // keys read by a digit pass
@@ -84,8 +86,11 @@ inline constexpr std::array<uint32_t, 10> kTraversalBindings = {
     HP_BIND_RT_POSITIONS,       HP_BIND_RT_INDICES,       HP_BIND_RT_SOUP,         HP_BIND_RT_OBJECT_FIRST,
     HP_BIND_RT_SLOT_SCENE,      HP_BIND_RT_NODE_TEXELS,   HP_BIND_RT_POSITION_TEXELS, HP_BIND_RT_INDEX_TEXELS,
     HP_BIND_RT_SOUP_TEXELS,     HP_BIND_RT_SLOT_SCENE_TEXELS};
-/// 0..36 but the ray batch's 27 and 28.
-inline constexpr std::array<uint32_t, 35> kRtSetBindings = {
+/// The driver traversal's bindings (common/driver_traversal.glsl), in both sets that hold it, where the
+/// traversal is the driver's.
+inline constexpr std::array<uint32_t, 2> kDriverTraversalBindings = {HP_BIND_RT_TLAS, HP_BIND_RT_AS_SLOT};
+/// 0..38 but the ray batch's 27 and 28.
+inline constexpr std::array<uint32_t, 37> kRtSetBindings = {
     HP_BIND_RT_FRAME,           HP_BIND_RT_PARAMS,           HP_BIND_RT_NODES,
     HP_BIND_RT_POSITIONS,       HP_BIND_RT_INDICES,          HP_BIND_RT_SOUP,
     HP_BIND_RT_OBJECT_FIRST,    HP_BIND_RT_SLOT_SCENE,       HP_BIND_RT_NORMALS,
@@ -97,11 +102,13 @@ inline constexpr std::array<uint32_t, 35> kRtSetBindings = {
     HP_BIND_RT_SORT_VALUES,     HP_BIND_RT_RAY_COUNT,        HP_BIND_RT_NODE_TEXELS,
     HP_BIND_RT_POSITION_TEXELS, HP_BIND_RT_INDEX_TEXELS,     HP_BIND_RT_SOUP_TEXELS,
     HP_BIND_RT_NORMAL_TEXELS,   HP_BIND_RT_SOUP_NORMAL_TEXELS, HP_BIND_RT_SLOT_SCENE_TEXELS,
-    HP_BIND_RT_SLOT_MATERIAL_TEXELS, HP_BIND_RT_MATERIAL_TEXELS};
-inline constexpr std::array<uint32_t, 12> kBatchSetBindings = {
+    HP_BIND_RT_SLOT_MATERIAL_TEXELS, HP_BIND_RT_MATERIAL_TEXELS, HP_BIND_RT_TLAS,
+    HP_BIND_RT_AS_SLOT};
+inline constexpr std::array<uint32_t, 14> kBatchSetBindings = {
     HP_BIND_RT_POSITIONS,   HP_BIND_RT_INDICES,         HP_BIND_RT_SOUP,            HP_BIND_RT_OBJECT_FIRST,
     HP_BIND_RT_SLOT_SCENE,  HP_BIND_RT_NODE_TEXELS,     HP_BIND_RT_POSITION_TEXELS, HP_BIND_RT_INDEX_TEXELS,
-    HP_BIND_RT_SOUP_TEXELS, HP_BIND_RT_SLOT_SCENE_TEXELS, HP_BIND_BATCH_RAYS,       HP_BIND_BATCH_RESULTS};
+    HP_BIND_RT_SOUP_TEXELS, HP_BIND_RT_SLOT_SCENE_TEXELS, HP_BIND_BATCH_RAYS,       HP_BIND_BATCH_RESULTS,
+    HP_BIND_RT_TLAS,        HP_BIND_RT_AS_SLOT};
 inline constexpr std::array<uint32_t, 7> kSortSetBindings = {
     HP_BIND_SORT_KEYS_IN,    HP_BIND_SORT_VALUES_IN, HP_BIND_SORT_KEYS_OUT, HP_BIND_SORT_VALUES_OUT,
     HP_BIND_SORT_HISTOGRAMS, HP_BIND_SORT_COUNT,     HP_BIND_TRACE_RECORDS};
@@ -111,6 +118,7 @@ inline constexpr std::array<uint32_t, 7> kCompositeSetBindings = {
     HP_BIND_COMPOSITE_REFLECTION};
 
 static_assert(bindings_distinct(kTraversalBindings), "traversal bindings collide");
+static_assert(bindings_distinct(kDriverTraversalBindings), "driver traversal bindings collide");
 static_assert(bindings_distinct(kRtSetBindings), "ray-tracing set bindings collide");
 static_assert(bindings_distinct(kBatchSetBindings), "ray batch set bindings collide");
 static_assert(bindings_distinct(kSortSetBindings), "radix sort set bindings collide");

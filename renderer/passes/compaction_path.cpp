@@ -6,6 +6,9 @@
 #include "shaders/compact_comp.h"
 #include "shaders/compact_traced_comp.h"
 #include "shaders/consume_comp.h"
+#include "shaders/consume_rgen.h"
+#include "shaders/consume_rq_comp.h"
+#include "shaders/consume_rq_traced_comp.h"
 #include "shaders/consume_traced_comp.h"
 
 #include <algorithm>
@@ -17,7 +20,7 @@ CompactionPath::CompactionPath(vk::Context& ctx, RtResources& rt)
     : rt_(rt),
       compact_(rt.create_pipeline(ctx, compact_comp)),
       args_(rt.create_pipeline(ctx, compact_args_comp)),
-      consume_(rt.create_pipeline(ctx, consume_comp)) {
+      consume_(rt.create_program(ctx, consume_comp, consume_rq_comp, consume_rgen)) {
   if (rt.options().sort != SortKey::none) {
     sorter_ = std::make_unique<RadixSort>(ctx, uint32_t(uint64_t(rt.grid_width()) * rt.grid_height()));
   }
@@ -56,7 +59,11 @@ void CompactionPath::record_sort(VkCommandBuffer cmd) {
 }
 
 void CompactionPath::record_consume(VkCommandBuffer cmd) const {
-  rt_.bind(cmd, consume_);
+  if (consume_.trace.handle()) {
+    rt_.trace_indirect(cmd, consume_, 16);  // consume_launch_w/h/d (common/compaction.glsl)
+    return;
+  }
+  rt_.bind(cmd, consume_.compute);
   vkCmdDispatchIndirect(cmd, rt_.ray_count().handle(), 4);  // consume_groups_x/y/z follow the count
   vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
@@ -77,7 +84,8 @@ void CompactionPath::attach_trace_compact(vk::Context& ctx) {
 }
 
 void CompactionPath::attach_trace_consume(vk::Context& ctx) {
-  if (!consume_traced_.handle()) consume_traced_ = rt_.create_pipeline(ctx, consume_traced_comp);
+  if (!consume_traced_.handle())
+    consume_traced_ = rt_.create_traced_pipeline(ctx, consume_traced_comp, consume_rq_traced_comp);
 }
 
 void CompactionPath::attach_trace_sort(vk::Context& ctx, const vk::Buffer& trace_buffer) {

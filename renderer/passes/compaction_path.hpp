@@ -47,7 +47,8 @@ class CompactionPath {
 
  private:
   RtResources& rt_;
-  vk::Pipeline compact_, args_, consume_;
+  vk::Pipeline compact_, args_;
+  RtProgram consume_;
   vk::Pipeline compact_traced_, consume_traced_;
   std::unique_ptr<RadixSort> sorter_;
 };

@@ -4,10 +4,15 @@
 #include "gpu/bindings.h"
 #include "gpu/shared_types.h"
 
+#include "shaders/rt_hit_rchit.h"
+#include "shaders/rt_miss_rmiss.h"
 #include "shaders/trace_rays_comp.h"
+#include "shaders/trace_rays_rgen.h"
+#include "shaders/trace_rays_rq_comp.h"
 
 #include <algorithm>
 #include <bit>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <stdexcept>
@@ -44,8 +49,12 @@ glm::uvec2 RayBatchTracer::check_limits(uint64_t rays, const VkPhysicalDeviceLim
   return {uint32_t(x), uint32_t(y)};
 }
 
-RayBatchTracer::RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span<const bvh::Ray> rays)
+RayBatchTracer::RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span<const bvh::Ray> rays,
+                               const AccelStructure* as, Traversal traversal)
     : timestamps_(ctx, 1) {
+  if ((traversal != Traversal::compute) != (as != nullptr)) {
+    throw std::logic_error("RayBatchTracer: an acceleration structure exactly for the driver traversals");
+  }
   const glm::uvec2 grid = check_limits(rays.size(), ctx.properties().limits);
   count_ = uint32_t(rays.size());
   groups_x_ = grid.x;
@@ -63,16 +72,36 @@ RayBatchTracer::RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span
 
   // The bindings the traversal reads, then the batch's own.
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  const bool rt_pipeline = traversal == Traversal::pipeline;
+  stages_ = kCS | (rt_pipeline ? VkShaderStageFlags(VK_SHADER_STAGE_RAYGEN_BIT_KHR) : VkShaderStageFlags(0));
   std::vector<VkDescriptorSetLayoutBinding> b;
-  RtScene::add_traversal_bindings(b);
-  b.push_back({HP_BIND_BATCH_RAYS, SB, 1, kCS, nullptr});
-  b.push_back({HP_BIND_BATCH_RESULTS, SB, 1, kCS, nullptr});
-  descriptors_ = vk::DescriptorSet(ctx, b, sizeof(BatchParams), kCS);
+  RtScene::add_traversal_bindings(b, stages_);
+  if (as) AccelStructure::add_bindings(b, stages_);
+  b.push_back({HP_BIND_BATCH_RAYS, SB, 1, stages_, nullptr});
+  b.push_back({HP_BIND_BATCH_RESULTS, SB, 1, stages_, nullptr});
+  descriptors_ = vk::DescriptorSet(ctx, b, sizeof(BatchParams), stages_);
   auto& ds = descriptors_;
   scene.write_traversal_bindings(ds);
+  if (as) as->write_bindings(ds);
   ds.write_buffer(HP_BIND_BATCH_RAYS, SB, rays_.handle());
   ds.write_buffer(HP_BIND_BATCH_RESULTS, SB, results_.handle());
-  pipeline_ = create_rt_pipeline(ctx, trace_rays_comp, ds.pipeline_layout(), scene);
+  const bool remap = as && as->remapped();
+  if (rt_pipeline) {
+    const uint64_t launches = uint64_t(groups_x_) * kGroup * groups_y_;
+    const uint32_t most = ctx.rt_pipeline_properties().maxRayDispatchInvocationCount;
+    if (launches > most) {
+      throw InputError("ray batch: " + std::to_string(rays.size()) + " rays need " + std::to_string(launches) +
+                       " ray-generation invocations, over this device's maxRayDispatchInvocationCount of " +
+                       std::to_string(most));
+    }
+    const RtSpecialization spec(scene, 0, remap);
+    rt_pipeline_ = vk::RtPipeline(ctx, ds.pipeline_layout(), trace_rays_rgen, rt_miss_rmiss, rt_hit_rchit, &spec.info);
+  } else {
+    pipeline_ = create_rt_pipeline(ctx,
+                                   traversal == Traversal::ray_query ? std::span<const uint32_t>(trace_rays_rq_comp)
+                                                                     : std::span<const uint32_t>(trace_rays_comp),
+                                   ds.pipeline_layout(), scene, 0, remap);
+  }
 }
 
 uint64_t RayBatchTracer::trace(vk::Context& ctx, bvh::HitMode mode) {
@@ -86,17 +115,27 @@ uint64_t RayBatchTracer::trace(vk::Context& ctx, bvh::HitMode mode) {
     // Barriers on both sides of the dispatch, as between a frame's passes: lavapipe resolves a timestamp
     // when its next flush runs (a barrier flushes) and runs a dispatch synchronously, so without the first
     // barrier both timestamps would be taken after the dispatch (measured: 0.1 ms for a 75 ms dispatch).
-    vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_WRITE_BIT,
-                       VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
+    const bool rtp = rt_pipeline_.handle() != VK_NULL_HANDLE;
+    const VkPipelineStageFlags2 stage =
+        rtp ? VK_PIPELINE_STAGE_2_RAY_TRACING_SHADER_BIT_KHR : VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
+    const VkPipelineBindPoint point = rtp ? VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR : VK_PIPELINE_BIND_POINT_COMPUTE;
+    vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_WRITE_BIT, stage,
+                       VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+    vkCmdBindPipeline(cmd, point, rtp ? rt_pipeline_.handle() : pipeline_.handle());
     const VkDescriptorSet set = descriptors_.set();
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, descriptors_.pipeline_layout(), 0, 1, &set, 0,
-                            nullptr);
-    vkCmdPushConstants(cmd, descriptors_.pipeline_layout(), kCS, 0, sizeof(params), &params);
-    if (count_ > 0) vkCmdDispatch(cmd, groups_x_, groups_y_, 1);
+    vkCmdBindDescriptorSets(cmd, point, descriptors_.pipeline_layout(), 0, 1, &set, 0, nullptr);
+    vkCmdPushConstants(cmd, descriptors_.pipeline_layout(), stages_, 0, sizeof(params), &params);
+    if (count_ > 0) {
+      // The ray-generation shader numbers its rays as the compute dispatch does (trace_rays.comp).
+      if (rtp) {
+        rt_pipeline_.record_trace(cmd, groups_x_ * kGroup, groups_y_);
+      } else {
+        vkCmdDispatch(cmd, groups_x_, groups_y_, 1);
+      }
+    }
     // The results are read back by a copy (vk::read_buffer).
-    vk::memory_barrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                       VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_READ_BIT);
+    vk::memory_barrier(cmd, stage, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_COPY_BIT,
+                       VK_ACCESS_2_TRANSFER_READ_BIT);
     if (timed) timestamps_.end(cmd);
   });
   if (!timed) return 0;
@@ -151,6 +190,56 @@ BatchCheck check_against_reference(const bvh::Bvh& bvh, const bvh::LeafOrderTria
     }
   }
   return c;
+}
+
+DriverAgreement compare_driver_with_reference(const bvh::Bvh& bvh, const bvh::LeafOrderTriangles& tris,
+                                              std::span<const bvh::Ray> rays, bvh::HitMode mode,
+                                              std::span<const RayBatchTracer::Result> gpu, double t_tolerance,
+                                              size_t keep) {
+  if (gpu.size() != rays.size()) {
+    throw std::logic_error("compare_driver_with_reference: one GPU answer per ray expected");
+  }
+  DriverAgreement a;
+  a.t_tolerance = t_tolerance;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const bvh::Hit ref =
+        mode == bvh::HitMode::any ? bvh::intersect_any(bvh, tris, rays[i]) : bvh::intersect_closest(bvh, tris, rays[i]);
+    const bvh::Hit& g = gpu[i].hit;
+    ++a.rays;
+    a.reference_hits += ref.hit();
+    a.gpu_hits += g.hit();
+    const char* what = nullptr;
+    if (ref.hit() != g.hit()) {
+      ++a.hit_miss_differ;
+      what = ref.hit() ? "the driver misses" : "the driver hits";
+    } else if (ref.hit() && mode == bvh::HitMode::closest) {
+      const double scale = std::max(1.0, double(std::abs(ref.t)));
+      const double dt = std::abs(double(g.t) - double(ref.t)) / scale;
+      if (g.prim == ref.prim) {
+        a.max_t_relative = std::max(a.max_t_relative, dt);
+        if (dt > t_tolerance) {
+          ++a.t_differ;
+          what = "t differs";
+        }
+      } else if (dt <= t_tolerance) {
+        ++a.ties;
+      } else {
+        ++a.triangle_differ;
+        what = "another triangle";
+      }
+    }
+    if (what && a.first_differences.size() < keep) {
+      const bvh::Ray& r = rays[i];
+      char line[400];
+      std::snprintf(line, sizeof(line),
+                    "ray %zu (%s): o=(%.9g, %.9g, %.9g) d=(%.9g, %.9g, %.9g) [%.9g, %.9g]: driver prim %d t %.9g; "
+                    "reference prim %d t %.9g",
+                    i, what, r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax, g.prim, g.t,
+                    ref.prim, ref.t);
+      a.first_differences.push_back(line);
+    }
+  }
+  return a;
 }
 
 }  // namespace hp

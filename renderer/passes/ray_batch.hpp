@@ -3,9 +3,11 @@
 // with the C++ reference on arbitrary rays (hard cases included), and the traversal's own speed.
 #pragma once
 
+#include "accel_structure.hpp"
 #include "bvh/traverse.hpp"
 #include "rt_scene.hpp"
 #include "vk/pipeline.hpp"
+#include "vk/rt_pipeline.hpp"
 #include "vk/timestamps.hpp"
 
 #include <glm/glm.hpp>
@@ -19,7 +21,11 @@ namespace hp {
 class RayBatchTracer {
  public:
   /// Uploads `rays` once; throws InputError when they do not fit the device's buffer or dispatch limits.
-  RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span<const bvh::Ray> rays);
+  /// `as` (with `traversal` ray-query or pipeline): the rays go through the driver's acceleration structure,
+  /// by ray queries in the same compute shader or by a ray-tracing pipeline (shaders/trace_rays.comp either
+  /// way); the work counters are then 0 (the driver's traversal is opaque).
+  RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span<const bvh::Ray> rays,
+                 const AccelStructure* as = nullptr, Traversal traversal = Traversal::compute);
 
   /// Traces every ray (one thread each) and waits. Returns the dispatch's GPU time in nanoseconds from
   /// timestamp queries, or 0 when the queue has none.
@@ -44,6 +50,8 @@ class RayBatchTracer {
   vk::Buffer rays_, results_;
   vk::DescriptorSet descriptors_;
   vk::Pipeline pipeline_;
+  vk::RtPipeline rt_pipeline_;  // Traversal::pipeline
+  VkShaderStageFlags stages_ = VK_SHADER_STAGE_COMPUTE_BIT;
   vk::TimestampQueries timestamps_;
 };
 
@@ -56,5 +64,26 @@ struct BatchCheck {
 BatchCheck check_against_reference(const bvh::Bvh& bvh, const bvh::LeafOrderTriangles& tris,
                                    std::span<const bvh::Ray> rays, bvh::HitMode mode,
                                    std::span<const RayBatchTracer::Result> gpu, size_t keep = 10);
+
+/// A driver traversal's answers against the reference's, where bit equality is not promised: the API
+/// guarantees neither watertightness nor a closest-hit tie-break, and the driver computes t and the
+/// barycentrics its own way. Closest hit: a ray agrees when both miss, or both hit the same triangle with
+/// |t_gpu - t_ref| <= t_tolerance * max(1, |t_ref|); a different triangle at the same t (within the
+/// tolerance) is a tie, counted apart. Any hit: hit or miss agree (which triangle is any).
+struct DriverAgreement {
+  size_t rays = 0, reference_hits = 0, gpu_hits = 0;
+  size_t hit_miss_differ = 0;   ///< one hits, the other misses
+  size_t ties = 0;              ///< closest hit: another triangle at the same t
+  size_t triangle_differ = 0;   ///< closest hit: another triangle at another t
+  size_t t_differ = 0;          ///< closest hit: the same triangle, t beyond the tolerance
+  double max_t_relative = 0.0;  ///< largest |t_gpu - t_ref| / max(1, |t_ref|) where both name the same triangle
+  double t_tolerance = 0.0;
+  size_t agree() const { return rays - hit_miss_differ - triangle_differ - t_differ; }
+  std::vector<std::string> first_differences;
+};
+DriverAgreement compare_driver_with_reference(const bvh::Bvh& bvh, const bvh::LeafOrderTriangles& tris,
+                                              std::span<const bvh::Ray> rays, bvh::HitMode mode,
+                                              std::span<const RayBatchTracer::Result> gpu, double t_tolerance = 1e-4,
+                                              size_t keep = 10);
 
 }  // namespace hp

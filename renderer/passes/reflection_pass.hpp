@@ -22,7 +22,8 @@ class ReflectionPass {
 
  private:
   RtResources& rt_;
-  vk::Pipeline pipeline_, traced_;
+  RtProgram program_;
+  vk::Pipeline traced_;
 };
 
 }  // namespace hp

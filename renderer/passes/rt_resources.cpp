@@ -4,6 +4,9 @@
 #include "gpu/bindings.h"
 #include "vk/check.hpp"
 
+#include "shaders/rt_hit_rchit.h"
+#include "shaders/rt_miss_rmiss.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -28,13 +31,16 @@ glm::vec2 halton23(uint32_t i) {
   return {r2, r3};
 }
 
-std::vector<VkDescriptorSetLayoutBinding> rt_set_layout() {
+// `stages`: compute, plus ray generation for the pipeline traversal (its ray-generation shaders read the
+// same set; the miss and closest-hit shaders read none of it).
+std::vector<VkDescriptorSetLayoutBinding> rt_set_layout(VkShaderStageFlags stages, bool driver_traversal) {
   std::vector<VkDescriptorSetLayoutBinding> b;
-  auto add = [&](uint32_t binding, VkDescriptorType type) { b.push_back({binding, type, 1, kCS, nullptr}); };
+  auto add = [&](uint32_t binding, VkDescriptorType type) { b.push_back({binding, type, 1, stages, nullptr}); };
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   add(HP_BIND_RT_FRAME, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER);
   add(HP_BIND_RT_PARAMS, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER);
-  RtScene::add_traversal_bindings(b);
+  RtScene::add_traversal_bindings(b, stages);
+  if (driver_traversal) AccelStructure::add_bindings(b, stages);
   add(HP_BIND_RT_NODES, SB);
   for (uint32_t i : {HP_BIND_RT_NORMALS, HP_BIND_RT_SOUP_NORMALS, HP_BIND_RT_SLOT_MATERIAL, HP_BIND_RT_MATERIALS,
                      HP_BIND_RT_COUNTERS, HP_BIND_RT_SHADOW_DUMP, HP_BIND_RT_REFLECTION_DUMP}) {
@@ -61,12 +67,13 @@ std::vector<VkDescriptorSetLayoutBinding> rt_set_layout() {
 
 RtResources::RtResources(vk::Context& ctx, const RtScene& scene, const GBuffer& gbuffer,
                          const vk::Buffer& frame_uniforms, VkSampler sampler, const RayTracingOptions& options,
-                         const Aabb& scene_bounds)
+                         const Aabb& scene_bounds, const AccelStructure* as)
     : options_(options),
       width_(gbuffer.depth.width()),
       height_(gbuffer.depth.height()),
       bounds_(scene_bounds),
       scene_(scene),
+      as_(as),
       flags_((options.counters ? HP_RT_COUNTERS : 0u) | (options.dump_rays ? HP_RT_DUMP_RAYS : 0u) |
              (options.reflection_shadows ? HP_RT_REFLECTION_SHADOWS : 0u) |
              (options.offset == ShadowOffset::robust ? HP_RT_ROBUST_OFFSET : 0u) |
@@ -80,8 +87,14 @@ RtResources::RtResources(vk::Context& ctx, const RtScene& scene, const GBuffer& 
   const uint32_t d = options.reflection_divisor;
   grid_w_ = (width_ + d - 1) / d;
   grid_h_ = (height_ + d - 1) / d;
+  if ((options.traversal != Traversal::compute) != (as != nullptr)) {
+    throw std::logic_error("RtResources: an acceleration structure exactly for the driver traversals");
+  }
   create_buffers(ctx);
-  descriptors_ = vk::DescriptorSet(ctx, rt_set_layout(), 0, 0);
+  const VkShaderStageFlags stages =
+      kCS | (options.traversal == Traversal::pipeline ? VkShaderStageFlags(VK_SHADER_STAGE_RAYGEN_BIT_KHR)
+                                                      : VkShaderStageFlags(0));
+  descriptors_ = vk::DescriptorSet(ctx, rt_set_layout(stages, as != nullptr), 0, 0);
   write_descriptors(gbuffer, frame_uniforms, sampler);
   begin_frame(0);
 }
@@ -112,8 +125,15 @@ void RtResources::create_buffers(vk::Context& ctx) {
   compact_rays_ = vk::Buffer(ctx, compact ? cells * sizeof(gpu::CompactRay) : 4, sb_usage, false);
   sort_keys_ = vk::Buffer(ctx, compact ? cells * 4 : 4, sb_usage, false);
   sort_values_ = vk::Buffer(ctx, compact ? cells * 4 : 4, sb_usage, false);
+  // The count, the consume dispatch's arguments and the consume launch's (common/compaction.glsl); the
+  // pipeline traversal reads the launch through its device address.
+  const VkBufferUsageFlags launch_usage = options_.traversal == Traversal::pipeline
+                                              ? VkBufferUsageFlags(VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT)
+                                              : VkBufferUsageFlags(0);
   ray_count_ =
-      vk::Buffer(ctx, 16, sb_usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, false);
+      vk::Buffer(ctx, 32,
+                 sb_usage | VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT | launch_usage,
+                 false);
   if (compact && cells * sizeof(gpu::CompactRay) > ctx.properties().limits.maxStorageBufferRange) {
     throw InputError("compact reflections: " + std::to_string(cells) + " rays need " +
                      std::to_string((cells * sizeof(gpu::CompactRay)) >> 20) +
@@ -153,10 +173,36 @@ void RtResources::write_descriptors(const GBuffer& gbuffer, const vk::Buffer& fr
   ds.write_buffer(HP_BIND_RT_SORT_KEYS, SB, sort_keys_.handle());
   ds.write_buffer(HP_BIND_RT_SORT_VALUES, SB, sort_values_.handle());
   ds.write_buffer(HP_BIND_RT_RAY_COUNT, SB, ray_count_.handle());
+  if (as_) as_->write_bindings(ds);
 }
 
 vk::Pipeline RtResources::create_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv) const {
-  return create_rt_pipeline(ctx, spirv, descriptors_.pipeline_layout(), scene_, flags_);
+  return create_rt_pipeline(ctx, spirv, descriptors_.pipeline_layout(), scene_, flags_, as_ && as_->remapped());
+}
+
+RtProgram RtResources::create_program(vk::Context& ctx, std::span<const uint32_t> compute,
+                                      std::span<const uint32_t> ray_query, std::span<const uint32_t> raygen) const {
+  RtProgram p;
+  switch (options_.traversal) {
+    case Traversal::compute: p.compute = create_pipeline(ctx, compute); break;
+    case Traversal::ray_query: p.compute = create_pipeline(ctx, ray_query); break;
+    case Traversal::pipeline: {
+      const RtSpecialization spec(scene_, flags_, as_->remapped());
+      p.trace = vk::RtPipeline(ctx, descriptors_.pipeline_layout(), raygen, rt_miss_rmiss, rt_hit_rchit, &spec.info);
+      break;
+    }
+  }
+  return p;
+}
+
+vk::Pipeline RtResources::create_traced_pipeline(vk::Context& ctx, std::span<const uint32_t> compute,
+                                                 std::span<const uint32_t> ray_query) const {
+  if (options_.traversal == Traversal::pipeline) {
+    throw InputError(
+        "--traversal pipeline: the memory-trace capture has no instrumented ray-generation shaders; capture with "
+        "--traversal compute or ray-query (the same passes' own accesses)");
+  }
+  return create_pipeline(ctx, options_.traversal == Traversal::ray_query ? ray_query : compute);
 }
 
 void RtResources::attach_trace_buffer(const vk::Buffer& trace_buffer) {
@@ -266,6 +312,46 @@ void RtResources::dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t 
                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT,
                      VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
                          VK_ACCESS_2_TRANSFER_READ_BIT);
+}
+
+namespace {
+// Around a ray-tracing launch: every earlier command's writes visible to the ray-tracing stages, and the
+// launch's writes visible to every later command (the compute passes' own barriers name the compute stage).
+void ray_tracing_barrier(VkCommandBuffer cmd, bool before) {
+  const VkPipelineStageFlags2 rt = VK_PIPELINE_STAGE_2_RAY_TRACING_SHADER_BIT_KHR;
+  const VkPipelineStageFlags2 all = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT;
+  const VkAccessFlags2 rw = VK_ACCESS_2_MEMORY_READ_BIT | VK_ACCESS_2_MEMORY_WRITE_BIT;
+  if (before) {
+    vk::memory_barrier(cmd, all, VK_ACCESS_2_MEMORY_WRITE_BIT, rt | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT, rw);
+  } else {
+    vk::memory_barrier(cmd, rt, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, all, rw);
+  }
+}
+}  // namespace
+
+void RtResources::dispatch(VkCommandBuffer cmd, const RtProgram& p, uint32_t w, uint32_t h, bool then_barrier) const {
+  if (!p.trace.handle()) {
+    dispatch(cmd, p.compute, w, h, then_barrier);
+    return;
+  }
+  ray_tracing_barrier(cmd, true);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, p.trace.handle());
+  const VkDescriptorSet set = descriptors_.set();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, descriptors_.pipeline_layout(), 0, 1, &set, 0,
+                          nullptr);
+  p.trace.record_trace(cmd, w, h);
+  ray_tracing_barrier(cmd, false);
+}
+
+void RtResources::trace_indirect(VkCommandBuffer cmd, const RtProgram& p, VkDeviceSize offset) const {
+  if (!p.trace.handle()) throw std::logic_error("RtResources::trace_indirect: a ray-tracing pipeline only");
+  ray_tracing_barrier(cmd, true);
+  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, p.trace.handle());
+  const VkDescriptorSet set = descriptors_.set();
+  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, descriptors_.pipeline_layout(), 0, 1, &set, 0,
+                          nullptr);
+  p.trace.record_trace_indirect(cmd, ray_count_.device_address() + offset);
+  ray_tracing_barrier(cmd, false);
 }
 
 void RtResources::dispatch_traced(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t gx, uint32_t gy) const {

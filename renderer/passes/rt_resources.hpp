@@ -4,12 +4,14 @@
 // accumulate_pass) hold only their pipelines and record against these.
 #pragma once
 
+#include "accel_structure.hpp"
 #include "bvh/geometry.hpp"
 #include "frame_settings.hpp"
 #include "gpu/shared_types.h"
 #include "passes/gbuffer.hpp"
 #include "rt_scene.hpp"
 #include "vk/pipeline.hpp"
+#include "vk/rt_pipeline.hpp"
 
 #include <span>
 #include <vector>
@@ -31,12 +33,22 @@ struct RayCounters {
   bool operator==(const RayCounters&) const = default;
 };
 
+/// A ray-tracing pass's program as RayTracingOptions::traversal asks: a compute pipeline (the BVH traversal,
+/// or ray queries) or a ray-tracing pipeline (its ray-generation shader the same source).
+struct RtProgram {
+  vk::Pipeline compute;
+  vk::RtPipeline trace;
+  bool empty() const { return !compute.handle() && !trace.handle(); }
+};
+
 class RtResources {
  public:
-  /// `scene_bounds` quantizes origin sort keys. Throws InputError for an unusable reflection scale or bias,
-  /// or compaction buffers over the device's maxStorageBufferRange.
+  /// `scene_bounds` quantizes origin sort keys. `as`: the driver's acceleration structure, for the ray-query
+  /// and pipeline traversals (nullptr for compute). Throws InputError for an unusable reflection scale or
+  /// bias, or compaction buffers over the device's maxStorageBufferRange.
   RtResources(vk::Context& ctx, const RtScene& scene, const GBuffer& gbuffer, const vk::Buffer& frame_uniforms,
-              VkSampler sampler, const RayTracingOptions& options, const Aabb& scene_bounds);
+              VkSampler sampler, const RayTracingOptions& options, const Aabb& scene_bounds,
+              const AccelStructure* as = nullptr);
 
   uint32_t width() const { return width_; }
   uint32_t height() const { return height_; }
@@ -46,8 +58,17 @@ class RtResources {
   /// The reflections take the compaction path (compact -> [sort] -> consume).
   bool compaction() const { return options_.reflections && options_.reflection_path == ReflectionPath::compact; }
 
-  /// A pipeline of this set's layout, specialized for the scene and the frame's flags (HP_RT_*).
+  /// A compute pipeline of this set's layout, specialized for the scene and the frame's flags (HP_RT_*).
   vk::Pipeline create_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv) const;
+  /// A tracing pass's program for this frame's traversal: the compute BVH variant, the ray-query variant or
+  /// the ray-generation shader (with the shared miss and closest-hit shaders).
+  RtProgram create_program(vk::Context& ctx, std::span<const uint32_t> compute, std::span<const uint32_t> ray_query,
+                           std::span<const uint32_t> raygen) const;
+  /// The instrumented variant of a tracing pass (compute or ray-query traversal); throws InputError for the
+  /// pipeline traversal, whose ray-generation shaders have no instrumented variant.
+  vk::Pipeline create_traced_pipeline(vk::Context& ctx, std::span<const uint32_t> compute,
+                                      std::span<const uint32_t> ray_query) const;
+  Traversal traversal() const { return options_.traversal; }
 
   /// Sets the per-frame parameters (sample index for accumulation and jitter) before recording.
   void begin_frame(uint32_t sample_index);
@@ -60,6 +81,12 @@ class RtResources {
   /// Binds `p` and dispatches 8x8 groups over w x h invocations; `then_barrier`: then makes its writes
   /// visible to the next compute pass and to copies.
   void dispatch(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t w, uint32_t h, bool then_barrier = true) const;
+  /// The same for a tracing pass's program: a ray-tracing pipeline launches w x h rays between two barriers
+  /// (every earlier write visible to it; its writes visible to every later command), whatever `then_barrier`.
+  void dispatch(VkCommandBuffer cmd, const RtProgram& p, uint32_t w, uint32_t h, bool then_barrier = true) const;
+  /// A ray-tracing pipeline's launch sized by a VkTraceRaysIndirectCommandKHR at byte `offset` of
+  /// ray_count() (the consume pass), between the same barriers.
+  void trace_indirect(VkCommandBuffer cmd, const RtProgram& p, VkDeviceSize offset) const;
   /// A traced slice: binds `p`, dispatches gx x gy groups, then makes the records visible to the host.
   void dispatch_traced(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t gx, uint32_t gy) const;
   /// A traced slice of a dispatch of `workgroups` (8x8 each) sliced by rows of workgroups: rows
@@ -106,6 +133,7 @@ class RtResources {
   Aabb bounds_;
   vk::Buffer dummy_trace_;
   const RtScene& scene_;  // owned by the Frame, which destroys these resources first
+  const AccelStructure* as_;
   // What the frame records and its ray modes (HP_RT_*): a specialization constant of every pipeline.
   uint32_t flags_;
   gpu::RayParams params_cache_{};

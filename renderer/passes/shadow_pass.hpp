@@ -24,7 +24,8 @@ class ShadowPass {
 
  private:
   RtResources& rt_;
-  vk::Pipeline pipeline_, traced_;
+  RtProgram program_;
+  vk::Pipeline traced_;
 };
 
 }  // namespace hp

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <mutex>
 #include <stdexcept>
+#include <type_traits>
 
 namespace hp::vk {
 
@@ -91,6 +92,44 @@ std::string driver_version_string(const std::string& driver_info, uint32_t vendo
 
 namespace {
 
+bool has_extension(const std::vector<VkExtensionProperties>& all, const char* name) {
+  return std::any_of(all.begin(), all.end(),
+                     [&](const VkExtensionProperties& e) { return std::strcmp(e.extensionName, name) == 0; });
+}
+
+std::vector<VkExtensionProperties> device_extensions(VkPhysicalDevice pd) {
+  uint32_t n = 0;
+  vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, nullptr);
+  std::vector<VkExtensionProperties> all(n);
+  vkEnumerateDeviceExtensionProperties(pd, nullptr, &n, all.data());
+  all.resize(n);
+  return all;
+}
+
+// Which of the driver's ray tracing the device offers with every feature hybridprof uses.
+void describe_ray_tracing(VkPhysicalDevice pd, DeviceInfo& info) {
+  const auto ext = device_extensions(pd);
+  const bool as = has_extension(ext, VK_KHR_ACCELERATION_STRUCTURE_EXTENSION_NAME) &&
+                  has_extension(ext, VK_KHR_DEFERRED_HOST_OPERATIONS_EXTENSION_NAME);
+  if (!as) return;
+  VkPhysicalDeviceRayQueryFeaturesKHR rq{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_QUERY_FEATURES_KHR};
+  VkPhysicalDeviceRayTracingPipelineFeaturesKHR rtp{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR};
+  rtp.pNext = &rq;
+  VkPhysicalDeviceAccelerationStructureFeaturesKHR asf{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_FEATURES_KHR};
+  asf.pNext = &rtp;
+  VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  f12.pNext = &asf;
+  VkPhysicalDeviceFeatures2 f{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  f.pNext = &f12;
+  vkGetPhysicalDeviceFeatures2(pd, &f);
+  if (!asf.accelerationStructure || !f12.bufferDeviceAddress) return;
+  info.ray_query = has_extension(ext, VK_KHR_RAY_QUERY_EXTENSION_NAME) && rq.rayQuery;
+  info.ray_tracing_pipeline = has_extension(ext, VK_KHR_RAY_TRACING_PIPELINE_EXTENSION_NAME) &&
+                              rtp.rayTracingPipeline && rtp.rayTracingPipelineTraceRaysIndirect;
+}
+
 DeviceInfo describe(VkPhysicalDevice pd, const std::vector<VkQueueFamilyProperties>& families, uint32_t family) {
   VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
   VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
@@ -112,6 +151,7 @@ DeviceInfo describe(VkPhysicalDevice pd, const std::vector<VkQueueFamilyProperti
   info.timestamp_period_ns = p.limits.timestampPeriod;
   info.timestamp_valid_bits = family < families.size() ? families[family].timestampValidBits : 0;
   info.max_storage_buffer_range = p.limits.maxStorageBufferRange;
+  if (p.apiVersion >= VK_API_VERSION_1_2) describe_ray_tracing(pd, info);
   return info;
 }
 
@@ -308,6 +348,36 @@ Context::Context(const ContextOptions& options) {
     enabled.features.shaderFloat64 = VK_TRUE;
     enabled.features.fragmentStoresAndAtomics = supported.features.fragmentStoresAndAtomics;
 
+    // The driver's ray tracing, where the device has it: acceleration structures, buffer device addresses,
+    // ray queries and ray-tracing pipelines (--traversal ray-query|pipeline).
+    std::vector<const char*> extensions;
+    VkPhysicalDeviceAccelerationStructureFeaturesKHR eas{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_ACCELERATION_STRUCTURE_FEATURES_KHR};
+    VkPhysicalDeviceRayQueryFeaturesKHR erq{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_QUERY_FEATURES_KHR};
+    VkPhysicalDeviceRayTracingPipelineFeaturesKHR ertp{
+        VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_FEATURES_KHR};
+    if (info_.ray_query || info_.ray_tracing_pipeline) {
+      extensions.push_back(VK_KHR_ACCELERATION_STRUCTURE_EXTENSION_NAME);
+      extensions.push_back(VK_KHR_DEFERRED_HOST_OPERATIONS_EXTENSION_NAME);
+      e12.bufferDeviceAddress = VK_TRUE;
+      eas.accelerationStructure = VK_TRUE;
+      eas.pNext = e12.pNext;
+      e12.pNext = &eas;
+      if (info_.ray_query) {
+        extensions.push_back(VK_KHR_RAY_QUERY_EXTENSION_NAME);
+        erq.rayQuery = VK_TRUE;
+        erq.pNext = e12.pNext;
+        e12.pNext = &erq;
+      }
+      if (info_.ray_tracing_pipeline) {
+        extensions.push_back(VK_KHR_RAY_TRACING_PIPELINE_EXTENSION_NAME);
+        ertp.rayTracingPipeline = VK_TRUE;
+        ertp.rayTracingPipelineTraceRaysIndirect = VK_TRUE;
+        ertp.pNext = e12.pNext;
+        e12.pNext = &ertp;
+      }
+    }
+
     float priority = 1.0f;
     VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
     qci.queueFamilyIndex = queue_family_;
@@ -317,7 +387,32 @@ Context::Context(const ContextOptions& options) {
     dci.pNext = &enabled;
     dci.queueCreateInfoCount = 1;
     dci.pQueueCreateInfos = &qci;
+    dci.enabledExtensionCount = uint32_t(extensions.size());
+    dci.ppEnabledExtensionNames = extensions.data();
     HP_VK(vkCreateDevice(physical_, &dci, nullptr, &device_));
+    if (info_.ray_query || info_.ray_tracing_pipeline) {
+      const auto load = [&](auto& fn, const char* name) {
+        fn = reinterpret_cast<std::remove_reference_t<decltype(fn)>>(vkGetDeviceProcAddr(device_, name));
+        if (!fn) throw DeviceError(std::string("Vulkan device '") + info_.name + "' does not provide " + name);
+      };
+      load(rt_.get_build_sizes, "vkGetAccelerationStructureBuildSizesKHR");
+      load(rt_.create_as, "vkCreateAccelerationStructureKHR");
+      load(rt_.destroy_as, "vkDestroyAccelerationStructureKHR");
+      load(rt_.cmd_build, "vkCmdBuildAccelerationStructuresKHR");
+      load(rt_.cmd_copy, "vkCmdCopyAccelerationStructureKHR");
+      load(rt_.cmd_write_properties, "vkCmdWriteAccelerationStructuresPropertiesKHR");
+      load(rt_.get_as_address, "vkGetAccelerationStructureDeviceAddressKHR");
+      if (info_.ray_tracing_pipeline) {
+        load(rt_.create_pipelines, "vkCreateRayTracingPipelinesKHR");
+        load(rt_.get_group_handles, "vkGetRayTracingShaderGroupHandlesKHR");
+        load(rt_.cmd_trace_rays, "vkCmdTraceRaysKHR");
+        load(rt_.cmd_trace_rays_indirect, "vkCmdTraceRaysIndirectKHR");
+        rt_props_ = {VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_RAY_TRACING_PIPELINE_PROPERTIES_KHR};
+        VkPhysicalDeviceProperties2 p2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+        p2.pNext = &rt_props_;
+        vkGetPhysicalDeviceProperties2(physical_, &p2);
+      }
+    }
     vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
 
     VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};

@@ -40,10 +40,30 @@ struct DeviceInfo {
   double timestamp_period_ns = 0.0;
   uint32_t timestamp_valid_bits = 0;
   uint64_t max_storage_buffer_range = 0;
+  /// The driver's ray tracing, usable as hybridprof uses it: acceleration structures (built on the device),
+  /// buffer device addresses, and ray queries in compute shaders / ray-tracing pipelines.
+  bool ray_query = false;
+  bool ray_tracing_pipeline = false;
 };
 
 /// DeviceInfo::driver_version from driverInfo, vendorID and driverVersion.
 std::string driver_version_string(const std::string& driver_info, uint32_t vendor_id, uint32_t driver_version);
+
+/// The entry points of VK_KHR_acceleration_structure and VK_KHR_ray_tracing_pipeline (loaded from the device;
+/// null where the extension is not enabled).
+struct RayTracingFunctions {
+  PFN_vkGetAccelerationStructureBuildSizesKHR get_build_sizes = nullptr;
+  PFN_vkCreateAccelerationStructureKHR create_as = nullptr;
+  PFN_vkDestroyAccelerationStructureKHR destroy_as = nullptr;
+  PFN_vkCmdBuildAccelerationStructuresKHR cmd_build = nullptr;
+  PFN_vkCmdCopyAccelerationStructureKHR cmd_copy = nullptr;
+  PFN_vkCmdWriteAccelerationStructuresPropertiesKHR cmd_write_properties = nullptr;
+  PFN_vkGetAccelerationStructureDeviceAddressKHR get_as_address = nullptr;
+  PFN_vkCreateRayTracingPipelinesKHR create_pipelines = nullptr;
+  PFN_vkGetRayTracingShaderGroupHandlesKHR get_group_handles = nullptr;
+  PFN_vkCmdTraceRaysKHR cmd_trace_rays = nullptr;
+  PFN_vkCmdTraceRaysIndirectKHR cmd_trace_rays_indirect = nullptr;
+};
 
 /// All physical devices the loader sees, in enumeration order (for `--device` and `hybridprof devices`).
 std::vector<DeviceInfo> list_devices();
@@ -66,6 +86,14 @@ class Context {
   const DeviceInfo& info() const { return info_; }
   const VkPhysicalDeviceProperties& properties() const { return props_; }
   const VkPhysicalDeviceMemoryProperties& memory_properties() const { return mem_props_; }
+  /// Ray queries / ray-tracing pipelines are enabled on this device (DeviceInfo says which it has; both
+  /// bring acceleration structures and buffer device addresses).
+  bool ray_query_enabled() const { return info_.ray_query; }
+  bool ray_tracing_pipeline_enabled() const { return info_.ray_tracing_pipeline; }
+  bool buffer_device_address_enabled() const { return info_.ray_query || info_.ray_tracing_pipeline; }
+  const RayTracingFunctions& rt() const { return rt_; }
+  /// VK_KHR_ray_tracing_pipeline's shader group handle size and alignments (zero without it).
+  const VkPhysicalDeviceRayTracingPipelinePropertiesKHR& rt_pipeline_properties() const { return rt_props_; }
   bool validation_enabled() const { return messenger_ != VK_NULL_HANDLE; }
   /// Validation messages (warnings and errors) received so far.
   uint64_t validation_message_count() const { return messages_->count.load(); }
@@ -104,6 +132,8 @@ class Context {
   VkPhysicalDeviceProperties props_{};
   VkPhysicalDeviceMemoryProperties mem_props_{};
   DeviceInfo info_;
+  RayTracingFunctions rt_;
+  VkPhysicalDeviceRayTracingPipelinePropertiesKHR rt_props_{};
   std::unique_ptr<MessageLog> messages_ = std::make_unique<MessageLog>();
 };
 

@@ -97,6 +97,19 @@ void DescriptorSet::write_texel_buffer(uint32_t binding, VkDescriptorType type, 
   write(binding, type, nullptr, nullptr, &view);
 }
 
+void DescriptorSet::write_acceleration_structure(uint32_t binding, VkAccelerationStructureKHR as) {
+  VkWriteDescriptorSetAccelerationStructureKHR a{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET_ACCELERATION_STRUCTURE_KHR};
+  a.accelerationStructureCount = 1;
+  a.pAccelerationStructures = &as;
+  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  w.pNext = &a;
+  w.dstSet = set_;
+  w.dstBinding = binding;
+  w.descriptorCount = 1;
+  w.descriptorType = VK_DESCRIPTOR_TYPE_ACCELERATION_STRUCTURE_KHR;
+  vkUpdateDescriptorSets(device_, 1, &w, 0, nullptr);
+}
+
 void DescriptorSet::write_image(uint32_t binding, VkDescriptorType type, VkImageView view, VkImageLayout layout,
                                 VkSampler sampler) {
   const VkDescriptorImageInfo ii{sampler, view, layout};

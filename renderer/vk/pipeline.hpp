@@ -28,6 +28,7 @@ class DescriptorSet {
   void write_image(uint32_t binding, VkDescriptorType type, VkImageView view, VkImageLayout layout,
                    VkSampler sampler = VK_NULL_HANDLE);
   void write_texel_buffer(uint32_t binding, VkDescriptorType type, VkBufferView view);
+  void write_acceleration_structure(uint32_t binding, VkAccelerationStructureKHR as);
 
   VkDescriptorSet set() const { return set_; }
   VkDescriptorSetLayout layout() const { return layout_; }

@@ -32,6 +32,11 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size_bytes, VkBufferUsageFlags usage, 
   VkMemoryRequirements req;
   vkGetBufferMemoryRequirements(device_, buffer_, &req);
   VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  // A buffer whose address shaders or the acceleration-structure build read needs memory allocated for it.
+  const bool addressed = (usage & VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT) != 0;
+  VkMemoryAllocateFlagsInfo flags{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_FLAGS_INFO};
+  flags.flags = VK_MEMORY_ALLOCATE_DEVICE_ADDRESS_BIT;
+  if (addressed) ai.pNext = &flags;
   ai.allocationSize = req.size;
   ai.memoryTypeIndex = ctx.find_memory_type(req.memoryTypeBits, host_visible ? VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT |
                                                                                    VK_MEMORY_PROPERTY_HOST_COHERENT_BIT
@@ -49,6 +54,11 @@ Buffer::Buffer(Context& ctx, VkDeviceSize size_bytes, VkBufferUsageFlags usage, 
     HP_VK(r);
   }
   if (host_visible) HP_VK(vkMapMemory(device_, memory_, 0, VK_WHOLE_SIZE, 0, &mapped_));
+  if (addressed) {
+    VkBufferDeviceAddressInfo bi{VK_STRUCTURE_TYPE_BUFFER_DEVICE_ADDRESS_INFO};
+    bi.buffer = buffer_;
+    address_ = vkGetBufferDeviceAddress(device_, &bi);
+  }
 }
 
 BufferView::BufferView(Context& ctx, const Buffer& buffer, VkFormat format) : device_(ctx.device()) {
@@ -87,6 +97,7 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
     memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
     size_ = std::exchange(o.size_, 0);
     mapped_ = std::exchange(o.mapped_, nullptr);
+    address_ = std::exchange(o.address_, 0);
   }
   return *this;
 }
@@ -99,6 +110,7 @@ void Buffer::reset() {
   buffer_ = VK_NULL_HANDLE;
   memory_ = VK_NULL_HANDLE;
   mapped_ = nullptr;
+  address_ = 0;
   size_ = 0;
 }
 

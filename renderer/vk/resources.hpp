@@ -25,6 +25,8 @@ class Buffer {
   VkBuffer handle() const { return buffer_; }
   VkDeviceSize size() const { return size_; }
   void* mapped() const { return mapped_; }
+  /// The buffer's device address (usage VK_BUFFER_USAGE_SHADER_DEVICE_ADDRESS_BIT), else 0.
+  VkDeviceAddress device_address() const { return address_; }
   explicit operator bool() const { return buffer_ != VK_NULL_HANDLE; }
 
  private:
@@ -34,6 +36,7 @@ class Buffer {
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
   VkDeviceSize size_ = 0;
   void* mapped_ = nullptr;
+  VkDeviceAddress address_ = 0;
 };
 
 /// A texel view of a whole buffer (VK_WHOLE_SIZE), for uniform texel buffer descriptors.

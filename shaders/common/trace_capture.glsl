@@ -7,6 +7,10 @@
 #include "gpu/bindings.h"
 #include "gpu/trace_record.h"
 
+#if defined(HP_TRACE) && defined(HP_RT_PIPELINE)
+#error "the instrumented variants are compute shaders (compute or ray-query traversal)"
+#endif
+
 #ifdef HP_TRACE
 layout(std430, set = 0, binding = HP_BIND_TRACE_RECORDS) coherent buffer TraceBuffer {
   TraceBufferHeader trace_head;

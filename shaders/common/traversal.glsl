@@ -44,6 +44,7 @@ const float HP_FAR_DOWN = 0.99999958276748657;  // 1 - 7 ulp(below 1)
 
 struct HpRay {
   vec3 org;
+  vec3 dir;     // as given (the driver traversals trace it; the compute traversal uses inv and the shear)
   vec3 inv;
   ivec3 neg;    // 1 where the reciprocal direction is negative (its sign bit, so -0 counts as negative)
   float tmin, tmax;
@@ -62,7 +63,7 @@ struct HpStats {
 };
 
 bool hp_prepare(vec3 org, vec3 dir, float tmin, float tmax, out HpRay r) {
-  r.org = org; r.inv = vec3(0.0); r.neg = ivec3(0); r.tmin = tmin; r.tmax = tmax;
+  r.org = org; r.dir = dir; r.inv = vec3(0.0); r.neg = ivec3(0); r.tmin = tmin; r.tmax = tmax;
   r.kx = 0; r.ky = 1; r.kz = 2; r.sx = 0.0; r.sy = 0.0; r.sz = 0.0;
   if (any(isnan(org)) || any(isinf(org)) || any(isnan(dir)) || any(isinf(dir)) || isnan(tmin) || isnan(tmax))
     return false;
@@ -197,6 +198,10 @@ bool hp_watertight(HpRay r, vec3 p0, vec3 p1, vec3 p2, out float t, out float u,
   return true;
 }
 
+#if defined(HP_RAY_QUERY) || defined(HP_RT_PIPELINE)
+// The driver walks its own acceleration structure: hp_trace there (the same interface, HpStats left 0).
+#include "common/driver_traversal.glsl"
+#else
 // The traversal stack lives in workgroup-shared memory, one column per invocation: a private array with a
 // per-invocation index is lowered by lavapipe into code far slower than a shared-memory access. An including
 // compute shader's workgroup must hold at most HP_TRAVERSAL_MAX_GROUP invocations (64 = 16 KiB).
@@ -317,5 +322,6 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
   }
   return best;
 }
+#endif  // compute traversal
 
 #endif

@@ -1,0 +1,79 @@
+// hp_trace through the driver's acceleration structure (renderer/accel_structure.hpp), for the same passes
+// as the compute traversal: with HP_RAY_QUERY a ray query in the compute shader (VK_KHR_ray_query), with
+// HP_RT_PIPELINE a traceRayEXT from a ray-generation shader into shaders/rt/hit.rchit and miss.rmiss
+// (VK_KHR_ray_tracing_pipeline). Included by traversal.glsl, which declares HpRay, HpHit and HpStats.
+//
+// The hit is the driver's committed triangle: its primitive index mapped to the leaf-order slot (the
+// identity in leaf order, else as_slot[]), t and the barycentrics (u, v) of vertices 1 and 2, the convention
+// the compute traversal uses. The driver's traversal is opaque: HpStats stays 0 (no node or triangle
+// counts), and the instrumented variants record only the shader's own accesses. The API promises neither
+// watertightness nor a tie-break: a closest hit at exactly the same t as another may name either triangle.
+#ifndef HP_DRIVER_TRAVERSAL_GLSL
+#define HP_DRIVER_TRAVERSAL_GLSL
+
+#if defined(HP_RAY_QUERY)
+#extension GL_EXT_ray_query : require
+#elif defined(HP_RT_PIPELINE)
+#extension GL_EXT_ray_tracing : require
+#endif
+#include "gpu/bindings.h"
+
+// 1 where the acceleration structure's triangles are not in leaf order (AsOrder scene or morton).
+layout(constant_id = 4) const uint HP_AS_REMAP = 0;
+layout(set = 0, binding = HP_BIND_RT_TLAS) uniform accelerationStructureEXT hp_tlas;
+layout(std430, set = 0, binding = HP_BIND_RT_AS_SLOT) readonly buffer AsSlotBuffer { uint as_slot[]; };
+
+int hp_as_slot(uint primitive) { return int(HP_AS_REMAP != 0u ? as_slot[primitive] : primitive); }
+
+// The API takes 0 <= tmin <= tmax: a segment wholly behind the origin or empty misses; one starting behind
+// the origin starts at it (where the compute traversal would also accept hits at negative t).
+bool hp_driver_segment(HpRay r, out float tmin) {
+  tmin = max(r.tmin, 0.0);
+  return r.tmax >= tmin;
+}
+
+#if defined(HP_RAY_QUERY)
+HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
+  HpHit best;
+  best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
+  float tmin;
+  if (!hp_driver_segment(r, tmin)) return best;
+  uint flags = gl_RayFlagsOpaqueEXT | (any_hit ? gl_RayFlagsTerminateOnFirstHitEXT : 0u);
+  rayQueryEXT q;
+  rayQueryInitializeEXT(q, hp_tlas, flags, 0xFFu, r.org, tmin, r.dir, r.tmax);
+  while (rayQueryProceedEXT(q)) {
+    // Opaque geometry only: the driver commits every candidate itself, nothing to confirm here.
+  }
+  if (rayQueryGetIntersectionTypeEXT(q, true) == gl_RayQueryCommittedIntersectionTriangleEXT) {
+    best.slot = hp_as_slot(uint(rayQueryGetIntersectionPrimitiveIndexEXT(q, true)));
+    best.t = rayQueryGetIntersectionTEXT(q, true);
+    vec2 b = rayQueryGetIntersectionBarycentricsEXT(q, true);
+    best.u = b.x; best.v = b.y;
+  }
+  return best;
+}
+
+#elif defined(HP_RT_PIPELINE)
+#include "common/rt_payload.glsl"
+
+layout(location = 0) rayPayloadEXT HpPayload hp_payload;
+
+HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
+  HpHit best;
+  best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
+  float tmin;
+  if (!hp_driver_segment(r, tmin)) return best;
+  uint flags = gl_RayFlagsOpaqueEXT | (any_hit ? gl_RayFlagsTerminateOnFirstHitEXT : 0u);
+  hp_payload.primitive = -1;
+  // SBT: hit group 0 (closest hit), miss shader 0; no recursion (the payload comes back to this shader).
+  traceRayEXT(hp_tlas, flags, 0xFFu, 0u, 1u, 0u, r.org, tmin, r.dir, r.tmax, 0);
+  if (hp_payload.primitive >= 0) {
+    best.slot = hp_as_slot(uint(hp_payload.primitive));
+    best.t = hp_payload.t;
+    best.u = hp_payload.u; best.v = hp_payload.v;
+  }
+  return best;
+}
+#endif
+
+#endif
