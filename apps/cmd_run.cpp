@@ -62,6 +62,9 @@ void add_run_command(CLI::App& app) {
                     ? (" (" + std::to_string(s.stale) + " of them again: measured by another build or driver)").c_str()
                     : "",
                 a->out.c_str());
+    for (const std::string& u : s.unsupported) {
+      std::fprintf(stderr, "hybridprof run: not run on this device (unsupported): %s\n", u.c_str());
+    }
     // Cells with expectations (a matrix's "expect", e.g. hard_cases.json): every unmet one is reported,
     // resumed cells included, and the exit code is 1, as the gate's for a regression.
     size_t unmet = 0;

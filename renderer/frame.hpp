@@ -146,9 +146,13 @@ class Frame {
   std::optional<FrameQueries> first_frame_queries() const { return first_queries_; }
   bool timestamps_supported() const { return timestamps_.supported(); }
   /// Whether render(FrameQueries::pipeline_statistics) counts invocations: counters on, queries supported.
-  /// Invocation counts come with the ray counters, which only a frame with a ray-tracing pass has.
+  /// Invocation counts come with the ray counters, which only a frame with a ray-tracing pass has. Not taken
+  /// with Traversal::pipeline: Mesa 25.0.7 lavapipe crashes (in its worker thread) executing a command
+  /// buffer with a pipeline-statistics query and vkCmdTraceRaysKHR, and its ray-tracing stages are not
+  /// compute invocations anyway.
   bool pipeline_statistics_available() const {
-    return settings_.rt.counters && (settings_.rt.shadows || settings_.rt.reflections) && invocations_.supported();
+    return settings_.rt.counters && (settings_.rt.shadows || settings_.rt.reflections) && invocations_.supported() &&
+           settings_.rt.traversal != Traversal::pipeline;
   }
 
   Image4f read_color() const;

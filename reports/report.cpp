@@ -458,11 +458,21 @@ double per_frame(const CellResult& c, const std::string& pass, const std::string
   return double(c.timing.counters.get(pass, name)) / double(c.timing.timings.measured().size());
 }
 
+// The cell traced through the driver's acceleration structure (ray-query, pipeline): its traversal is
+// opaque, its node and triangle counters are 0 and its cache tables hold the shaders' own accesses only.
+std::string traversal_of(const CellResult& c) {
+  return c.config.contains("traversal") && c.config["traversal"].is_string() ? c.config["traversal"].get<std::string>()
+                                                                             : "compute";
+}
+bool driver_traversal(const CellResult& c) { return traversal_of(c) != "compute"; }
+
 // The same work in both cells: every work counter of the pass equal per frame AND its simulated L1 and L2
 // hits and misses equal. Counters alone are not enough: a change of data layout (geometry: indexed or
 // soup) casts the same rays through the same nodes with other memory traffic. Without cache tables for the
 // pass in both cells, nothing is claimed.
 bool identical_work(const CellResult& a, const CellResult& b, const std::string& pass) {
+  // The driver's traversal is not counted: equal counters say nothing of the work it did.
+  if (driver_traversal(a) || driver_traversal(b)) return false;
   const Counters &ka = a.timing.counters, &kb = b.timing.counters;
   if (!has_pass(ka, pass) || !has_pass(kb, pass)) return false;
   const auto& ca = ka.passes().at(pass);
@@ -607,6 +617,9 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
   if (!a.timing.counters.empty() || !b.timing.counters.empty()) {
     if (counter_changes.empty()) {
       sentence += "; the work counters were identical";
+      if (driver_traversal(a) || driver_traversal(b)) {
+        sentence += " (they do not count the driver's traversal, whose nodes and triangles are not visible)";
+      }
     } else {
       sentence += "; the work per frame changed: ";
       for (size_t i = 0; i < counter_changes.size() && i < 3; ++i)
@@ -616,6 +629,92 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
   }
   if (!cache_part.empty()) sentence += "; " + cache_part;
   return head + sentence + ".\n\n" + table + "\n";
+}
+
+// Compute BVH against the driver's ray tracing: cells equal but for traversal, as_order and as_compaction,
+// side by side per pass, with the rays per second, the build and the memory of each acceleration structure.
+std::string traversal_section(const std::vector<CellResult>& cells) {
+  if (std::none_of(cells.begin(), cells.end(), driver_traversal)) return "";
+  std::map<std::string, std::vector<const CellResult*>> groups;
+  std::vector<std::string> order;
+  for (const CellResult& c : cells) {
+    json key = c.config;
+    for (const char* k : {"traversal", "as_order", "as_compaction"}) key.erase(k);
+    const std::string k = key.dump();
+    if (!groups.count(k)) order.push_back(k);
+    groups[k].push_back(&c);
+  }
+  std::string s = "## Compute BVH against the driver's ray tracing\n\n";
+  s += "Cells that differ only in who walks the rays: `compute` (hybridprof's BVH, walked by the compute "
+       "shaders), `ray-query` (the driver's acceleration structure from the same compute shaders) and "
+       "`pipeline` (a ray-tracing pipeline whose ray-generation shaders are the same sources). Times are medians "
+       "with their 95% intervals; Mrays/s is the pass's rays per frame over its median time; the change is "
+       "against the compute cell of the group. The compute BVH is built on the host (CPU wall time) and is 32 "
+       "bytes a node; the driver's is built on the device (timestamps) and its size is the driver's. The "
+       "driver's traversal is opaque: its node and triangle counts are not known, and a traced ray-query pass's "
+       "cache tables hold the shaders' own accesses (G-buffer, shading, outputs) only.\n\n";
+  for (const std::string& k : order) {
+    const auto& g = groups[k];
+    if (std::none_of(g.begin(), g.end(), [](const CellResult* c) { return driver_traversal(*c); })) continue;
+    const CellResult* base = nullptr;
+    for (const CellResult* c : g)
+      if (!driver_traversal(*c)) base = c;
+    s += "| traversal | pass | median (ms) | 95% CI | vs compute | Mrays/s | structure build (ms) | structure size "
+         "(MiB) |\n|---|---|---|---|---|---|---|---|\n";
+    for (const CellResult* c : g) {
+      std::string label = traversal_of(*c);
+      if (c->line.contains("accel")) {
+        const json& a = c->line["accel"];
+        label += " (" + a.value("order", std::string("?")) + (a.value("compacted", false) ? ", compacted" : "") + ")";
+      }
+      std::string build = "—", size = "—";
+      if (c->line.contains("accel")) {
+        const json& a = c->line["accel"];
+        build = fmt("%.2f", a.value("build_ms", 0.0)) + (a.value("build_timed_on_device", false) ? "" : " (host)");
+        size = fmt("%.2f", double(a.value("blas_bytes", uint64_t(0)) + a.value("tlas_bytes", uint64_t(0))) / 1048576.0);
+      } else if (c->bvh.is_object()) {
+        build = fmt("%.2f", num_or0(c->bvh, "build_ms")) + " (host)";
+        size = fmt("%.2f", num_or0(c->bvh, "nodes") * 32.0 / 1048576.0);
+      }
+      const std::vector<PassStat> stats = pass_stats(*c);
+      const std::vector<PassStat> base_stats = base ? pass_stats(*base) : std::vector<PassStat>{};
+      bool first = true;
+      for (const PassStat& p : stats) {
+        if (p.pass != "shadows" && p.pass != "reflections" && p.pass != "consume") continue;
+        std::string vs = "—";
+        for (const PassStat& q : base_stats)
+          if (q.pass == p.pass && c != base && q.summary.median > 0) vs = pct(p.summary.median / q.summary.median);
+        std::string mrays = "—";
+        if (has_pass(c->timing.counters, p.pass) && p.summary.median > 0) {
+          const double rays = per_frame(*c, p.pass, counter::rays_cast);
+          mrays = fmt("%.2f", rays / (p.summary.median / 1e9) / 1e6);
+        }
+        s += "| " + md::escape(first ? label : "") + " | " + p.pass + " | " + ms(p.summary.median) + " | " +
+             ci_text(p.summary) + " | " + vs + " | " + mrays + " | " + (first ? build : "") + " | " +
+             (first ? size : "") + " |\n";
+        first = false;
+      }
+    }
+    s += "\n";
+  }
+  return s;
+}
+
+// The cells the device could not run (OUT/unsupported.json), by name and reason: not failures, not results.
+std::string unsupported_section(const json& unsupported) {
+  if (!unsupported.is_array() || unsupported.empty()) return "";
+  std::string s = "## Cells not run on this device\n\n";
+  s += std::to_string(unsupported.size()) +
+       " cell(s) of the matrix need what the device lacks; they have no results, and nothing above compares "
+       "them:\n\n";
+  for (const json& u : unsupported) {
+    std::string axes;
+    if (u.contains("axes") && u["axes"].is_object())
+      for (const auto& [k, v] : u["axes"].items()) axes += (axes.empty() ? "" : ", ") + k + "=" + axis_value_text(v);
+    s += "- `" + md::escape(u.value("id", std::string("?"))) + "` (" + md::escape(axes) +
+         "): " + md::escape(u.value("reason", std::string("unsupported"))) + "\n";
+  }
+  return s + "\n";
 }
 
 void comparisons_section(const std::vector<CellResult>& cells, const std::vector<TimeComparison>& family,
@@ -677,7 +776,7 @@ json findings(const std::vector<TimeComparison>& family) {
 
 }  // namespace
 
-Report build_report(const std::vector<CellResult>& cells) {
+Report build_report(const std::vector<CellResult>& cells, const json& unsupported) {
   if (cells.empty()) throw InputError("report: no cells");
   Report r;
   std::string& s = r.markdown;
@@ -691,6 +790,8 @@ Report build_report(const std::vector<CellResult>& cells) {
   charts_section(cells, r, s);
   s += error_metrics_section(cells);
   s += tradeoff_sections(cells, r.charts);
+  s += traversal_section(cells);
+  s += unsupported_section(unsupported);
   s += "## Cells\n\n";
   for (const CellResult& c : cells) s += cell_section(c);
   const std::vector<TimeComparison> family = time_comparisons(cells);
@@ -715,7 +816,16 @@ Report build_report(const std::vector<CellResult>& cells) {
 }
 
 std::string write_report(const std::string& out_dir) {
-  const Report r = build_report(load_cells(out_dir));
+  json unsupported = json::array();
+  const fs::path unsupported_file = fs::path(out_dir) / "unsupported.json";
+  if (fs::exists(unsupported_file)) {
+    std::ifstream in(unsupported_file);
+    unsupported = json::parse(in, nullptr, false);
+    if (unsupported.is_discarded() || !unsupported.is_array()) {
+      throw InputError(unsupported_file.string() + ": not a JSON list (hybridprof run writes it)");
+    }
+  }
+  const Report r = build_report(load_cells(out_dir), unsupported);
   std::error_code ec;
   fs::create_directories(fs::path(out_dir) / "charts", ec);
   if (ec) throw InputError(out_dir + "/charts: cannot create: " + ec.message());

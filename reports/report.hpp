@@ -31,8 +31,10 @@ struct Report {
   std::string findings;
 };
 
-/// Builds the report for these cells (at least one). Pure: writes nothing.
-Report build_report(const std::vector<CellResult>& cells);
+/// Builds the report for these cells (at least one). `unsupported`: OUT/unsupported.json's list (cells the
+/// device could not run, hybridprof run's RunSummary::unsupported), named in a section of their own. Pure:
+/// writes nothing.
+Report build_report(const std::vector<CellResult>& cells, const nlohmann::json& unsupported = nlohmann::json::array());
 
 /// Reads OUT/results.jsonl, writes OUT/report.md, OUT/findings.json and OUT/charts/*.svg (each to a temporary file
 /// renamed into place). Returns the report's path. InputError for a missing or bad results file.

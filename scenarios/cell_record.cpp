@@ -66,6 +66,32 @@ CellBvh parse_bvh(const LineReader& r, const json& b) {
   return out;
 }
 
+CellAccel parse_accel(const LineReader& r, const json& a) {
+  const auto member = [&](const char* key) -> const json& {
+    static const json missing;
+    return a.contains(key) ? a[key] : missing;
+  };
+  const auto text = [&](const char* key) {
+    if (!member(key).is_string()) r.fail(std::string("field 'accel.") + key + "' missing or not a string");
+    return member(key).get<std::string>();
+  };
+  const auto flag = [&](const char* key) {
+    if (!member(key).is_boolean()) r.fail(std::string("field 'accel.") + key + "' missing or not a boolean");
+    return member(key).get<bool>();
+  };
+  CellAccel out;
+  out.traversal = text("traversal");
+  out.order = text("order");
+  out.compacted = flag("compacted");
+  out.build_ms = r.number(member("build_ms"), "accel.build_ms");
+  out.build_timed_on_device = flag("build_timed_on_device");
+  out.triangles = r.count(member("triangles"), "accel.triangles");
+  out.blas_bytes = r.count(member("blas_bytes"), "accel.blas_bytes");
+  out.tlas_bytes = r.count(member("tlas_bytes"), "accel.tlas_bytes");
+  out.scratch_bytes = r.count(member("scratch_bytes"), "accel.scratch_bytes");
+  return out;
+}
+
 CellExpect parse_expect(const LineReader& r, const json& e) {
   CellExpect out;
   out.spec = e.contains("spec") ? e["spec"] : json();
@@ -88,6 +114,18 @@ void to_json(json& j, const CellBvh& b) {
        {"sah_cost", b.sah_cost}};
 }
 
+void to_json(json& j, const CellAccel& a) {
+  j = {{"traversal", a.traversal},
+       {"order", a.order},
+       {"compacted", a.compacted},
+       {"build_ms", a.build_ms},
+       {"build_timed_on_device", a.build_timed_on_device},
+       {"triangles", a.triangles},
+       {"blas_bytes", a.blas_bytes},
+       {"tlas_bytes", a.tlas_bytes},
+       {"scratch_bytes", a.scratch_bytes}};
+}
+
 bool operator==(const CellRecord& a, const CellRecord& b) {
   const auto same_timing = [](const TimingResult& x, const TimingResult& y) {
     return x.environment == y.environment && x.timings == y.timings && x.summary == y.summary &&
@@ -95,8 +133,8 @@ bool operator==(const CellRecord& a, const CellRecord& b) {
   };
   return a.id == b.id && a.matrix == b.matrix && a.name == b.name && a.axes == b.axes && a.config == b.config &&
          same_timing(a.result, b.result) && a.load_1min == b.load_1min && a.triangles == b.triangles &&
-         a.bvh == b.bvh && a.cache == b.cache && a.error == b.error && a.report == b.report && a.expect == b.expect &&
-         a.images == b.images && a.wall_s == b.wall_s;
+         a.bvh == b.bvh && a.accel == b.accel && a.cache == b.cache && a.error == b.error && a.report == b.report &&
+         a.expect == b.expect && a.images == b.images && a.wall_s == b.wall_s;
 }
 
 json to_json(const CellRecord& r) {
@@ -113,6 +151,7 @@ json to_json(const CellRecord& r) {
     line["load_1min"] = {{"start", optional_number(r.load_1min->start)}, {"end", optional_number(r.load_1min->end)}};
   if (r.triangles) line["scene"] = {{"triangles", *r.triangles}};
   if (r.bvh) line["bvh"] = *r.bvh;
+  if (r.accel) line["accel"] = *r.accel;
   if (!r.cache.is_null()) line["cache"] = r.cache;
   if (!r.error.is_null()) line["error"] = r.error;
   if (!r.report.is_null()) line["report"] = r.report;
@@ -150,6 +189,7 @@ CellRecord parse_cell_record(const json& line, const std::string& where) {
     c.triangles = r.count((*s)["triangles"], "scene.triangles");
   }
   if (const json* b = r.object("bvh")) c.bvh = parse_bvh(r, *b);
+  if (const json* a = r.object("accel")) c.accel = parse_accel(r, *a);
   if (const json* v = r.object("cache")) c.cache = *v;
   if (const json* v = r.object("report")) c.report = *v;
   if (const json* v = r.object("error")) c.error = *v;

@@ -6,7 +6,8 @@
 //   id, matrix, name, axes: {axis key path: value}, config: canonical scenario (Scenario::canonical),
 //   result: timing result (profiler/timing/result_json.hpp), load_1min: {start, end} (null: unreadable;
 //   absent in lines written before it existed), scene: {triangles}, bvh?: {build_ms, nodes, leaves,
-//   max_depth, sah_cost} (absent: no ray traced), cache?: cache-simulator tables, error?: error against the
+//   max_depth, sah_cost} (absent: no ray traced), accel?: the driver's acceleration structure (CellAccel;
+//   ray-query and pipeline cells), cache?: cache-simulator tables, error?: error against the
 //   CPU reference, report?: the matrix's "report" object, expect?: {spec, unmet: [sentences]},
 //   images: {name: "cells/<id>/<file>.png"}, wall_s.
 #pragma once
@@ -40,6 +41,18 @@ struct CellBvh {
 };
 void to_json(nlohmann::json& j, const CellBvh& b);  ///< {build_ms, nodes, leaves, max_depth, sah_cost}
 
+/// The driver's acceleration structure of a ray-query or pipeline cell (AsBuildStats).
+struct CellAccel {
+  std::string traversal, order;  ///< "ray-query" | "pipeline"; "leaf" | "scene" | "morton"
+  bool compacted = false;
+  double build_ms = 0.0;
+  bool build_timed_on_device = false;  ///< build_ms from timestamps (else host wall time)
+  std::uint64_t triangles = 0, blas_bytes = 0, tlas_bytes = 0, scratch_bytes = 0;
+  bool operator==(const CellAccel&) const = default;
+};
+/// {traversal, order, compacted, build_ms, build_timed_on_device, triangles, blas_bytes, tlas_bytes, scratch_bytes}
+void to_json(nlohmann::json& j, const CellAccel& a);
+
 /// A matrix's expectations of one "cells" case and the sentences of those the cell did not meet.
 struct CellExpect {
   nlohmann::json spec;  ///< the matrix's "expect" entry, as the matrix file states it (checked there)
@@ -63,6 +76,7 @@ struct CellRecord {
   std::optional<CellLoad> load_1min;       ///< absent in lines written before it existed
   std::optional<std::uint64_t> triangles;  ///< "scene": {"triangles"}
   std::optional<CellBvh> bvh;              ///< absent when no ray was traced
+  std::optional<CellAccel> accel;          ///< "accel": present for the driver traversals only
   /// Cache-simulator tables (CacheAnalysis::finish, plus each pass's "capture" and "trace_file"). JSON:
   /// written by hp_cache_analysis, whose tables grow with the model (buffers, heatmaps, curves).
   nlohmann::json cache;

@@ -31,6 +31,7 @@ namespace {
 
 constexpr const char* kResults = "results.jsonl";
 constexpr const char* kFolderFile = "matrix.json";
+constexpr const char* kUnsupportedFile = "unsupported.json";
 
 // What a results folder belongs to: the matrix's name and a hash of its expanded cells' ids.
 json folder_identity(const std::string& matrix, std::vector<std::string> ids) {
@@ -414,6 +415,18 @@ CellRecord run_cell(RunContext& run, const Matrix& m, size_t i, const std::strin
     const bvh::BvhStats st = bvh::bvh_stats(g->bvh);
     rec.bvh = CellBvh{g->build_ms, st.nodes, st.leaves, st.max_depth, st.sah_cost};
   }
+  if (const AccelStructure* as = frame.accel_structure()) {
+    const AsBuildStats& a = as->stats();
+    rec.accel = CellAccel{to_string(s.frame.rt.traversal),
+                          to_string(as->order()),
+                          a.compacted,
+                          a.build_ms,
+                          a.build_timed_on_device,
+                          a.triangles,
+                          a.blas_bytes,
+                          a.tlas_bytes,
+                          a.scratch_bytes};
+  }
   if (!s.trace_passes.empty()) rec.cache = capture_cache(frame, s, run.out, cell_dir);
   if (s.error) {
     rec.error = measure_error(frame, s, cs.reference_scene, cs.reference_camera, run.out, cell_dir, images, id);
@@ -429,6 +442,19 @@ CellRecord run_cell(RunContext& run, const Matrix& m, size_t i, const std::strin
 }
 
 }  // namespace
+
+std::string unsupported_reason(const vk::Context& ctx, const Scenario& s) {
+  const bool traced = s.frame.rt.shadows || s.frame.rt.reflections;
+  if (!traced) return "";
+  if (s.frame.rt.traversal == Traversal::ray_query && !ctx.ray_query_enabled()) {
+    return "'" + ctx.info().name + "' has no ray queries (VK_KHR_ray_query with acceleration structures)";
+  }
+  if (s.frame.rt.traversal == Traversal::pipeline && !ctx.ray_tracing_pipeline_enabled()) {
+    return "'" + ctx.info().name +
+           "' has no ray-tracing pipelines (VK_KHR_ray_tracing_pipeline with acceleration structures)";
+  }
+  return "";
+}
 
 RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   RunSummary sum;
@@ -457,7 +483,17 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   const std::string now = measured_by(now_line);
   std::vector<std::string> stale;
   std::vector<size_t> todo;
+  json unsupported = json::array();
   for (size_t i : shard_cells) {
+    if (const std::string why = unsupported_reason(ctx, m.cells[i]); !why.empty()) {
+      unsupported.push_back({{"id", cell_ids[i]},
+                             {"name", m.cells[i].name},
+                             {"axes", m.cell_axis_values[i]},
+                             {"device", ctx.info().name},
+                             {"reason", why}});
+      sum.unsupported.push_back(cell_ids[i] + " (" + m.cells[i].name + "): " + why);
+      continue;
+    }
     const auto it = done.lines.find(cell_ids[i]);
     if (it != done.lines.end() && measured_by(it->second) == now) {
       ++sum.already_done;
@@ -468,12 +504,20 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   }
   if (!stale.empty()) remove_stale(o, done, stale, now);
   sum.stale = stale.size();
+  // The cells this device cannot run, for the report; a device that can run them all leaves no list.
+  if (!unsupported.empty() && fs::exists(out)) {
+    write_json_atomically(out / kUnsupportedFile, unsupported);
+  } else if (unsupported.empty()) {
+    std::error_code rm;
+    fs::remove(out / kUnsupportedFile, rm);
+  }
   if (todo.empty()) return sum;
   // Created once there is work and a device for it: a failed start leaves no empty folder behind.
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) throw InputError(o.out_dir + ": cannot create the output folder: " + ec.message());
   write_json_atomically(out / kFolderFile, identity);
+  if (!unsupported.empty()) write_json_atomically(out / kUnsupportedFile, unsupported);
   RunContext run{ctx, env, out, {}};
   const bool tty = o.progress && ::isatty(::fileno(stderr));
   const auto t_start = std::chrono::steady_clock::now();

@@ -8,6 +8,7 @@
 #include "cell_record.hpp"
 #include "scenario.hpp"
 #include "scene/scene.hpp"
+#include "vk/context.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -33,7 +34,14 @@ struct RunSummary {
   size_t already_done = 0;  ///< found in results.jsonl and skipped
   size_t stale = 0;         ///< found, but measured by another build or driver: removed and run again
   size_t ran = 0;
+  /// Cells this device cannot run (a driver traversal it lacks): "<id> (<name>): <reason>", also listed in
+  /// OUT/unsupported.json for the report. Not failures: the rest of the matrix runs.
+  std::vector<std::string> unsupported;
 };
+
+/// Why `ctx` cannot run cell `s` (its traversal needs ray queries or ray-tracing pipelines the device lacks),
+/// or "" when it can.
+std::string unsupported_reason(const vk::Context& ctx, const Scenario& s);
 
 /// Runs the matrix. Throws hp::InputError / hp::DeviceError as the CLI expects.
 RunSummary run_matrix(const Matrix& matrix, const RunOptions& options);

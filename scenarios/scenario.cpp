@@ -171,6 +171,11 @@ Scenario parse_scenario(const json& j, const std::string& file, const std::strin
     if ((p == "shadows" && !s.frame.rt.shadows) || (p == "reflections" && !s.frame.rt.reflections)) {
       fail(file, join(path, "trace.passes"), "traces the " + p + " pass, which is off");
     }
+    if (s.frame.rt.traversal == Traversal::pipeline) {
+      fail(file, join(path, "trace.passes"),
+           "\"traversal\": \"pipeline\" has no instrumented variant (ray-generation shaders); trace with "
+           "\"compute\" or \"ray-query\"");
+    }
   }
   return s;
 }

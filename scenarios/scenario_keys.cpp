@@ -86,6 +86,8 @@ std::vector<ScenarioKey> make_keys() {
   const auto is_compact = [](const S& s) { return s.frame.rt.reflection_path != ReflectionPath::direct; };
   const auto has_transform = [](const S& s) { return s.world_scale != 1.0 || s.world_translate != glm::dvec3(0.0); };
   const auto has_error = [](const S& s) { return s.error; };
+  // The compute traversal's cells keep the ids they had before the driver traversals existed.
+  const auto is_driver = [](const S& s) { return s.frame.rt.traversal != Traversal::compute; };
   std::vector<ScenarioKey> k;
 
   k.push_back(with(typed("name", KeyType::string, "", "a label for reports (not part of the id)"), [](ScenarioKey& e) {
@@ -236,6 +238,42 @@ std::vector<ScenarioKey> make_keys() {
                      };
                      e.canonical = [](const S& s) { return json(to_string(s.frame.rt.writeback)); };
                      e.canonical_when = is_compact;
+                   }));
+
+  k.push_back(with(choice("traversal", {"compute", "ray-query", "pipeline"}, "compute",
+                          "who walks the rays: the compute shaders' BVH, or the driver's acceleration structure "
+                          "through ray queries or a ray-tracing pipeline"),
+                   [&](auto& e) {
+                     e.apply = [](S& s, const json& v, C) {
+                       s.frame.rt.traversal = parse_traversal(v.get<std::string>());
+                     };
+                     e.canonical = [](const S& s) { return json(to_string(s.frame.rt.traversal)); };
+                     e.canonical_when = is_driver;
+                   }));
+  k.push_back(with(choice("as_order", {"leaf", "scene", "morton"}, "leaf",
+                          "triangle order handed to the driver's acceleration-structure build (ray-query and "
+                          "pipeline only)"),
+                   [&](auto& e) {
+                     e.apply = [](S& s, const json& v, C) {
+                       s.frame.rt.as_order = parse_as_order(v.get<std::string>());
+                     };
+                     e.canonical = [](const S& s) { return json(to_string(s.frame.rt.as_order)); };
+                     e.canonical_when = is_driver;
+                   }));
+  k.push_back(with(boolean("as_compaction", false,
+                           "compact the driver's bottom-level acceleration structure (ray-query and pipeline only)"),
+                   [&](auto& e) {
+                     e.apply = [](S& s, const json& v, C c) {
+                       s.frame.rt.as_compaction = v.get<bool>();
+                       const RayTracingOptions& rt = s.frame.rt;
+                       if (rt.traversal == Traversal::compute && (rt.as_order != AsOrder::leaf || rt.as_compaction)) {
+                         c.fail("as_order",
+                                "as_order and as_compaction apply to \"traversal\": \"ray-query\" or "
+                                "\"pipeline\" only");
+                       }
+                     };
+                     e.canonical = [](const S& s) { return json(s.frame.rt.as_compaction); };
+                     e.canonical_when = is_driver;
                    }));
 
   k.push_back(with(integer("bvh.buckets", 2, 1024, 12, "SAH buckets per binned axis"), [](auto& e) {

@@ -180,6 +180,21 @@ TEST(CellRecord, ReadsBackWhatItWrites) {
   EXPECT_FALSE(parse_cell_record(to_json(bare), "r.jsonl:1") == r);
 }
 
+TEST(CellRecord, DriverAccelerationStructureRoundTrips) {
+  CellRecord r = record(Measured{});
+  r.accel = CellAccel{"pipeline", "morton", true, 8.25, true, 59894, 6u << 20, 4096, 1u << 20};
+  const json line = to_json(r);
+  ASSERT_TRUE(line.contains("accel"));
+  EXPECT_EQ(line["accel"]["order"], "morton");
+  EXPECT_TRUE(parse_cell_record(line, "r.jsonl:1") == r);
+  json bad = line;
+  bad["accel"].erase("blas_bytes");
+  EXPECT_EQ(error_of(bad), "r.jsonl:3: field 'accel.blas_bytes' is not a count");
+  bad = line;
+  bad["accel"]["traversal"] = 3;
+  EXPECT_EQ(error_of(bad), "r.jsonl:3: field 'accel.traversal' missing or not a string");
+}
+
 TEST(CellRecord, ErrorsNameTheLineAndTheField) {
   const json good = to_json(record(Measured{}));
   EXPECT_EQ(error_of(json::array()), "r.jsonl:3: not a hybridprof cell (field 'schema' is not \"hybridprof.cell\")");

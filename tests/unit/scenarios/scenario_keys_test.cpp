@@ -56,10 +56,11 @@ TEST(ScenarioKeys, CoverTheCanonicalFormAndEveryKeyParses) {
     ASSERT_TRUE(k.apply) << k.path;
   }
   // A scenario with every conditional key on: its canonical form's keys are all table keys.
-  const Scenario s = parse_scenario(json::parse(R"({"reflection_path": "compact", "query_overhead": true,
+  const Scenario s =
+      parse_scenario(json::parse(R"({"reflection_path": "compact", "query_overhead": true, "traversal": "ray-query",
       "overlap": false, "trace": {"passes": ["shadows"], "sample_every": 2, "sample_block": 4},
       "transform": {"scale": 2}, "error": {}})"),
-                                    "f.json");
+                     "f.json");
   std::set<std::string> canonical;
   leaves(s.canonical(), "", canonical);
   for (const std::string& k : canonical) EXPECT_TRUE(table.count(k)) << k << " is canonical but not in the table";

@@ -96,6 +96,27 @@ TEST(Scenario, ErrorsNameFileAndKeyPath) {
   EXPECT_NE(error_of(json::parse(R"([1, 2])")).find("expected an object"), std::string::npos);
 }
 
+TEST(Scenario, TraversalKeys) {
+  const Scenario d = parse_scenario(json::object(), "d.json");
+  EXPECT_EQ(d.frame.rt.traversal, Traversal::compute);
+  const Scenario q = parse_scenario(json::parse(R"({"traversal": "ray-query", "as_order": "morton"})"), "q.json");
+  EXPECT_EQ(q.frame.rt.traversal, Traversal::ray_query);
+  EXPECT_EQ(q.frame.rt.as_order, AsOrder::morton);
+  EXPECT_EQ(q.canonical()["traversal"], "ray-query");
+  // The compute traversal's cells keep the ids they had before the key existed.
+  EXPECT_FALSE(d.canonical().contains("traversal"));
+  EXPECT_EQ(parse_scenario(json::parse(R"({"traversal": "compute"})"), "c.json").id(), d.id());
+  EXPECT_NE(error_of(json::parse(R"({"traversal": "rtx"})"))
+                .find("traversal: 'rtx' is not one of compute, ray-query, "
+                      "pipeline"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"as_order": "morton"})")).find("as_order and as_compaction apply to"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"traversal": "pipeline", "trace": {"passes": ["shadows"]}})"))
+                .find("trace.passes: \"traversal\": \"pipeline\" has no instrumented variant"),
+            std::string::npos);
+}
+
 TEST(Scenario, IdIsStableAndDependsOnConfigOnly) {
   const Scenario a = parse_scenario(json::parse(R"({"name": "x", "seed": 3})"), "a.json");
   const Scenario b = parse_scenario(json::parse(R"({"seed": 3, "name": "y", "geometry": "indexed"})"), "b.json");
