@@ -4,6 +4,7 @@
 #include "output_path.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <sstream>
@@ -95,6 +96,17 @@ void apply_traversal_options(RayTracingOptions& rt, const std::string& traversal
   if (rt.traversal == Traversal::compute && (rt.as_order != AsOrder::leaf || as_compaction)) {
     throw InputError("--as-order/--as-compaction apply to --traversal ray-query or pipeline only");
   }
+}
+
+std::string describe_accel(const AsBuildStats& s, AsOrder order) {
+  char line[320];
+  std::snprintf(line, sizeof line,
+                "acceleration structure: %u triangles in %s order, built in %.2f ms (%s), BLAS %.2f MiB%s, TLAS %.1f "
+                "KiB, build scratch %.1f KiB",
+                s.triangles, to_string(order), s.build_ms,
+                s.build_timed_on_device ? "GPU timestamps" : "host wall time", double(s.blas_bytes) / 1048576.0,
+                s.compacted ? " (compacted)" : "", double(s.tlas_bytes) / 1024.0, double(s.scratch_bytes) / 1048576.0);
+  return line;
 }
 
 void FrameOptions::add_to(CLI::App* cmd) {

@@ -42,6 +42,9 @@ void add_traversal_options(CLI::App* cmd, std::string& traversal, std::string& a
 void apply_traversal_options(RayTracingOptions& rt, const std::string& traversal, const std::string& as_order,
                              bool as_compaction);
 
+/// One line on the driver's acceleration structure: triangles, order, build time and how it was timed, sizes.
+std::string describe_accel(const AsBuildStats& s, AsOrder order);
+
 /// The options that describe a frame (scene, resolution, passes and their modes, BVH build, device), shared by
 /// `render` and `trace`.
 struct FrameOptions {

@@ -139,13 +139,7 @@ void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeom
       throw DeviceError("Vulkan device '" + ctx.info().name + "' has no ray queries (VK_KHR_ray_query)");
     }
     as = std::make_unique<AccelStructure>(ctx, g, rt.as_order, rt.as_compaction);
-    const AsBuildStats& s = as->stats();
-    std::printf(
-        "acceleration structure: %u triangles in %s order, build %.2f ms (%s), BLAS %.2f MiB%s, TLAS %.1f KiB, "
-        "scratch %.2f MiB\n",
-        s.triangles, to_string(rt.as_order), s.build_ms, s.build_timed_on_device ? "timestamps" : "host",
-        double(s.blas_bytes) / 1048576.0, s.compacted ? " (compacted)" : "", double(s.tlas_bytes) / 1024.0,
-        double(s.scratch_bytes) / 1048576.0);
+    std::printf("%s\n", describe_accel(as->stats(), rt.as_order).c_str());
   }
   RayBatchTracer tracer(ctx, rts, rays, as.get(), rt.traversal);
   const bvh::HitMode mode = a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest;

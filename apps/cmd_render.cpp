@@ -138,6 +138,9 @@ void run_render(const RenderArgs& a) {
                 p.duration_ns.median_ci.low * 1e-6, p.duration_ns.median_ci.high * 1e-6,
                 p.duration_ns.median_ci.valid ? "" : " (too few frames for a 95% CI: full range)");
   }
+  if (const AccelStructure* as = frame.accel_structure()) {
+    std::printf("  %s\n", describe_accel(as->stats(), as->order()).c_str());
+  }
   if (summary.overlap) print_overlap(*summary.overlap, summary.source);
   if (summary.query_overhead) {
     const QueryOverhead& q = *summary.query_overhead;
@@ -158,6 +161,9 @@ void run_render(const RenderArgs& a) {
                 (unsigned long long)total.get(pass, counter::rays_cast),
                 (unsigned long long)total.get(pass, counter::nodes_visited),
                 (unsigned long long)total.get(pass, counter::triangles_tested), a.frames);
+    if (settings.rt.traversal != Traversal::compute) {
+      std::printf("  %-12s (the driver's traversal: its nodes and triangles are not visible, not counted)\n", "");
+    }
   }
   if (!timings.frame_invocations().empty()) {
     std::printf("  compute invocations per frame (pipeline statistics, counted in an untimed frame):");
@@ -220,10 +226,11 @@ void add_devices_command(CLI::App& app) {
       const auto& d = devices[i];
       std::printf(
           "%zu: %s [%s] driver %s %s (%s), Vulkan %s, subgroup %u, timestamp period %.3f ns (%u valid bits), "
-          "max storage buffer %llu MiB\n",
+          "max storage buffer %llu MiB, traversals: compute%s%s\n",
           i, d.name.c_str(), d.type.c_str(), d.driver_name.c_str(), d.driver_version.c_str(), d.driver_info.c_str(),
           d.api_version.c_str(), d.subgroup_size, d.timestamp_period_ns, d.timestamp_valid_bits,
-          static_cast<unsigned long long>(d.max_storage_buffer_range >> 20));
+          static_cast<unsigned long long>(d.max_storage_buffer_range >> 20), d.ray_query ? ", ray-query" : "",
+          d.ray_tracing_pipeline ? ", pipeline" : "");
     }
   });
 }

@@ -60,6 +60,11 @@ void run_trace(const TraceArgs& a) {
   if (co.reflections && !settings.rt.reflections) {
     throw InputError("--passes " + a.passes + ": names the reflection pass, which --no-reflections turns off");
   }
+  if (settings.rt.traversal == Traversal::pipeline) {
+    throw InputError(
+        "--traversal pipeline: the ray-generation shaders have no instrumented variant; trace with "
+        "--traversal compute or ray-query");
+  }
   // Only what is traced is computed: a pass that is neither traced nor needed is not run.
   settings.rt.shadows = co.shadows || (settings.rt.shadows && !a.image_out.empty());
   settings.rt.reflections = co.reflections || (settings.rt.reflections && !a.image_out.empty());
@@ -115,6 +120,13 @@ void run_trace(const TraceArgs& a) {
   }
   std::printf("trace of %s %ux%u on %s in %.2f s -> %s\n", scene.name.c_str(), settings.width, settings.height,
               ctx.info().name.c_str(), s, a.out.c_str());
+  if (settings.rt.traversal != Traversal::compute) {
+    std::printf(
+        "traced through the driver's acceleration structure (--traversal %s): the records are the shaders' "
+        "own accesses (G-buffer, the hits' shading, outputs, compaction buffers), not the traversal's, which "
+        "the driver does out of sight\n",
+        to_string(settings.rt.traversal));
+  }
   if (!a.din_out.empty()) {
     trace::TraceReader reader(a.out);
     // The file's passes are captured_pass_names' (checked above): the named one, or the first.

@@ -130,10 +130,24 @@ std::string rate(double hits, double misses) {
   return hits + misses > 0 ? fmt("%.1f%%", 100.0 * hits / (hits + misses)) : std::string("—");
 }
 
+// The cell traced through the driver's acceleration structure (ray-query, pipeline): its traversal is
+// opaque, its node and triangle counters are 0 and its cache tables hold the shaders' own accesses only.
+std::string traversal_of(const CellResult& c) {
+  return c.config.contains("traversal") && c.config["traversal"].is_string() ? c.config["traversal"].get<std::string>()
+                                                                             : "compute";
+}
+bool driver_traversal(const CellResult& c) { return traversal_of(c) != "compute"; }
+
 std::string cache_tables(const CellResult& c) {
   const std::vector<CachePass> passes = cache_passes(c);
   if (passes.empty()) return "";
   std::string s =
+      driver_traversal(c)
+          ? "\nThis cell traced through the driver's acceleration structure, whose traversal is opaque: the tables "
+            "below are the traced shaders' own accesses (G-buffer, the hits' shading, the outputs, the compaction "
+            "buffers), not the pass's traversal traffic (its nodes and triangles are the driver's).\n"
+          : "";
+  s +=
       "\nCache simulation (preset " + c.cache.value("preset", std::string("?")) + ", one traced frame" +
       (c.cache.contains("simulation_s") && c.cache["simulation_s"].is_number()
            ? ", simulated in " + fmt("%.2f", c.cache["simulation_s"].get<double>()) + " s"
@@ -458,13 +472,6 @@ double per_frame(const CellResult& c, const std::string& pass, const std::string
   return double(c.timing.counters.get(pass, name)) / double(c.timing.timings.measured().size());
 }
 
-// The cell traced through the driver's acceleration structure (ray-query, pipeline): its traversal is
-// opaque, its node and triangle counters are 0 and its cache tables hold the shaders' own accesses only.
-std::string traversal_of(const CellResult& c) {
-  return c.config.contains("traversal") && c.config["traversal"].is_string() ? c.config["traversal"].get<std::string>()
-                                                                             : "compute";
-}
-bool driver_traversal(const CellResult& c) { return traversal_of(c) != "compute"; }
 
 // The same work in both cells: every work counter of the pass equal per frame AND its simulated L1 and L2
 // hits and misses equal. Counters alone are not enough: a change of data layout (geometry: indexed or

@@ -14,6 +14,10 @@
 // Shadows: one any-hit ray per lit-facing pixel. Reflections: closest-hit rays of reflective pixels,
 // shaded without a shadow ray at the hit (so both sides cast exactly the same rays); every visible pixel
 // reflects (roughness threshold above 1).
+// Gpu/* and Trace/* also run through the driver's ray tracing where the device has it: names ending in
+// /ray-query (ray queries from the same compute shaders) and /pipeline (a ray-tracing pipeline whose
+// ray-generation shaders are the same sources), the driver's acceleration structure built from the compute
+// BVH's leaf order. The label names the device; "as_build_ms" and "as_mib" the structure's build and size.
 // Run: build/tests/bench/hp_bench_frame [--benchmark_filter=...] ; HP_BENCH_WIDTH/HEIGHT override 1280x720.
 #include "bvh/traverse.hpp"
 #include "frame.hpp"
@@ -30,6 +34,7 @@
 #include <map>
 #include <memory>
 #include <thread>
+#include <tuple>
 
 namespace {
 
@@ -98,7 +103,7 @@ void measure_work(Setup& s, const std::vector<gpu::RayDump>& dump, uint32_t widt
   s.tri_lane_use = max_tris ? double(tris) / double(lanes * max_tris) : 0.0;
 }
 
-FrameSettings settings_for(Pass pass, bool dump) {
+FrameSettings settings_for(Pass pass, bool dump, Traversal traversal) {
   FrameSettings s;
   s.width = env_or("HP_BENCH_WIDTH", 1280);
   s.height = env_or("HP_BENCH_HEIGHT", 720);
@@ -111,24 +116,25 @@ FrameSettings settings_for(Pass pass, bool dump) {
   s.rt.counters = false;
   s.rt.dump_rays = dump;
   s.rt.offset = ShadowOffset::robust;
+  s.rt.traversal = traversal;
   return s;
 }
 
 // One setup per (scene, pass), built on first use and kept: building a frame compiles pipelines.
-Setup& setup(const std::string& spec, Pass pass) {
+Setup& setup(const std::string& spec, Pass pass, Traversal traversal) {
   // The context first: statics are destroyed in reverse order, so the frames go before their device.
   vk::Context& ctx = context();
-  static std::map<std::pair<std::string, int>, std::unique_ptr<Setup>> cache;
-  auto& slot = cache[{spec, int(pass)}];
+  static std::map<std::tuple<std::string, int, int>, std::unique_ptr<Setup>> cache;
+  auto& slot = cache[{spec, int(pass), int(traversal)}];
   if (!slot) {
     slot = std::make_unique<Setup>();
     Setup& s = *slot;
     s.scene = load_scene(spec);
-    const FrameSettings fs = settings_for(pass, false);
+    const FrameSettings fs = settings_for(pass, false, traversal);
     s.camera = s.scene.has_camera ? s.scene.camera : auto_frame(s.scene, float(fs.width) / float(fs.height));
     s.frame = std::make_unique<Frame>(ctx, s.scene, s.camera, fs);
     // The rays: one frame with dumps on (the dump writes cost GPU time, so timed frames run without them).
-    Frame dumper(context(), s.scene, s.camera, settings_for(pass, true));
+    Frame dumper(context(), s.scene, s.camera, settings_for(pass, true, Traversal::compute));
     dumper.render();
     const auto dump = pass == Pass::shadows ? dumper.rt_passes()->read_shadow_dump(context())
                                             : dumper.rt_passes()->read_reflection_dump(context());
@@ -142,8 +148,16 @@ Setup& setup(const std::string& spec, Pass pass) {
   return *slot;
 }
 
-void gpu_pass(benchmark::State& state, const std::string& spec, Pass pass) {
-  Setup& s = setup(spec, pass);
+// The driver's acceleration structure of a driver-traversal setup, as counters.
+void as_counters(benchmark::State& state, const Setup& s) {
+  if (const AccelStructure* as = s.frame->accel_structure()) {
+    state.counters["as_build_ms"] = as->stats().build_ms;
+    state.counters["as_mib"] = double(as->stats().blas_bytes + as->stats().tlas_bytes) / 1048576.0;
+  }
+}
+
+void gpu_pass(benchmark::State& state, const std::string& spec, Pass pass, Traversal traversal) {
+  Setup& s = setup(spec, pass, traversal);
   const char* name = pass == Pass::shadows ? "shadows" : "reflections";
   for (int i = 0; i < 2; ++i) s.frame->render();  // warm-up (first frames on lavapipe are slower)
   for (auto _ : state) {
@@ -153,21 +167,26 @@ void gpu_pass(benchmark::State& state, const std::string& spec, Pass pass) {
     }
   }
   state.counters["rays"] = benchmark::Counter(double(s.rays.size()), benchmark::Counter::kIsIterationInvariantRate);
+  as_counters(state, s);
   state.SetLabel(context().info().name);
 }
 
-void trace_pass(benchmark::State& state, const std::string& spec, Pass pass) {
-  Setup& s = setup(spec, pass);
-  if (!s.batch) s.batch = std::make_unique<RayBatchTracer>(context(), *s.frame->rt_scene(), s.rays);
+void trace_pass(benchmark::State& state, const std::string& spec, Pass pass, Traversal traversal) {
+  Setup& s = setup(spec, pass, traversal);
+  if (!s.batch) {
+    s.batch = std::make_unique<RayBatchTracer>(context(), *s.frame->rt_scene(), s.rays, s.frame->accel_structure(),
+                                               traversal);
+  }
   const auto mode = pass == Pass::shadows ? bvh::HitMode::any : bvh::HitMode::closest;
   for (int i = 0; i < 2; ++i) s.batch->trace(context(), mode);  // warm-up, as for the passes
   for (auto _ : state) state.SetIterationTime(double(s.batch->trace(context(), mode)) * 1e-9);
   state.counters["rays"] = benchmark::Counter(double(s.rays.size()), benchmark::Counter::kIsIterationInvariantRate);
+  as_counters(state, s);
   state.SetLabel(context().info().name);
 }
 
 void cpu_pass(benchmark::State& state, const std::string& spec, Pass pass) {
-  Setup& s = setup(spec, pass);
+  Setup& s = setup(spec, pass, Traversal::compute);
   const RtGeometry& g = *s.frame->rt_geometry();
   const int threads = reference_threads();
   const auto mode = pass == Pass::shadows ? bvh::HitMode::any : bvh::HitMode::closest;
@@ -202,14 +221,20 @@ const bool registered = [] {
   for (const std::string& spec : scenes()) {
     for (Pass pass : {Pass::shadows, Pass::reflections}) {
       const std::string p = pass == Pass::shadows ? "shadows" : "reflections";
-      benchmark::RegisterBenchmark(("Gpu/" + p + "/" + short_name(spec)).c_str(), gpu_pass, spec, pass)
-          ->UseManualTime()
-          ->Unit(benchmark::kMillisecond)
-          ->Iterations(6);
-      benchmark::RegisterBenchmark(("Trace/" + p + "/" + short_name(spec)).c_str(), trace_pass, spec, pass)
-          ->UseManualTime()
-          ->Unit(benchmark::kMillisecond)
-          ->Iterations(6);
+      for (Traversal t : {Traversal::compute, Traversal::ray_query, Traversal::pipeline}) {
+        if (t == Traversal::ray_query && !context().ray_query_enabled()) continue;
+        if (t == Traversal::pipeline && !context().ray_tracing_pipeline_enabled()) continue;
+        const std::string suffix = t == Traversal::compute ? "" : std::string("/") + to_string(t);
+        benchmark::RegisterBenchmark(("Gpu/" + p + "/" + short_name(spec) + suffix).c_str(), gpu_pass, spec, pass, t)
+            ->UseManualTime()
+            ->Unit(benchmark::kMillisecond)
+            ->Iterations(6);
+        benchmark::RegisterBenchmark(("Trace/" + p + "/" + short_name(spec) + suffix).c_str(), trace_pass, spec, pass,
+                                     t)
+            ->UseManualTime()
+            ->Unit(benchmark::kMillisecond)
+            ->Iterations(6);
+      }
       benchmark::RegisterBenchmark(("Cpu/" + p + "/" + short_name(spec)).c_str(), cpu_pass, spec, pass)
           ->UseRealTime()
           ->Unit(benchmark::kMillisecond)

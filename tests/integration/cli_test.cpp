@@ -161,6 +161,18 @@ TEST(Cli, BvhGpuCastsTheRaysAndAgreesWithTheReference) {
       f.write(reinterpret_cast<const char*>(r), sizeof(r));
     }
   }
+  // The driver's traversals write their own hits to --hits (same format), checked by agreement.
+  const bool driver = run("devices").output.find("ray-query, pipeline") != std::string::npos;
+  for (const char* traversal : {"ray-query", "pipeline"}) {
+    if (!driver) break;
+    const fs::path hits = dir / (std::string(traversal) + ".bin");
+    const CmdResult r = run("bvh --scene builtin:cornell --rays " + rays.string() + " --hits " + hits.string() +
+                            " --gpu --validate --as-order morton --traversal " + traversal);
+    EXPECT_EQ(r.code, 0) << traversal << "\n" << r.output;
+    EXPECT_NE(r.output.find(std::string(traversal) + " vs reference: 1000 of 1000 rays agree"), std::string::npos)
+        << r.output;
+    EXPECT_EQ(fs::file_size(hits), 1000u * 16u) << "one hit record (int32 prim, float32 t u v) per ray";
+  }
   for (const char* extra : {"--validate", "--any-hit --geometry soup", "--granularity object"}) {
     const CmdResult r = run("bvh --scene builtin:cornell --rays " + rays.string() + " --hits " +
                             (dir / "hits.bin").string() + " --gpu " + extra);
@@ -175,6 +187,18 @@ TEST(Cli, BvhGpuCastsTheRaysAndAgreesWithTheReference) {
 TEST(Cli, BvhGpuOptionsNeedGpu) {
   const CmdResult r = run("bvh --scene builtin:cornell --geometry soup");
   expect_bad_input(r, "--gpu");
+  expect_bad_input(run("bvh --scene builtin:cornell --traversal ray-query"), "--gpu");
+}
+
+TEST(Cli, TraversalOptionsAreNamed) {
+  expect_bad_input(run("render --scene builtin:cornell --traversal rtx --out /tmp/hp_never.png"),
+                   "--traversal rtx: unknown traversal (choose compute, ray-query or pipeline)");
+  expect_bad_input(run("render --scene builtin:cornell --as-order morton --out /tmp/hp_never.png"),
+                   "--as-order/--as-compaction apply to --traversal ray-query or pipeline only");
+  expect_bad_input(run("trace --scene builtin:cornell --traversal pipeline --out /tmp/hp_never.hptrace"),
+                   "--traversal pipeline: the ray-generation shaders have no instrumented variant");
+  EXPECT_FALSE(fs::exists("/tmp/hp_never.png"));
+  EXPECT_FALSE(fs::exists("/tmp/hp_never.hptrace"));
 }
 
 TEST(Cli, CpuReferenceNeedsNoDevice) {
