@@ -75,37 +75,50 @@ std::pair<CLI::Option*, CLI::Option*> add_device_options(CLI::App* cmd, std::str
   return {d, v};
 }
 
-void add_traversal_options(CLI::App* cmd, std::string& traversal, std::string& as_order, bool& as_compaction) {
-  cmd->add_option("--traversal", traversal,
+void add_traversal_options(CLI::App* cmd, TraversalOptions& o) {
+  cmd->add_option("--traversal", o.traversal,
                   "who walks the rays: compute (hybridprof's BVH in compute shaders), ray-query (the driver's "
                   "acceleration structure from the same compute shaders) or pipeline (a ray-tracing pipeline)")
       ->capture_default_str();
-  cmd->add_option("--as-order", as_order,
+  cmd->add_option("--as-order", o.as_order,
                   "ray-query/pipeline: triangle order handed to the driver's build: leaf (the compute BVH's), "
                   "scene or morton")
       ->capture_default_str();
-  cmd->add_flag("--as-compaction", as_compaction,
-                "ray-query/pipeline: compact the bottom-level acceleration structure after its build");
+  cmd->add_option("--as-layout", o.as_layout,
+                  "ray-query/pipeline: flat (one bottom level of the world-space triangles) or instances (a bottom "
+                  "level per mesh under a top level of the scene's instances)")
+      ->capture_default_str();
+  cmd->add_flag("--as-compaction", o.as_compaction,
+                "ray-query/pipeline: compact the bottom-level acceleration structures after their build");
 }
 
-void apply_traversal_options(RayTracingOptions& rt, const std::string& traversal, const std::string& as_order,
-                             bool as_compaction) {
-  rt.traversal = parse_traversal(traversal);
-  rt.as_order = parse_as_order(as_order);
-  rt.as_compaction = as_compaction;
-  if (rt.traversal == Traversal::compute && (rt.as_order != AsOrder::leaf || as_compaction)) {
-    throw InputError("--as-order/--as-compaction apply to --traversal ray-query or pipeline only");
+void apply_traversal_options(RayTracingOptions& rt, const TraversalOptions& o) {
+  rt.traversal = parse_traversal(o.traversal);
+  rt.as_order = parse_as_order(o.as_order);
+  rt.as_layout = parse_as_layout(o.as_layout);
+  rt.as_compaction = o.as_compaction;
+  if (rt.traversal == Traversal::compute &&
+      (rt.as_order != AsOrder::leaf || rt.as_layout != AsLayout::flat || o.as_compaction)) {
+    throw InputError("--as-order/--as-layout/--as-compaction apply to --traversal ray-query or pipeline only");
+  }
+  if (rt.as_layout == AsLayout::instances && rt.as_order != AsOrder::leaf) {
+    throw InputError("--as-order " + o.as_order + ": applies to --as-layout flat (instances keep each mesh's order)");
   }
 }
 
-std::string describe_accel(const AsBuildStats& s, AsOrder order) {
-  char line[320];
+std::string describe_accel(const AsBuildStats& s, AsOrder order, AsLayout layout) {
+  char line[400];
+  const std::string shape = layout == AsLayout::instances
+                                ? std::to_string(s.blas_count) + " bottom levels (one per mesh), " +
+                                      std::to_string(s.instances) + " instances, " + std::to_string(s.triangles) +
+                                      " mesh triangles"
+                                : std::to_string(s.triangles) + " triangles in " + to_string(order) + " order";
   std::snprintf(line, sizeof line,
-                "acceleration structure: %u triangles in %s order, built in %.2f ms (%s), BLAS %.2f MiB%s, TLAS %.1f "
-                "KiB, build scratch %.1f KiB",
-                s.triangles, to_string(order), s.build_ms,
-                s.build_timed_on_device ? "GPU timestamps" : "host wall time", double(s.blas_bytes) / 1048576.0,
-                s.compacted ? " (compacted)" : "", double(s.tlas_bytes) / 1024.0, double(s.scratch_bytes) / 1048576.0);
+                "acceleration structure: %s, built in %.2f ms (%s), BLAS %.2f MiB%s, TLAS %.1f KiB, build scratch "
+                "%.1f KiB",
+                shape.c_str(), s.build_ms, s.build_timed_on_device ? "GPU timestamps" : "host wall time",
+                double(s.blas_bytes) / 1048576.0, s.compacted ? " (compacted)" : "", double(s.tlas_bytes) / 1024.0,
+                double(s.scratch_bytes) / 1048576.0);
   return line;
 }
 
@@ -142,7 +155,7 @@ void FrameOptions::add_to(CLI::App* cmd) {
   cmd->add_option("--sort", sort, "compact path: sort key none, octant, direction or origin")->capture_default_str();
   cmd->add_option("--writeback", writeback, "compact path: index (exact) or reproject (the study's)")
       ->capture_default_str();
-  add_traversal_options(cmd, traversal, as_order, as_compaction);
+  add_traversal_options(cmd, traversal);
   add_device_options(cmd, device, validate);
   cmd->add_flag("--host-timing", host_timing,
                 "time each pass on the host (one submission per pass, labelled cpu-wall), as on a queue "
@@ -191,7 +204,7 @@ FrameSettings FrameOptions::settings() const {
       (s.rt.sort != SortKey::none || s.rt.writeback != Writeback::index)) {
     throw InputError("--sort/--writeback apply to --reflection-path compact only");
   }
-  apply_traversal_options(s.rt, traversal, as_order, as_compaction);
+  apply_traversal_options(s.rt, traversal);
   return s;
 }
 

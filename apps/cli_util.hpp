@@ -38,12 +38,15 @@ std::pair<CLI::Option*, CLI::Option*> add_device_options(CLI::App* cmd, std::str
 
 /// `--traversal`, `--as-order`, `--as-compaction` (render, trace, bvh --gpu), and their validation into `rt`
 /// (InputError naming the option).
-void add_traversal_options(CLI::App* cmd, std::string& traversal, std::string& as_order, bool& as_compaction);
-void apply_traversal_options(RayTracingOptions& rt, const std::string& traversal, const std::string& as_order,
-                             bool as_compaction);
+struct TraversalOptions {
+  std::string traversal = "compute", as_order = "leaf", as_layout = "flat";
+  bool as_compaction = false;
+};
+void add_traversal_options(CLI::App* cmd, TraversalOptions& o);
+void apply_traversal_options(RayTracingOptions& rt, const TraversalOptions& o);
 
 /// One line on the driver's acceleration structure: triangles, order, build time and how it was timed, sizes.
-std::string describe_accel(const AsBuildStats& s, AsOrder order);
+std::string describe_accel(const AsBuildStats& s, AsOrder order, AsLayout layout);
 
 /// The options that describe a frame (scene, resolution, passes and their modes, BVH build, device), shared by
 /// `render` and `trace`.
@@ -63,8 +66,7 @@ struct FrameOptions {
   int leaf_size = 4;
   uint32_t seed = 1;
   std::string reflection_path = "direct", sort = "none", writeback = "index";
-  std::string traversal = "compute", as_order = "leaf";
-  bool as_compaction = false;
+  TraversalOptions traversal;
   std::string device;
   bool validate = false;
   bool host_timing = false;

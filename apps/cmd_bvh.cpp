@@ -44,8 +44,7 @@ struct BvhArgs {
   bool any_hit = false;
   bool gpu = false;
   std::string geometry = "indexed";
-  std::string traversal = "compute", as_order = "leaf";
-  bool as_compaction = false;
+  TraversalOptions traversal;
   std::string device;
   bool validate = false;
 };
@@ -115,12 +114,13 @@ void report_driver_agreement(const BvhArgs& a, const DriverAgreement& d, const s
   std::printf(
       "%s vs reference: %zu of %zu rays agree (%zu hit/miss differ, %zu other triangle, %zu t beyond %.0e relative; "
       "%zu ties at the same t; largest relative t difference %.3g); %zu driver hits, %zu reference hits\n",
-      a.traversal.c_str(), d.agree(), d.rays, d.hit_miss_differ, d.triangle_differ, d.t_differ, d.t_tolerance, d.ties,
-      d.max_t_relative, d.gpu_hits, d.reference_hits);
-  std::printf("%s hits written to %s\n", a.traversal.c_str(), a.hits.c_str());
+      a.traversal.traversal.c_str(), d.agree(), d.rays, d.hit_miss_differ, d.triangle_differ, d.t_differ, d.t_tolerance,
+      d.ties, d.max_t_relative, d.gpu_hits, d.reference_hits);
+  std::printf("%s hits written to %s\n", a.traversal.traversal.c_str(), a.hits.c_str());
   if (d.rays > 0 && double(d.rays - d.agree()) > 1e-3 * double(d.rays)) {
-    throw std::runtime_error("bvh --gpu --traversal " + a.traversal + ": " + std::to_string(d.rays - d.agree()) +
-                             " of " + std::to_string(d.rays) + " rays disagree with the reference (limit 0.1%)");
+    throw std::runtime_error("bvh --gpu --traversal " + a.traversal.traversal + ": " +
+                             std::to_string(d.rays - d.agree()) + " of " + std::to_string(d.rays) +
+                             " rays disagree with the reference (limit 0.1%)");
   }
 }
 
@@ -131,15 +131,15 @@ void report_driver_agreement(const BvhArgs& a, const DriverAgreement& d, const s
 void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeometry g,
                   const std::vector<bvh::Ray>& rays) {
   RayTracingOptions rt;
-  apply_traversal_options(rt, a.traversal, a.as_order, a.as_compaction);
+  apply_traversal_options(rt, a.traversal);
   const RtScene rts(ctx, scene, g, parse_geometry_layout(a.geometry), false);
   std::unique_ptr<AccelStructure> as;
   if (rt.traversal != Traversal::compute) {
     if (rt.traversal == Traversal::ray_query && !ctx.ray_query_enabled()) {
       throw DeviceError("Vulkan device '" + ctx.info().name + "' has no ray queries (VK_KHR_ray_query)");
     }
-    as = std::make_unique<AccelStructure>(ctx, g, rt.as_order, rt.as_compaction);
-    std::printf("%s\n", describe_accel(as->stats(), rt.as_order).c_str());
+    as = std::make_unique<AccelStructure>(ctx, g, rt.as_order, rt.as_compaction, rt.as_layout, &scene);
+    std::printf("%s\n", describe_accel(as->stats(), rt.as_order, rt.as_layout).c_str());
   }
   RayBatchTracer tracer(ctx, rts, rays, as.get(), rt.traversal);
   const bvh::HitMode mode = a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest;
@@ -149,11 +149,11 @@ void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeom
   std::sort(ms.begin(), ms.end());
   if (ms[1] > 0.0) {
     std::printf("gpu: %s, %s traversal, %s layout: %.2f ms median of 3 (%.2f-%.2f) by timestamps, %.2f M rays/s\n",
-                ctx.info().name.c_str(), a.traversal.c_str(), a.geometry.c_str(), ms[1], ms[0], ms[2],
+                ctx.info().name.c_str(), a.traversal.traversal.c_str(), a.geometry.c_str(), ms[1], ms[0], ms[2],
                 double(rays.size()) / ms[1] / 1e3);
   } else {
     std::printf("gpu: %s, %s traversal, %s layout: no timestamps on this queue, not timed\n", ctx.info().name.c_str(),
-                a.traversal.c_str(), a.geometry.c_str());
+                a.traversal.traversal.c_str(), a.geometry.c_str());
   }
   if (rt.traversal != Traversal::compute) {
     const auto results = tracer.results(ctx);
@@ -181,7 +181,7 @@ void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeom
 void run_bvh(const BvhArgs& a) {
   if (a.rays.empty() != a.hits.empty()) throw InputError("bvh: --rays and --hits go together");
   RayTracingOptions checked;
-  apply_traversal_options(checked, a.traversal, a.as_order, a.as_compaction);  // names a bad option first
+  apply_traversal_options(checked, a.traversal);  // names a bad option first
   // Outputs and the device are checked before any work: a failure leaves no file of this run behind.
   if (!a.export_triangles.empty()) check_output_path(a.export_triangles, "--export-triangles");
   if (!a.hits.empty()) check_output_path(a.hits, "--hits");
@@ -219,7 +219,7 @@ void run_bvh(const BvhArgs& a) {
   const std::vector<bvh::Ray> rays = bvh::read_rays(a.rays);
   bvh::LeafOrderTriangles lt = bvh::leaf_order(tree, tris);
   // With a driver traversal --hits receives the driver's hits (trace_on_gpu), not the reference's.
-  if (a.traversal == "compute") cast_on_cpu(a, tree, lt, rays);
+  if (a.traversal.traversal == "compute") cast_on_cpu(a, tree, lt, rays);
   if (!a.gpu) return;
   RtGeometry g;
   g.world = world;
@@ -269,8 +269,10 @@ void add_bvh_command(CLI::App& app) {
       ->check(CLI::IsMember({"indexed", "soup"}))
       ->capture_default_str()
       ->needs(gpu);
-  add_traversal_options(cmd, args->traversal, args->as_order, args->as_compaction);
-  for (const char* name : {"--traversal", "--as-order", "--as-compaction"}) cmd->get_option(name)->needs(gpu);
+  add_traversal_options(cmd, args->traversal);
+  for (const char* name : {"--traversal", "--as-order", "--as-layout", "--as-compaction"}) {
+    cmd->get_option(name)->needs(gpu);
+  }
   const auto [device, validate] = add_device_options(cmd, args->device, args->validate);
   device->needs(gpu);
   validate->needs(gpu);

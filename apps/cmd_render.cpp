@@ -139,7 +139,7 @@ void run_render(const RenderArgs& a) {
                 p.duration_ns.median_ci.valid ? "" : " (too few frames for a 95% CI: full range)");
   }
   if (const AccelStructure* as = frame.accel_structure()) {
-    std::printf("  %s\n", describe_accel(as->stats(), as->order()).c_str());
+    std::printf("  %s\n", describe_accel(as->stats(), as->order(), as->layout()).c_str());
   }
   if (summary.overlap) print_overlap(*summary.overlap, summary.source);
   if (summary.query_overhead) {

@@ -60,6 +60,14 @@ AsOrder parse_as_order(const std::string& name) {
   throw InputError("--as-order " + name + ": unknown order (choose leaf, scene or morton)");
 }
 
+AsLayout parse_as_layout(const std::string& name) {
+  if (name == "flat") return AsLayout::flat;
+  if (name == "instances") return AsLayout::instances;
+  throw InputError("--as-layout " + name + ": unknown layout (choose flat or instances)");
+}
+
+const char* to_string(AsLayout l) { return l == AsLayout::instances ? "instances" : "flat"; }
+
 const char* to_string(Traversal t) {
   switch (t) {
     case Traversal::ray_query: return "ray-query";

@@ -41,6 +41,11 @@ enum class Traversal { compute, ray_query, pipeline };
 /// The triangle order handed to the driver's acceleration-structure build (driver BVHs follow their input
 /// order): the compute BVH's leaf order, the scene's order, or the Morton order of the triangle centroids.
 enum class AsOrder { leaf, scene, morton };
+/// How the scene is handed to the driver: one bottom-level structure of its world-space triangles under one
+/// instance, or a bottom level per mesh under a top level of the scene's instances.
+enum class AsLayout { flat, instances };
+AsLayout parse_as_layout(const std::string& name);  // throws InputError
+const char* to_string(AsLayout l);
 Traversal parse_traversal(const std::string& name);  // throws InputError
 AsOrder parse_as_order(const std::string& name);     // throws InputError
 const char* to_string(Traversal t);
@@ -68,8 +73,9 @@ struct RayTracingOptions {
   SortKey sort = SortKey::none;            ///< compact path only
   Writeback writeback = Writeback::index;  ///< compact path only
   Traversal traversal = Traversal::compute;
-  AsOrder as_order = AsOrder::leaf;  ///< driver traversals only
-  bool as_compaction = false;        ///< driver traversals: compact the bottom-level structure after its build
+  AsOrder as_order = AsOrder::leaf;     ///< driver traversals only (flat layout)
+  AsLayout as_layout = AsLayout::flat;  ///< driver traversals only
+  bool as_compaction = false;           ///< driver traversals: compact the bottom-level structure after its build
 };
 
 struct FrameSettings {

@@ -1,6 +1,8 @@
 // The driver's acceleration structure of the ray-traced scene (VK_KHR_acceleration_structure), for the
-// ray-query and ray-tracing-pipeline traversals: one bottom-level structure of the world-space triangles
-// (opaque, one geometry) under a top-level structure of one identity instance. Built on the device
+// ray-query and ray-tracing-pipeline traversals. AsLayout::flat: one bottom-level structure of the
+// world-space triangles (opaque, one geometry) under a top-level structure of one identity instance.
+// AsLayout::instances: a bottom level per mesh (object space, its index buffer) under a top level of the
+// scene's instances, as an engine builds it (the study's object granularity's counterpart). Built on the device
 // (lavapipe runs the build on the CPU when the command executes), timed by timestamps, optionally compacted.
 //
 // The triangles go to the driver in a chosen order (AsOrder): the compute BVH's leaf order, where the
@@ -20,7 +22,8 @@ namespace hp {
 
 /// What the build cost and holds.
 struct AsBuildStats {
-  uint32_t triangles = 0;
+  uint32_t triangles = 0;  ///< in the bottom levels (each mesh once in the instances layout)
+  uint32_t blas_count = 0, instances = 0;
   uint64_t blas_bytes = 0;        ///< the bottom level as kept (after compaction, when asked)
   uint64_t blas_built_bytes = 0;  ///< the bottom level as built
   uint64_t tlas_bytes = 0;
@@ -39,7 +42,9 @@ std::vector<uint32_t> as_primitive_slots(const RtGeometry& g, AsOrder order);
 class AccelStructure {
  public:
   /// Throws DeviceError when the device has no acceleration structures (Context::buffer_device_address_enabled).
-  AccelStructure(vk::Context& ctx, const RtGeometry& g, AsOrder order, bool compaction);
+  /// AsLayout::instances needs `scene` (its meshes and instances, from which `g` was built) and the leaf order.
+  AccelStructure(vk::Context& ctx, const RtGeometry& g, AsOrder order, bool compaction,
+                 AsLayout layout = AsLayout::flat, const Scene* scene = nullptr);
   ~AccelStructure();
   AccelStructure(const AccelStructure&) = delete;
   AccelStructure& operator=(const AccelStructure&) = delete;
@@ -50,6 +55,7 @@ class AccelStructure {
   /// AS primitive index -> leaf-order slot (a 4-byte dummy where remapped() is false).
   const vk::Buffer& as_slot() const { return as_slot_; }
   AsOrder order() const { return order_; }
+  AsLayout layout() const { return layout_; }
   const AsBuildStats& stats() const { return stats_; }
   /// The driver traversal's bindings (gpu::kDriverTraversalBindings: the top level, the primitive -> slot
   /// table) and writing them.
@@ -57,12 +63,18 @@ class AccelStructure {
   void write_bindings(vk::DescriptorSet& ds) const;
 
  private:
+  void build(vk::Context& ctx, const RtGeometry& g, const Scene* scene, bool compaction);
+  void release();
+
   VkDevice device_;
   PFN_vkDestroyAccelerationStructureKHR destroy_;
   AsOrder order_;
+  AsLayout layout_;
   bool remapped_ = false;
-  vk::Buffer blas_buffer_, tlas_buffer_, as_slot_;
-  VkAccelerationStructureKHR blas_ = VK_NULL_HANDLE, tlas_ = VK_NULL_HANDLE;
+  std::vector<vk::Buffer> blas_buffers_;
+  vk::Buffer tlas_buffer_, as_slot_;
+  std::vector<VkAccelerationStructureKHR> blas_;
+  VkAccelerationStructureKHR tlas_ = VK_NULL_HANDLE;
   AsBuildStats stats_;
 };
 

@@ -61,7 +61,8 @@ Frame::Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const F
   if (traced) {
     rt_geometry_ = build_rt_geometry(scene, settings.bvh);
     rt_scene_ = std::make_unique<RtScene>(ctx, scene, *rt_geometry_, settings.geometry, settings.rt.reflections, true,
-                                          settings.rt.reflections || settings.rt.dump_rays);
+                                          settings.rt.reflections || settings.rt.dump_rays,
+                                          settings.rt.traversal == Traversal::compute);
     Aabb bounds;
     if (!rt_geometry_->bvh.nodes.empty()) {
       bounds.min = rt_geometry_->bvh.nodes[0].bmin;
@@ -78,7 +79,8 @@ Frame::Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const F
                           "' has no ray-tracing pipelines (VK_KHR_ray_tracing_pipeline): --traversal pipeline needs "
                           "them");
       }
-      accel_ = std::make_unique<AccelStructure>(ctx, *rt_geometry_, settings.rt.as_order, settings.rt.as_compaction);
+      accel_ = std::make_unique<AccelStructure>(ctx, *rt_geometry_, settings.rt.as_order, settings.rt.as_compaction,
+                                                settings.rt.as_layout, &scene);
     }
     rt_ = std::make_unique<RtResources>(ctx, *rt_scene_, gbuffer_, uniforms_, sampler_.handle(), settings.rt, bounds,
                                         accel_.get());

@@ -170,6 +170,7 @@ class Frame {
   void render_host_timed(FrameTiming& timing, std::chrono::steady_clock::time_point t0);
   std::vector<FramePass> build_passes();  // frame_passes.cpp
   void add_compaction_passes(std::vector<FramePass>& out);
+  const char* traversal_reads() const;  // what a tracing pass reads to trace, for FramePass::reads
   std::optional<FrameQueries> first_queries_;
 
   vk::Context& ctx_;

@@ -26,6 +26,11 @@ TracedStep rt_step(RtResources& rt, std::string name, std::function<glm::uvec2()
 
 }  // namespace
 
+const char* Frame::traversal_reads() const {
+  return settings_.rt.traversal == Traversal::compute ? "BVH, geometry"
+                                                      : "acceleration structure (primitive -> slot table), geometry";
+}
+
 void Frame::add_compaction_passes(std::vector<FramePass>& out) {
   CompactionPath& cp = *compaction_;
   RtResources& rt = *rt_;
@@ -83,7 +88,7 @@ void Frame::add_compaction_passes(std::vector<FramePass>& out) {
   s.one_d = true;
   consume.traced.steps.push_back(std::move(s));
   consume.dispatch = "indirect: ceil(rays / 64) groups of 64, one row";
-  consume.reads = "compact_rays, sort_values, ray_count, BVH, geometry, materials";
+  consume.reads = std::string("compact_rays, sort_values, ray_count, ") + traversal_reads() + ", materials";
   consume.writes = "reflection, counters, reflection dump";
   out.push_back(std::move(consume));
 }
@@ -118,7 +123,7 @@ std::vector<FramePass> Frame::build_passes() {
         *rt_, "shadows", [&sp] { return sp.workgroups(); },
         [&sp](VkCommandBuffer cmd, uint32_t first, uint32_t n) { sp.record_traced_slice(cmd, first, n); }));
     shadows.dispatch = "8x8 groups over the image (and over the injected rows again)";
-    shadows.reads = "G-buffer, frame, ray params, BVH, geometry";
+    shadows.reads = std::string("G-buffer, frame, ray params, ") + traversal_reads();
     shadows.writes = "shadow_mask, counters, shadow dump";
     out.push_back(std::move(shadows));
   }
@@ -133,7 +138,7 @@ std::vector<FramePass> Frame::build_passes() {
         *rt_, "reflections", [&rp] { return rp.workgroups(); },
         [&rp](VkCommandBuffer cmd, uint32_t first, uint32_t n) { rp.record_traced_slice(cmd, first, n); }));
     refl.dispatch = "8x8 groups over the reflection grid";
-    refl.reads = "G-buffer, frame, ray params, BVH, geometry, materials";
+    refl.reads = std::string("G-buffer, frame, ray params, ") + traversal_reads() + ", materials";
     refl.writes = "reflection, counters, reflection dump";
     out.push_back(std::move(refl));
   }

@@ -28,7 +28,7 @@ constexpr VkFormat kTriple = VK_FORMAT_R32G32B32_UINT;  // a vertex, or a triang
 }  // namespace
 
 RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, GeometryLayout layout, bool shading,
-                 bool allow_geometry_texels, bool slot_map)
+                 bool allow_geometry_texels, bool slot_map, bool bvh_nodes)
     : layout_(layout), object_leaves_(g.bvh.granularity == bvh::Granularity::object) {
   const auto& leaf = g.leaf;
   const size_t slots = leaf.triangles.size();
@@ -48,8 +48,12 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
                      std::to_string(g.bvh.nodes.size() * 2) + " texels, over this device's maxTexelBufferElements of " +
                      std::to_string(max_texels));
   }
-  uploaded_bytes_ += g.bvh.nodes.size() * sizeof(gpu::BvhNode);
-  nodes_ = vk::upload_vector(ctx, g.bvh.nodes, kStorage | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT);
+  if (bvh_nodes) {
+    uploaded_bytes_ += g.bvh.nodes.size() * sizeof(gpu::BvhNode);
+    nodes_ = vk::upload_vector(ctx, g.bvh.nodes, kStorage | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT);
+  } else {
+    nodes_ = vk::Buffer(ctx, 48, kStorage | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);  // never read
+  }
   node_texels_ = vk::BufferView(ctx, nodes_, VK_FORMAT_R32G32B32A32_UINT);
   object_first_ = object_leaves_ ? upload(ctx, leaf.object_first, uploaded_bytes_) : dummy(ctx);
 

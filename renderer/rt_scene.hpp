@@ -21,8 +21,10 @@ class RtScene {
   /// `allow_geometry_texels`: false forces the storage loads (to compare the two paths).
   /// `slot_map`: upload the slot -> scene triangle map, which only closest-hit ties and ray dumps read (a
   /// frame of any-hit shadow rays without dumps leaves it out: 4 bytes a triangle).
+  /// `bvh_nodes`: upload the BVH nodes (false for the driver traversals, which read the driver's structure:
+  /// the node bindings then hold a small dummy).
   RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& geometry, GeometryLayout layout, bool shading,
-          bool allow_geometry_texels = true, bool slot_map = true);
+          bool allow_geometry_texels = true, bool slot_map = true, bool bvh_nodes = true);
 
   GeometryLayout layout() const { return layout_; }
   bool object_leaves() const { return object_leaves_; }

@@ -672,7 +672,9 @@ std::string traversal_section(const std::vector<CellResult>& cells) {
       std::string label = traversal_of(*c);
       if (c->line.contains("accel")) {
         const json& a = c->line["accel"];
-        label += " (" + a.value("order", std::string("?")) + (a.value("compacted", false) ? ", compacted" : "") + ")";
+        const std::string layout = a.value("layout", std::string("flat"));
+        label += " (" + (layout == "instances" ? std::string("instances") : a.value("order", std::string("?"))) +
+                 (a.value("compacted", false) ? ", compacted" : "") + ")";
       }
       std::string build = "—", size = "—";
       if (c->line.contains("accel")) {

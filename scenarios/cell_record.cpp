@@ -82,6 +82,9 @@ CellAccel parse_accel(const LineReader& r, const json& a) {
   CellAccel out;
   out.traversal = text("traversal");
   out.order = text("order");
+  if (a.contains("layout")) out.layout = text("layout");
+  if (a.contains("blas_count")) out.blas_count = r.count(member("blas_count"), "accel.blas_count");
+  if (a.contains("instances")) out.instances = r.count(member("instances"), "accel.instances");
   out.compacted = flag("compacted");
   out.build_ms = r.number(member("build_ms"), "accel.build_ms");
   out.build_timed_on_device = flag("build_timed_on_device");
@@ -115,15 +118,12 @@ void to_json(json& j, const CellBvh& b) {
 }
 
 void to_json(json& j, const CellAccel& a) {
-  j = {{"traversal", a.traversal},
-       {"order", a.order},
-       {"compacted", a.compacted},
-       {"build_ms", a.build_ms},
-       {"build_timed_on_device", a.build_timed_on_device},
-       {"triangles", a.triangles},
-       {"blas_bytes", a.blas_bytes},
-       {"tlas_bytes", a.tlas_bytes},
-       {"scratch_bytes", a.scratch_bytes}};
+  j = {{"traversal", a.traversal},   {"order", a.order},
+       {"layout", a.layout},         {"blas_count", a.blas_count},
+       {"instances", a.instances},   {"compacted", a.compacted},
+       {"build_ms", a.build_ms},     {"build_timed_on_device", a.build_timed_on_device},
+       {"triangles", a.triangles},   {"blas_bytes", a.blas_bytes},
+       {"tlas_bytes", a.tlas_bytes}, {"scratch_bytes", a.scratch_bytes}};
 }
 
 bool operator==(const CellRecord& a, const CellRecord& b) {

@@ -44,13 +44,16 @@ void to_json(nlohmann::json& j, const CellBvh& b);  ///< {build_ms, nodes, leave
 /// The driver's acceleration structure of a ray-query or pipeline cell (AsBuildStats).
 struct CellAccel {
   std::string traversal, order;  ///< "ray-query" | "pipeline"; "leaf" | "scene" | "morton"
+  std::string layout = "flat";   ///< "flat" | "instances" (absent in lines written before it: flat)
+  std::uint64_t blas_count = 1, instances = 1;
   bool compacted = false;
   double build_ms = 0.0;
   bool build_timed_on_device = false;  ///< build_ms from timestamps (else host wall time)
   std::uint64_t triangles = 0, blas_bytes = 0, tlas_bytes = 0, scratch_bytes = 0;
   bool operator==(const CellAccel&) const = default;
 };
-/// {traversal, order, compacted, build_ms, build_timed_on_device, triangles, blas_bytes, tlas_bytes, scratch_bytes}
+/// {traversal, order, layout, blas_count, instances, compacted, build_ms, build_timed_on_device, triangles,
+/// blas_bytes, tlas_bytes, scratch_bytes}
 void to_json(nlohmann::json& j, const CellAccel& a);
 
 /// A matrix's expectations of one "cells" case and the sentences of those the cell did not meet.

@@ -419,6 +419,9 @@ CellRecord run_cell(RunContext& run, const Matrix& m, size_t i, const std::strin
     const AsBuildStats& a = as->stats();
     rec.accel = CellAccel{to_string(s.frame.rt.traversal),
                           to_string(as->order()),
+                          to_string(as->layout()),
+                          a.blas_count,
+                          a.instances,
                           a.compacted,
                           a.build_ms,
                           a.build_timed_on_device,

@@ -260,16 +260,30 @@ std::vector<ScenarioKey> make_keys() {
                      e.canonical = [](const S& s) { return json(to_string(s.frame.rt.as_order)); };
                      e.canonical_when = is_driver;
                    }));
+  k.push_back(with(choice("as_layout", {"flat", "instances"}, "flat",
+                          "the driver's structure: one bottom level of the world-space triangles, or one per mesh "
+                          "under a top level of the scene's instances (ray-query and pipeline only)"),
+                   [&](auto& e) {
+                     e.apply = [](S& s, const json& v, C) {
+                       s.frame.rt.as_layout = parse_as_layout(v.get<std::string>());
+                     };
+                     e.canonical = [](const S& s) { return json(to_string(s.frame.rt.as_layout)); };
+                     e.canonical_when = is_driver;
+                   }));
   k.push_back(with(boolean("as_compaction", false,
                            "compact the driver's bottom-level acceleration structure (ray-query and pipeline only)"),
                    [&](auto& e) {
                      e.apply = [](S& s, const json& v, C c) {
                        s.frame.rt.as_compaction = v.get<bool>();
                        const RayTracingOptions& rt = s.frame.rt;
-                       if (rt.traversal == Traversal::compute && (rt.as_order != AsOrder::leaf || rt.as_compaction)) {
+                       if (rt.traversal == Traversal::compute &&
+                           (rt.as_order != AsOrder::leaf || rt.as_layout != AsLayout::flat || rt.as_compaction)) {
                          c.fail("as_order",
-                                "as_order and as_compaction apply to \"traversal\": \"ray-query\" or "
-                                "\"pipeline\" only");
+                                "as_order, as_layout and as_compaction apply to \"traversal\": "
+                                "\"ray-query\" or \"pipeline\" only");
+                       }
+                       if (rt.as_layout == AsLayout::instances && rt.as_order != AsOrder::leaf) {
+                         c.fail("as_order", "applies to \"as_layout\": \"flat\" (instances keep each mesh's order)");
                        }
                      };
                      e.canonical = [](const S& s) { return json(s.frame.rt.as_compaction); };

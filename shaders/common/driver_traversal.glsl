@@ -18,12 +18,18 @@
 #endif
 #include "gpu/bindings.h"
 
-// 1 where the acceleration structure's triangles are not in leaf order (AsOrder scene or morton).
+// 1 where the acceleration structure's triangles are not in leaf order (AsOrder scene or morton, or the
+// instances layout): the slot is as_slot[instance custom index + primitive index] (the custom index is 0 in
+// the flat layout, an instance's first scene triangle in the instances layout; 0xFFFFFFFF: no slot).
 layout(constant_id = 4) const uint HP_AS_REMAP = 0;
 layout(set = 0, binding = HP_BIND_RT_TLAS) uniform accelerationStructureEXT hp_tlas;
 layout(std430, set = 0, binding = HP_BIND_RT_AS_SLOT) readonly buffer AsSlotBuffer { uint as_slot[]; };
 
-int hp_as_slot(uint primitive) { return int(HP_AS_REMAP != 0u ? as_slot[primitive] : primitive); }
+int hp_as_slot(uint primitive) {
+  if (HP_AS_REMAP == 0u) return int(primitive);
+  uint s = as_slot[primitive];
+  return s == 0xFFFFFFFFu ? -1 : int(s);
+}
 
 // The API takes 0 <= tmin <= tmax: a segment wholly behind the origin or empty misses; one starting behind
 // the origin starts at it (where the compute traversal would also accept hits at negative t).
@@ -45,7 +51,8 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
     // Opaque geometry only: the driver commits every candidate itself, nothing to confirm here.
   }
   if (rayQueryGetIntersectionTypeEXT(q, true) == gl_RayQueryCommittedIntersectionTriangleEXT) {
-    best.slot = hp_as_slot(uint(rayQueryGetIntersectionPrimitiveIndexEXT(q, true)));
+    best.slot = hp_as_slot(uint(rayQueryGetIntersectionInstanceCustomIndexEXT(q, true)) +
+                           uint(rayQueryGetIntersectionPrimitiveIndexEXT(q, true)));
     best.t = rayQueryGetIntersectionTEXT(q, true);
     vec2 b = rayQueryGetIntersectionBarycentricsEXT(q, true);
     best.u = b.x; best.v = b.y;

@@ -2,7 +2,7 @@
 #ifndef HP_RT_PAYLOAD_GLSL
 #define HP_RT_PAYLOAD_GLSL
 struct HpPayload {
-  int primitive;  // the committed triangle's primitive index, -1 = miss
+  int primitive;  // the committed triangle's instance custom index + primitive index, -1 = miss
   float t, u, v;
 };
 #endif

@@ -9,7 +9,7 @@ layout(location = 0) rayPayloadInEXT HpPayload payload;
 hitAttributeEXT vec2 barycentrics;
 
 void main() {
-  payload.primitive = gl_PrimitiveID;
+  payload.primitive = gl_InstanceCustomIndexEXT + gl_PrimitiveID;  // custom index: 0, or the instance's first triangle
   payload.t = gl_HitTEXT;
   payload.u = barycentrics.x;
   payload.v = barycentrics.y;

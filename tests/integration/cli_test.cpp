@@ -194,7 +194,7 @@ TEST(Cli, TraversalOptionsAreNamed) {
   expect_bad_input(run("render --scene builtin:cornell --traversal rtx --out /tmp/hp_never.png"),
                    "--traversal rtx: unknown traversal (choose compute, ray-query or pipeline)");
   expect_bad_input(run("render --scene builtin:cornell --as-order morton --out /tmp/hp_never.png"),
-                   "--as-order/--as-compaction apply to --traversal ray-query or pipeline only");
+                   "--as-order/--as-layout/--as-compaction apply to --traversal ray-query or pipeline only");
   expect_bad_input(run("trace --scene builtin:cornell --traversal pipeline --out /tmp/hp_never.hptrace"),
                    "--traversal pipeline: the ray-generation shaders have no instrumented variant");
   EXPECT_FALSE(fs::exists("/tmp/hp_never.png"));

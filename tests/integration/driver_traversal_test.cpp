@@ -160,11 +160,18 @@ TEST_P(DriverTraversal, TriangleOrdersAndCompactionGiveTheSameFrame) {
   const Scene scene = load_scene("builtin:pica");
   FrameSettings s = settings(160, 96, GetParam());
   const Rendered leaf = render(*ctx, scene, s);
-  for (AsOrder order : {AsOrder::scene, AsOrder::morton}) {
+  for (AsOrder order : {AsOrder::scene, AsOrder::morton, AsOrder::leaf}) {
+    // The last: a bottom level per mesh under a top level of the instances (each mesh in its own order).
     s.rt.as_order = order;
+    s.rt.as_layout = order == AsOrder::leaf ? AsLayout::instances : AsLayout::flat;
     s.rt.as_compaction = order == AsOrder::morton;
     const Rendered other = render(*ctx, scene, s);
-    const std::string what = std::string(to_string(GetParam())) + " " + to_string(order);
+    const std::string what = std::string(to_string(GetParam())) + " " +
+                             (s.rt.as_layout == AsLayout::instances ? "instances" : to_string(order));
+    if (s.rt.as_layout == AsLayout::instances) {
+      EXPECT_EQ(other.as.instances, scene.instances.size());
+      EXPECT_GT(other.as.blas_count, 1u);
+    }
     // The primitive -> slot table maps the driver's answers back: shading and dumps see the same slots.
     EXPECT_LE(shadow_mismatch(leaf, other, what.c_str()), 1e-3);
     EXPECT_LE(closest_mismatch(leaf.reflections, other.reflections, what.c_str()), 1e-3);
@@ -214,8 +221,10 @@ TEST_P(DriverTraversal, RayBatchAgreesWithTheReference) {
   const RtGeometry g = build_rt_geometry(scene, {});
   const RtScene rts(*ctx, scene, g, GeometryLayout::indexed, false);
   const std::vector<bvh::Ray> rays = random_rays(g, 20000);
-  for (AsOrder order : {AsOrder::leaf, AsOrder::morton}) {
-    const AccelStructure as(*ctx, g, order, false);
+  for (AsOrder order : {AsOrder::leaf, AsOrder::morton, AsOrder::scene}) {
+    // scene: here the instances layout (a bottom level per mesh; the table maps scene triangles to slots).
+    const AsLayout layout = order == AsOrder::scene ? AsLayout::instances : AsLayout::flat;
+    const AccelStructure as(*ctx, g, layout == AsLayout::instances ? AsOrder::leaf : order, false, layout, &scene);
     RayBatchTracer tracer(*ctx, rts, rays, &as, GetParam());
     for (bvh::HitMode mode : {bvh::HitMode::closest, bvh::HitMode::any}) {
       tracer.trace(*ctx, mode);
@@ -223,8 +232,8 @@ TEST_P(DriverTraversal, RayBatchAgreesWithTheReference) {
       const DriverAgreement a = compare_driver_with_reference(g.bvh, g.leaf, rays, mode, results);
       for (const std::string& d : a.first_differences) std::printf("  %s\n", d.c_str());
       std::printf("%s %s %s: %zu of %zu agree, %zu ties, max relative dt %.3g\n", to_string(GetParam()),
-                  to_string(order), mode == bvh::HitMode::any ? "any" : "closest", a.agree(), a.rays, a.ties,
-                  a.max_t_relative);
+                  layout == AsLayout::instances ? "instances" : to_string(order),
+                  mode == bvh::HitMode::any ? "any" : "closest", a.agree(), a.rays, a.ties, a.max_t_relative);
       EXPECT_GT(a.reference_hits, rays.size() / 4) << "too few hits to prove anything";
       EXPECT_GE(double(a.agree()), 0.999 * double(a.rays));
       for (const auto& r : results) EXPECT_EQ(r.stats.nodes_visited, 0u) << "the driver's work is opaque";

@@ -182,7 +182,7 @@ TEST(CellRecord, ReadsBackWhatItWrites) {
 
 TEST(CellRecord, DriverAccelerationStructureRoundTrips) {
   CellRecord r = record(Measured{});
-  r.accel = CellAccel{"pipeline", "morton", true, 8.25, true, 59894, 6u << 20, 4096, 1u << 20};
+  r.accel = CellAccel{"pipeline", "morton", "flat", 1, 1, true, 8.25, true, 59894, 6u << 20, 4096, 1u << 20};
   const json line = to_json(r);
   ASSERT_TRUE(line.contains("accel"));
   EXPECT_EQ(line["accel"]["order"], "morton");

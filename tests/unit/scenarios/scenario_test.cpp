@@ -110,8 +110,14 @@ TEST(Scenario, TraversalKeys) {
                 .find("traversal: 'rtx' is not one of compute, ray-query, "
                       "pipeline"),
             std::string::npos);
-  EXPECT_NE(error_of(json::parse(R"({"as_order": "morton"})")).find("as_order and as_compaction apply to"),
+  EXPECT_NE(error_of(json::parse(R"({"as_order": "morton"})")).find("as_order, as_layout and as_compaction apply to"),
             std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"traversal": "pipeline", "as_layout": "instances", "as_order": "scene"})"))
+                .find("as_order: applies to \"as_layout\": \"flat\""),
+            std::string::npos);
+  EXPECT_EQ(parse_scenario(json::parse(R"({"traversal": "pipeline", "as_layout": "instances"})"), "i.json")
+                .frame.rt.as_layout,
+            AsLayout::instances);
   EXPECT_NE(error_of(json::parse(R"({"traversal": "pipeline", "trace": {"passes": ["shadows"]}})"))
                 .find("trace.passes: \"traversal\": \"pipeline\" has no instrumented variant"),
             std::string::npos);
