@@ -638,7 +638,7 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
   return head + sentence + ".\n\n" + table + "\n";
 }
 
-// Compute BVH against the driver's ray tracing: cells equal but for traversal, as_order and as_compaction,
+// Compute BVH against the driver's ray tracing: cells equal but for traversal, as_order, as_layout and as_compaction,
 // side by side per pass, with the rays per second, the build and the memory of each acceleration structure.
 std::string traversal_section(const std::vector<CellResult>& cells) {
   if (std::none_of(cells.begin(), cells.end(), driver_traversal)) return "";
@@ -646,7 +646,7 @@ std::string traversal_section(const std::vector<CellResult>& cells) {
   std::vector<std::string> order;
   for (const CellResult& c : cells) {
     json key = c.config;
-    for (const char* k : {"traversal", "as_order", "as_compaction"}) key.erase(k);
+    for (const char* k : {"traversal", "as_order", "as_layout", "as_compaction"}) key.erase(k);
     const std::string k = key.dump();
     if (!groups.count(k)) order.push_back(k);
     groups[k].push_back(&c);
