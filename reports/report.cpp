@@ -333,7 +333,7 @@ void charts_section(const std::vector<CellResult>& cells, Report& r, std::string
       if (std::find(bars.series.begin(), bars.series.end(), p.pass) == bars.series.end()) bars.series.push_back(p.pass);
   for (size_t i = 0; i < cells.size(); ++i) {
     svg::BarGroup g;
-    g.label = cells.size() == 1 ? cell_label(cells[i]) : cell_label(cells[i]).substr(0, 40);
+    g.label = cell_label(cells[i]);  // whole: the chart makes room for it (a cut label can lose what differs)
     for (const std::string& pass : bars.series) {
       auto it = std::find_if(all[i].begin(), all[i].end(), [&](const PassStat& p) { return p.pass == pass; });
       const double med = it == all[i].end() ? 0.0 : it->summary.median / 1e6;

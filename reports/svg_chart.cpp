@@ -91,9 +91,11 @@ std::string y_axis(const Frame& f, const std::vector<double>& ticks, const std::
        num(f.top + f.plot_h()) + "\" stroke=\"black\"/>\n";
   s += "<line class=\"axis\" x1=\"" + num(f.left) + "\" y1=\"" + num(f.top + f.plot_h()) + "\" x2=\"" +
        num(f.left + f.plot_w()) + "\" y2=\"" + num(f.top + f.plot_h()) + "\" stroke=\"black\"/>\n";
-  const double cy = f.top + f.plot_h() / 2;
-  s += "<text class=\"axis-label\" x=\"16\" y=\"" + num(cy) + "\" text-anchor=\"middle\" transform=\"rotate(-90 16 " +
-       num(cy) + ")\">" + escape(label) + "</text>\n";
+  // The axis label beside the tick labels (a wide left margin, made for long group labels, leaves it there).
+  const double cy = f.top + f.plot_h() / 2, lx = std::max(16.0, f.left - 54);
+  s += "<text class=\"axis-label\" x=\"" + num(lx) + "\" y=\"" + num(cy) +
+       "\" text-anchor=\"middle\" transform=\"rotate(-90 " + num(lx) + " " + num(cy) + ")\">" + escape(label) +
+       "</text>\n";
   return s + "</g>\n";
 }
 
@@ -237,10 +239,21 @@ std::string render(const BarChart& c) {
     for (double v : g.high) hi = std::max(hi, v);
   }
   const double slot = std::max(24.0, 14.0 * double(ns) + 16.0);  // width of one group
-  const double width = std::max(360.0, 90.0 + slot * double(c.groups.size()));
-  const double extra = legend_extra_height(width, 70, c.series);
-  Frame f{width, 380 + extra};
-  f.bottom += extra;
+  // The group labels are rotated by 30 degrees below the axis: the frame makes room for the longest one
+  // under the plot (and for the legend under that), and for the first one to the left, so no label is
+  // clipped or runs into the legend whatever its length. kCharW: a generous average glyph width at 12 px.
+  constexpr double kCharW = 7.0, kCos = 0.8660254, kSin = 0.5;
+  size_t longest = 0;
+  for (const BarGroup& g : c.groups) longest = std::max(longest, g.label.size());
+  const double label_drop = 14 + double(longest) * kCharW * kSin + 12;  // axis to the lowest label pixel
+  const double left = std::max(70.0, double(c.groups.front().label.size()) * kCharW * kCos - slot / 2 + 8);
+  const double width = std::max({360.0, left + 20 + slot * double(c.groups.size()),
+                                 double(c.title.size()) * 8.5 + 40});  // the title (15 px) fits too
+  const double extra = legend_extra_height(width, left, c.series);
+  Frame f{width, 0};
+  f.left = left;
+  f.bottom = label_drop + 10 + 18 + extra + 8;  // labels, a gap, the legend's rows
+  f.height = f.top + 250 + f.bottom;
   const std::vector<double> ticks = nice_ticks(0.0, hi);  // bars start at zero: lengths compare
   f.y0 = ticks.front();
   f.y1 = ticks.back();

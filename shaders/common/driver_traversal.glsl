@@ -38,13 +38,20 @@ bool hp_driver_segment(HpRay r, out float tmin) {
   return r.tmax >= tmin;
 }
 
+// What both driver traversals start with: a miss, the segment the API takes, and the ray flags (opaque;
+// any hit: stop at the first hit found). False when the segment is empty (the ray misses untraced).
+bool hp_driver_begin(HpRay r, bool any_hit, out HpHit best, out float tmin, out uint flags) {
+  best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
+  flags = gl_RayFlagsOpaqueEXT | (any_hit ? gl_RayFlagsTerminateOnFirstHitEXT : 0u);
+  return hp_driver_segment(r, tmin);
+}
+
 #if defined(HP_RAY_QUERY)
 HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
   HpHit best;
-  best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
   float tmin;
-  if (!hp_driver_segment(r, tmin)) return best;
-  uint flags = gl_RayFlagsOpaqueEXT | (any_hit ? gl_RayFlagsTerminateOnFirstHitEXT : 0u);
+  uint flags;
+  if (!hp_driver_begin(r, any_hit, best, tmin, flags)) return best;
   rayQueryEXT q;
   rayQueryInitializeEXT(q, hp_tlas, flags, 0xFFu, r.org, tmin, r.dir, r.tmax);
   while (rayQueryProceedEXT(q)) {
@@ -67,10 +74,9 @@ layout(location = 0) rayPayloadEXT HpPayload hp_payload;
 
 HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
   HpHit best;
-  best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
   float tmin;
-  if (!hp_driver_segment(r, tmin)) return best;
-  uint flags = gl_RayFlagsOpaqueEXT | (any_hit ? gl_RayFlagsTerminateOnFirstHitEXT : 0u);
+  uint flags;
+  if (!hp_driver_begin(r, any_hit, best, tmin, flags)) return best;
   hp_payload.primitive = -1;
   // SBT: hit group 0 (closest hit), miss shader 0; no recursion (the payload comes back to this shader).
   traceRayEXT(hp_tlas, flags, 0xFFu, 0u, 1u, 0u, r.org, tmin, r.dir, r.tmax, 0);

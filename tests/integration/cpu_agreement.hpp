@@ -11,6 +11,17 @@
 
 namespace hp {
 
+/// A frame with both ray-tracing passes and their ray dumps on (the tests' usual frame).
+inline FrameSettings rt_test_settings(uint32_t w, uint32_t h) {
+  FrameSettings s;
+  s.width = w;
+  s.height = h;
+  s.rt.shadows = true;
+  s.rt.reflections = true;
+  s.rt.dump_rays = true;
+  return s;
+}
+
 struct Agreement {
   size_t rays = 0, equal = 0;
 };

@@ -3,6 +3,7 @@
 // closest-hit tie-break, so the checks are agreements with stated limits: shadow masks equal on >= 99.9% of
 // pixels, closest hits the same triangle (or a tie at the same t) on >= 99.9% of rays, and batches of rays
 // against the C++ reference by compare_driver_with_reference. Skipped where the device has neither.
+#include "cpu_agreement.hpp"
 #include "vulkan_env.hpp"
 
 #include "accel_structure.hpp"
@@ -34,12 +35,7 @@ bool supported(const vk::Context& ctx, Traversal t) {
   if (!supported(*ctx, t)) GTEST_SKIP() << ctx->info().name << " has no " << to_string(t) << " traversal"
 
 FrameSettings settings(uint32_t w, uint32_t h, Traversal t) {
-  FrameSettings s;
-  s.width = w;
-  s.height = h;
-  s.rt.shadows = true;
-  s.rt.reflections = true;
-  s.rt.dump_rays = true;
+  FrameSettings s = rt_test_settings(w, h);
   s.rt.counters = true;
   s.rt.traversal = t;
   return s;

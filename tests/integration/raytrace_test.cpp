@@ -18,15 +18,7 @@
 namespace hp {
 namespace {
 
-FrameSettings rt_settings(uint32_t w, uint32_t h) {
-  FrameSettings s;
-  s.width = w;
-  s.height = h;
-  s.rt.shadows = true;
-  s.rt.reflections = true;
-  s.rt.dump_rays = true;
-  return s;
-}
+FrameSettings rt_settings(uint32_t w, uint32_t h) { return rt_test_settings(w, h); }
 
 void check_against_cpu(const std::string& spec, FrameSettings s) {
   HP_REQUIRE_VULKAN(ctx);

@@ -313,4 +313,43 @@ TEST(SvgChart, LongLegendsWrapAndTheChartGrows) {
   EXPECT_GE(rows.size(), 2u);
 }
 
+// Long cell labels (rotated 30 degrees under the axis) stay inside the picture and above the legend, and a
+// long title fits: nothing clipped or overlapping, whatever the labels' length (seen: a 434 px chart with
+// its title clipped and its labels over the legend).
+TEST(SvgChart, LongGroupLabelsAndTitleFitAboveTheLegend) {
+  BarChart c;
+  c.title = "Median pass time per cell (error bars: 95% CI of the median)";
+  c.y_label = "ms";
+  c.series = {"gbuffer", "shadows", "reflections", "accumulate", "composite"};
+  for (const char* label :
+       {"as_layout=flat, as_order=leaf, traversal=compute", "b", "as_order=morton, traversal=pipeline"}) {
+    c.groups.push_back({label, {1, 2, 3, 4, 5}, {}, {}});
+  }
+  const std::vector<Element> els = parse_xml(render(c));
+  double width = 0, height = 0, legend_top = 1e9, lowest_label = 0;
+  for (const Element& e : els) {
+    if (e.name == "svg") {
+      width = std::stod(e.attrs.at("width"));
+      height = std::stod(e.attrs.at("height"));
+    }
+    if (e.name == "rect" && e.attrs.count("class") && e.attrs.at("class") == "legend-swatch") {
+      legend_top = std::min(legend_top, std::stod(e.attrs.at("y")));
+    }
+  }
+  // Each group label is anchored at its end and rotated -30 degrees about (x, y): its baseline runs up to
+  // the right into the anchor, so the text lies left of and below it, down to y + length * sin 30.
+  size_t k = 0;
+  for (const Element& e : els) {
+    if (e.name != "text" || !e.attrs.count("class") || e.attrs.at("class") != "group-label") continue;
+    const double x = std::stod(e.attrs.at("x")), y = std::stod(e.attrs.at("y"));
+    const double len = 7.0 * double(c.groups[k++].label.size());
+    EXPECT_GE(x - len * std::cos(M_PI / 6), 0.0) << "label clipped on the left";
+    lowest_label = std::max(lowest_label, y + len * std::sin(M_PI / 6) + 4);
+  }
+  EXPECT_EQ(k, c.groups.size());
+  EXPECT_LT(lowest_label, legend_top) << "labels run into the legend";
+  EXPECT_LT(legend_top, height);
+  EXPECT_GE(width, 8.5 * double(c.title.size())) << "the title is clipped";
+}
+
 }  // namespace hp::svg
