@@ -126,9 +126,9 @@ void run_render(const RenderArgs& a) {
     throw std::runtime_error(std::to_string(ctx.validation_message_count()) +
                              " validation message(s); last: " + ctx.last_validation_message());
   }
-  std::printf("%s: %zu triangles, %ux%u on %s (%s), %u frame(s) in %.1f ms (CPU wall) -> %s\n", scene.name.c_str(),
-              triangle_count(scene), settings.width, settings.height, ctx.info().name.c_str(),
-              ctx.info().driver_info.c_str(), a.frames, ms, a.out.c_str());
+  std::printf("%s: %zu triangles, %ux%u on %s (driver %s %s), %u frame(s) in %.1f ms (CPU wall) -> %s\n",
+              scene.name.c_str(), triangle_count(scene), settings.width, settings.height, ctx.info().name.c_str(),
+              ctx.info().driver_name.c_str(), ctx.info().driver_version.c_str(), a.frames, ms, a.out.c_str());
   std::printf(
       "%u warm-up + %u measured frames (%s), passes %s, %u samples accumulated; per pass: median [95%% CI] ms\n",
       a.warmup, a.frames, std::string(to_string(summary.source)).c_str(),

@@ -9,6 +9,7 @@
 
 int main(int argc, char** argv) {
   CLI::App app{"hybridprof: where the time and the memory traffic of a hybrid (raster + ray-traced) frame go"};
+  app.name("hybridprof");  // the usage line says hybridprof, whatever path it was started by
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("hybridprof ") + HP_VERSION + " (" + HP_GIT_COMMIT + ")");
   hp::cli::add_render_command(app);
@@ -24,6 +25,11 @@ int main(int argc, char** argv) {
   hp::cli::add_cachesim_command(app);
   hp::cli::add_trace_command(app);
 #endif
+  // No arguments: the help, as `--help` prints it (what a first-time user wants), exit 0.
+  if (argc == 1) {
+    std::printf("%s", app.help().c_str());
+    return 0;
+  }
   // A first word that is neither an option nor a subcommand: name it (CLI11 would only say that a
   // subcommand is required).
   if (argc > 1 && argv[1][0] != '-') {

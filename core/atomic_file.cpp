@@ -27,7 +27,7 @@ fs::path temporary_beside(const fs::path& path) {
 }  // namespace
 
 AtomicFile::AtomicFile(fs::path path, const std::string& what, bool create_folders) : path_(std::move(path)) {
-  check_output_path(path_, what);
+  check_output_path(path_, what, /*parent_must_exist=*/!create_folders);
   temp_ = temporary_beside(path_);
   if (create_folders && path_.has_parent_path()) {
     std::error_code ec;

@@ -11,10 +11,12 @@
 
 namespace hp {
 
-/// Throws InputError("<what> <path>: ...") when `path` is a folder or an existing non-regular file, or when
-/// its nearest existing ancestor is not a folder (missing folders are created by the writers). `what` names
-/// the option or the kind of file ("--timings").
-inline void check_output_path(const std::filesystem::path& path, const std::string& what) {
+/// Throws InputError("<what> <path>: ...") when `path` is a folder or an existing non-regular file, when its
+/// folder does not exist (`parent_must_exist`: no folder is created that was not asked for; false for a
+/// writer that makes its own folders, as the runner's cell images), or when its nearest existing ancestor
+/// is not a folder. `what` names the option or the kind of file ("--timings").
+inline void check_output_path(const std::filesystem::path& path, const std::string& what,
+                              bool parent_must_exist = true) {
   namespace fs = std::filesystem;
   const std::string name = (what.empty() ? "" : what + " ") + path.string();
   if (path.empty()) throw InputError(what + ": an empty path");
@@ -33,6 +35,7 @@ inline void check_output_path(const std::filesystem::path& path, const std::stri
       if (!fs::is_directory(s)) throw InputError(name + ": " + p.string() + " is not a folder");
       break;
     }
+    if (parent_must_exist) throw InputError(name + ": the folder " + p.string() + " does not exist");
     if (p == p.parent_path()) break;
   }
 }

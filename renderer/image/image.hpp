@@ -26,7 +26,7 @@ void write_image(const std::string& path, const Image4f& image);
 /// What write_image checks before writing (a .png or .exr extension, a path that can be written:
 /// check_output_path), for commands to call before the work that produces the image. `what` prefixes the
 /// error (an option name such as "--image").
-void check_image_output(const std::string& path, const std::string& what);
+void check_image_output(const std::string& path, const std::string& what, bool parent_must_exist = true);
 
 /// Reads an image as linear floats (PNG is decoded from sRGB). Throws hp::InputError naming the path.
 Image4f read_image(const std::string& path);

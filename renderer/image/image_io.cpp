@@ -30,17 +30,17 @@ std::string lower_extension(const std::string& path) {
 }
 }  // namespace
 
-void check_image_output(const std::string& path, const std::string& what) {
+void check_image_output(const std::string& path, const std::string& what, bool parent_must_exist) {
   const std::string ext = lower_extension(path);
   if (ext != ".png" && ext != ".exr") {
     throw InputError((what.empty() ? "" : what + " ") + path + ": unsupported image extension '" + ext +
                      "' (use .png or .exr)");
   }
-  check_output_path(path, what);
+  check_output_path(path, what, parent_must_exist);
 }
 
 void write_image(const std::string& path, const Image4f& image) {
-  check_image_output(path, "");
+  check_image_output(path, "", /*parent_must_exist=*/false);  // it makes its folders (the commands check first)
   const std::string ext = lower_extension(path);
   // The temporary keeps the extension, so OpenImageIO picks the right format.
   AtomicFile file(path, "", /*create_folders=*/true);
