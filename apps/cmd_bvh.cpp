@@ -4,8 +4,8 @@
 // through the passes' own traversal, times that and checks every ray against the reference.
 //   hybridprof bvh --scene S [--buckets N | --full-sweep] [--largest-axis-only] [--granularity triangle|object]
 //                  [--leaf-size K] [--threads T] [--export-triangles FILE] [--rays FILE --hits FILE [--any-hit]
-//                  [--gpu [--geometry indexed|soup] [--traversal compute|ray-query|pipeline [--as-order O]
-//                  [--as-compaction]] [--device D] [--validate]]]
+//                  [--gpu [--geometry indexed|soup] [--traversal compute|ray-query|pipeline [--as-layout L]
+//                  [--as-order O] [--as-compaction]] [--device D] [--validate]]]
 #include "apps/cli_util.hpp"
 #include "apps/commands.hpp"
 #include "bvh/bvh.hpp"
