@@ -113,6 +113,19 @@ double legend_extra_height(double width, double left, const std::vector<std::str
   return rows > 1 ? 18.0 * (rows - 1) : 0.0;
 }
 
+}  // namespace
+
+const char* series_colour(const std::string& name, size_t index) {
+  // The frame's passes in their order, each with a colour of its own in every chart of every report.
+  static const char* const kPasses[] = {"gbuffer",   "shadows", "reflections", "accumulate",
+                                        "composite", "compact", "sort",        "consume"};
+  for (size_t k = 0; k < sizeof(kPasses) / sizeof(kPasses[0]); ++k)
+    if (name == kPasses[k]) return colour(k);
+  return colour(index);
+}
+
+namespace {
+
 std::string legend(const Frame& f, const std::vector<std::string>& names) {
   std::string s = "<g class=\"legend\">\n";
   double x = f.left;
@@ -120,7 +133,7 @@ std::string legend(const Frame& f, const std::vector<std::string>& names) {
   for (size_t i = 0; i < names.size(); ++i) {
     if (x > f.left && x + legend_entry_width(names[i]) > f.width - 10) x = f.left, y += 18;
     s += "<rect class=\"legend-swatch\" x=\"" + num(x) + "\" y=\"" + num(y - 10) +
-         "\" width=\"12\" height=\"12\" fill=\"" + colour(i) + "\"/>\n";
+         "\" width=\"12\" height=\"12\" fill=\"" + series_colour(names[i], i) + "\"/>\n";
     s +=
         "<text class=\"legend-label\" x=\"" + num(x + 16) + "\" y=\"" + num(y) + "\">" + escape(names[i]) + "</text>\n";
     x += legend_entry_width(names[i]);
@@ -267,7 +280,7 @@ std::string render(const BarChart& c) {
     for (size_t i = 0; i < ns; ++i) {
       const double x = gx + bar_w * double(i), y = f.py(grp.values[i]);
       s += "<rect class=\"bar\" x=\"" + num(x) + "\" y=\"" + num(y) + "\" width=\"" + num(bar_w * 0.9) +
-           "\" height=\"" + num(f.py(0.0) - y) + "\" fill=\"" + colour(i) + "\"><title>" +
+           "\" height=\"" + num(f.py(0.0) - y) + "\" fill=\"" + series_colour(c.series[i], i) + "\"><title>" +
            escape(c.series[i] + ": " + tick_label(grp.values[i])) + "</title></rect>\n";
       if (!grp.low.empty()) s += error_bar(x + bar_w * 0.45, f.py(grp.low[i]), f.py(grp.high[i]), bar_w * 0.2);
     }
@@ -327,10 +340,10 @@ std::string render(const LineChart& c) {
       pts += num(f.py(l.y[k]));
     }
     s += "<g class=\"series\">\n<polyline class=\"line\" fill=\"none\" stroke-width=\"2\" stroke=\"" +
-         std::string(colour(i)) + "\" points=\"" + pts + "\"/>\n";
+         std::string(series_colour(l.name, i)) + "\" points=\"" + pts + "\"/>\n";
     for (size_t k : order) {
       s += "<circle class=\"point\" cx=\"" + num(f.px(l.x[k])) + "\" cy=\"" + num(f.py(l.y[k])) + "\" r=\"3\" fill=\"" +
-           colour(i) + "\"/>\n";
+           series_colour(l.name, i) + "\"/>\n";
       if (!l.low.empty()) s += error_bar(f.px(l.x[k]), f.py(l.low[k]), f.py(l.high[k]), 4);
     }
     s += "</g>\n";

@@ -50,6 +50,11 @@ struct ScatterChart {
   bool log_x = false, log_y = false;  ///< log10 axes (values must then be > 0)
 };
 
+/// The colour of a bar series or line: each of the frame's passes (gbuffer, shadows, reflections, accumulate,
+/// composite, compact, sort, consume) has its own in every chart of every report; any other name the
+/// palette's entry for its index.
+const char* series_colour(const std::string& name, size_t index);
+
 /// Ticks covering [lo, hi] at a step of 1, 2 or 5 times a power of ten, about `target` of them.
 /// The first tick is <= lo and the last >= hi. lo == hi gives a range around that value.
 std::vector<double> nice_ticks(double lo, double hi, int target = 5);

@@ -352,4 +352,27 @@ TEST(SvgChart, LongGroupLabelsAndTitleFitAboveTheLegend) {
   EXPECT_GE(width, 8.5 * double(c.title.size())) << "the title is clipped";
 }
 
+// A pass keeps its colour whatever the other series (seen: shadows orange in one report, green in another).
+TEST(SvgChart, EachPassHasOneColourInEveryChart) {
+  const auto fill_of = [](const std::string& svg, const std::string& series) {
+    const std::string key = "<title>" + series + ": ";
+    const size_t t = svg.find(key);
+    EXPECT_NE(t, std::string::npos) << series;
+    const size_t f = svg.rfind("fill=\"", t);
+    return svg.substr(f + 6, 7);
+  };
+  BarChart a;
+  a.title = "a";
+  a.series = {"gbuffer", "shadows", "reflections"};
+  a.groups.push_back({"x", {1, 2, 3}, {}, {}});
+  BarChart b = a;
+  b.series = {"reflections", "consume", "shadows"};
+  const std::string sa = render(a), sb = render(b);
+  EXPECT_EQ(fill_of(sa, "shadows"), fill_of(sb, "shadows"));
+  EXPECT_EQ(fill_of(sa, "reflections"), fill_of(sb, "reflections"));
+  EXPECT_NE(fill_of(sb, "consume"), fill_of(sb, "shadows"));
+  EXPECT_STREQ(series_colour("shadows", 0), series_colour("shadows", 5));
+  EXPECT_STREQ(series_colour("case=a", 2), series_colour("case=b", 2)) << "other names: by index";
+}
+
 }  // namespace hp::svg
