@@ -334,22 +334,22 @@ void RtResources::dispatch(VkCommandBuffer cmd, const RtProgram& p, uint32_t w, 
     dispatch(cmd, p.compute, w, h, then_barrier);
     return;
   }
-  ray_tracing_barrier(cmd, true);
-  vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, p.trace.handle());
-  const VkDescriptorSet set = descriptors_.set();
-  vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, descriptors_.pipeline_layout(), 0, 1, &set, 0,
-                          nullptr);
+  bind_trace(cmd, p);
   p.trace.record_trace(cmd, w, h);
   ray_tracing_barrier(cmd, false);
 }
 
-void RtResources::trace_indirect(VkCommandBuffer cmd, const RtProgram& p, VkDeviceSize offset) const {
-  if (!p.trace.handle()) throw std::logic_error("RtResources::trace_indirect: a ray-tracing pipeline only");
+void RtResources::bind_trace(VkCommandBuffer cmd, const RtProgram& p) const {
   ray_tracing_barrier(cmd, true);
   vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, p.trace.handle());
   const VkDescriptorSet set = descriptors_.set();
   vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_RAY_TRACING_KHR, descriptors_.pipeline_layout(), 0, 1, &set, 0,
                           nullptr);
+}
+
+void RtResources::trace_indirect(VkCommandBuffer cmd, const RtProgram& p, VkDeviceSize offset) const {
+  if (!p.trace.handle()) throw std::logic_error("RtResources::trace_indirect: a ray-tracing pipeline only");
+  bind_trace(cmd, p);
   p.trace.record_trace_indirect(cmd, ray_count_.device_address() + offset);
   ray_tracing_barrier(cmd, false);
 }

@@ -120,6 +120,8 @@ class RtResources {
  private:
   void create_buffers(vk::Context& ctx);
   void write_descriptors(const GBuffer& gbuffer, const vk::Buffer& frame_uniforms, VkSampler sampler);
+  /// Before a ray-tracing launch: the barrier that makes earlier writes visible to it, `p` and the set bound.
+  void bind_trace(VkCommandBuffer cmd, const RtProgram& p) const;
 
   RayTracingOptions options_;
   uint32_t width_, height_, grid_w_ = 0, grid_h_ = 0;
