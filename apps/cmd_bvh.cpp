@@ -135,9 +135,7 @@ void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeom
   const RtScene rts(ctx, scene, g, parse_geometry_layout(a.geometry), false);
   std::unique_ptr<AccelStructure> as;
   if (rt.traversal != Traversal::compute) {
-    if (rt.traversal == Traversal::ray_query && !ctx.ray_query_enabled()) {
-      throw DeviceError("Vulkan device '" + ctx.info().name + "' has no ray queries (VK_KHR_ray_query)");
-    }
+    require_traversal(ctx, rt.traversal);
     as = std::make_unique<AccelStructure>(ctx, g, rt.as_order, rt.as_compaction, rt.as_layout, &scene);
     std::printf("%s\n", describe_accel(as->stats(), rt.as_order, rt.as_layout).c_str());
   }

@@ -42,6 +42,22 @@ void full_barrier(VkCommandBuffer cmd) {
 
 }  // namespace
 
+std::string traversal_unsupported(const vk::Context& ctx, Traversal t) {
+  if (t == Traversal::ray_query && !ctx.ray_query_enabled()) {
+    return "'" + ctx.info().name + "' has no ray queries (VK_KHR_ray_query with acceleration structures)";
+  }
+  if (t == Traversal::pipeline && !ctx.ray_tracing_pipeline_enabled()) {
+    return "'" + ctx.info().name +
+           "' has no ray-tracing pipelines (VK_KHR_ray_tracing_pipeline with acceleration structures)";
+  }
+  return "";
+}
+
+void require_traversal(const vk::Context& ctx, Traversal t) {
+  const std::string why = traversal_unsupported(ctx, t);
+  if (!why.empty()) throw DeviceError("Vulkan device " + why + ": --traversal " + to_string(t) + " needs them");
+}
+
 std::vector<uint32_t> as_primitive_slots(const RtGeometry& g, AsOrder order) {
   const auto& leaf = g.leaf;
   std::vector<uint32_t> slots(leaf.triangles.size());

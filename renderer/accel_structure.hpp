@@ -16,6 +16,7 @@
 #include "vk/resources.hpp"
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace hp {
@@ -33,6 +34,13 @@ struct AsBuildStats {
   double host_ms = 0.0;  ///< host wall time of the whole construction (inputs, submissions, waits)
   bool compacted = false;
 };
+
+/// Why `ctx` cannot trace with `t` ("'NAME' has no ray queries (...)": its device lacks ray queries or
+/// ray-tracing pipelines with acceleration structures), or "" when it can (always for the compute traversal).
+/// The one check the frame, `bvh --gpu`, the runner's unsupported cells and the tests share.
+std::string traversal_unsupported(const vk::Context& ctx, Traversal t);
+/// Throws DeviceError("Vulkan device <why>: --traversal T needs them") where traversal_unsupported says why.
+void require_traversal(const vk::Context& ctx, Traversal t);
 
 /// The order of the triangles handed to the build: slots (leaf order) listed in AS primitive order.
 /// leaf: 0..n-1; scene: by scene triangle index; morton: by the 30-bit Morton code of the centroid in the

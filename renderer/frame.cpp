@@ -70,15 +70,7 @@ Frame::Frame(vk::Context& ctx, const Scene& scene, const Camera& camera, const F
     }
     // The driver traversals: its acceleration structure, built once here (static scene) and timed.
     if (settings.rt.traversal != Traversal::compute) {
-      if (settings.rt.traversal == Traversal::ray_query && !ctx.ray_query_enabled()) {
-        throw DeviceError("Vulkan device '" + ctx.info().name +
-                          "' has no ray queries (VK_KHR_ray_query): --traversal ray-query needs them");
-      }
-      if (settings.rt.traversal == Traversal::pipeline && !ctx.ray_tracing_pipeline_enabled()) {
-        throw DeviceError("Vulkan device '" + ctx.info().name +
-                          "' has no ray-tracing pipelines (VK_KHR_ray_tracing_pipeline): --traversal pipeline needs "
-                          "them");
-      }
+      require_traversal(ctx, settings.rt.traversal);
       accel_ = std::make_unique<AccelStructure>(ctx, *rt_geometry_, settings.rt.as_order, settings.rt.as_compaction,
                                                 settings.rt.as_layout, &scene);
     }

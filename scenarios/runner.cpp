@@ -448,15 +448,7 @@ CellRecord run_cell(RunContext& run, const Matrix& m, size_t i, const std::strin
 
 std::string unsupported_reason(const vk::Context& ctx, const Scenario& s) {
   const bool traced = s.frame.rt.shadows || s.frame.rt.reflections;
-  if (!traced) return "";
-  if (s.frame.rt.traversal == Traversal::ray_query && !ctx.ray_query_enabled()) {
-    return "'" + ctx.info().name + "' has no ray queries (VK_KHR_ray_query with acceleration structures)";
-  }
-  if (s.frame.rt.traversal == Traversal::pipeline && !ctx.ray_tracing_pipeline_enabled()) {
-    return "'" + ctx.info().name +
-           "' has no ray-tracing pipelines (VK_KHR_ray_tracing_pipeline with acceleration structures)";
-  }
-  return "";
+  return traced ? traversal_unsupported(ctx, s.frame.rt.traversal) : "";
 }
 
 RunSummary run_matrix(const Matrix& m, const RunOptions& o) {

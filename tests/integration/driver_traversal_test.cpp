@@ -26,10 +26,7 @@
 namespace hp {
 namespace {
 
-bool supported(const vk::Context& ctx, Traversal t) {
-  return t == Traversal::compute ||
-         (t == Traversal::ray_query ? ctx.ray_query_enabled() : ctx.ray_tracing_pipeline_enabled());
-}
+bool supported(const vk::Context& ctx, Traversal t) { return traversal_unsupported(ctx, t).empty(); }
 
 #define HP_REQUIRE_TRAVERSAL(ctx, t) \
   if (!supported(*ctx, t)) GTEST_SKIP() << ctx->info().name << " has no " << to_string(t) << " traversal"
