@@ -15,6 +15,8 @@ void add_run_command(CLI::App& app) {
     std::string file, out, shard = "1/1", device;
     bool validate = false, list = false;
     std::vector<std::string> filters;
+    std::uint32_t rounds = 0;
+    size_t live_frames = 8;
   };
   auto a = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand("run", "run every cell of a scenario matrix; resumable, shardable");
@@ -35,8 +37,16 @@ void add_run_command(CLI::App& app) {
   cmd->add_option("--filter", a->filters,
                   "only the cells with this id, or with AXIS=VALUE (e.g. geometry=soup, resolution=128x72); "
                   "repeat to narrow");
+  cmd->add_option("--rounds", a->rounds,
+                  "interleaved rounds (default: the matrix's \"rounds\"): each round times every cell's share of "
+                  "its frames, cells in a fresh shuffled order");
+  cmd->add_option("--live-frames", a->live_frames,
+                  "cells' frames kept alive between their rounds; more are rebuilt at each visit")
+      ->capture_default_str()
+      ->check(CLI::Range(size_t(1), size_t(4096)));
   cmd->callback([a] {
-    const Matrix m = load_matrix(a->file);
+    Matrix m = load_matrix(a->file);
+    if (a->rounds != 0) set_rounds(m, a->rounds, "run --rounds");
     const Shard shard = parse_shard(a->shard);
     const std::vector<bool> selected = select_cells(m, a->filters);
     if (a->list) {
@@ -54,6 +64,7 @@ void add_run_command(CLI::App& app) {
     o.device = a->device;
     o.validate = a->validate;
     o.filters = a->filters;
+    o.live_frames = a->live_frames;
     const RunSummary s = run_matrix(m, o);
     std::printf("%s: %zu cells, %zu in shard %u/%u%s, %zu already done, %zu run%s -> %s/results.jsonl\n",
                 a->file.c_str(), s.cells, s.in_shard, shard.index, shard.count,

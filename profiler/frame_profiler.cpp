@@ -40,7 +40,7 @@ FrameSample to_frame_sample(const FrameTiming& timing, const RayCounters* c) {
   return s;
 }
 
-FrameTimings profile_frames(Frame& frame, const ProfileOptions& o) {
+FrameTimings profile_frames(Frame& frame, const ProfileOptions& o, QueryOverheadSamples* overhead_samples) {
   const bool gpu = frame.timestamps_supported();
   FrameTimings timings(o.warmup, o.frames, gpu ? TimingSource::GpuTimestamps : TimingSource::CpuWall);
   const bool counters =
@@ -52,7 +52,7 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o) {
   // extra frame without warm-up. Invocation counts come from a frame of their own too, so that the timed
   // frames carry timestamps only: the last warm-up frame when there are two or more (its times are
   // discarded anyway), else one extra frame after the first.
-  const bool statistics = frame.pipeline_statistics_available();
+  const bool statistics = o.count_invocations && frame.pipeline_statistics_available();
   auto count_invocations = [&] {
     const FrameTiming t = frame.render(FrameQueries::pipeline_statistics);
     Counters per_frame;
@@ -94,7 +94,10 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o) {
   }
   // Frame i with queries pairs with the frame without that ran next to it (after it for even i, before
   // it for odd i): both vectors hold one entry per i.
-  if (!without_queries.empty()) timings.set_query_overhead(paired_query_overhead(with_queries, without_queries));
+  if (!without_queries.empty()) {
+    timings.set_query_overhead(paired_query_overhead(with_queries, without_queries));
+    if (overhead_samples) *overhead_samples = {std::move(with_queries), std::move(without_queries)};
+  }
   return timings;
 }
 

@@ -20,6 +20,9 @@ struct ProfileOptions {
   /// frame_span: no dependency added between passes), for FrameTimings::overlapped(): what overlapping
   /// passes saves against the serialized frames whose pass times the tables show.
   bool measure_overlap = true;
+  /// Count compute invocations (pipeline statistics) in a frame outside the timed ones. A later round of
+  /// an interleaved cell has them from its first round already.
+  bool count_invocations = true;
 };
 
 /// The one-line note for a run whose passes are timed on the host (Frame::timestamps_supported() false):
@@ -39,6 +42,9 @@ FrameSample to_frame_sample(const FrameTiming& timing, const RayCounters* counte
 /// extra frame does this). Compute invocations per pass (pipeline statistics) are counted in the last
 /// warm-up frame (with W < 2, in one extra frame after the first) and stored as
 /// FrameTimings::frame_invocations(): the measured frames record timestamps and nothing else.
-FrameTimings profile_frames(Frame& frame, const ProfileOptions& options);
+/// `overhead_samples` (optional) receives the raw CPU wall times behind the query overhead, for pooling the
+/// rounds of an interleaved cell (FrameTimings::pool_rounds).
+FrameTimings profile_frames(Frame& frame, const ProfileOptions& options,
+                            QueryOverheadSamples* overhead_samples = nullptr);
 
 }  // namespace hp

@@ -68,9 +68,13 @@ std::vector<CellResult> load_cells(const std::string& out_dir) {
   return cells;
 }
 
-PassSamples pass_samples(const TimingResult& timing) {
+namespace {
+// Per pass, one sample per frame that `keep` selects (a pass recorded several times in it: the sum).
+template <class Keep>
+PassSamples frame_pass_samples(const TimingResult& timing, Keep keep) {
   PassSamples out;
   for (const FrameSample& f : timing.timings.measured()) {
+    if (!keep(f)) continue;
     std::vector<std::pair<std::string, double>> frame;  // this frame's sum per pass, in order
     for (const PassSample& p : f.passes) {
       auto it = std::find_if(frame.begin(), frame.end(), [&](auto& e) { return e.first == p.pass; });
@@ -85,6 +89,52 @@ PassSamples pass_samples(const TimingResult& timing) {
         out.push_back({pass, {ns}});
       else
         it->second.push_back(ns);
+    }
+  }
+  return out;
+}
+}  // namespace
+
+PassSamples pass_samples(const TimingResult& timing) {
+  return frame_pass_samples(timing, [](const FrameSample&) { return true; });
+}
+
+std::uint32_t round_count(const TimingResult& timing) {
+  std::uint32_t n = 0;
+  for (const FrameSample& f : timing.timings.measured()) n = std::max(n, f.round + 1);
+  return n;
+}
+
+TimeSeries summed_pass_series(const TimingResult& timing, const std::function<bool(const std::string&)>& in) {
+  TimeSeries out;
+  std::map<std::uint32_t, std::vector<double>> by_round;
+  for (const FrameSample& f : timing.timings.measured()) {
+    double sum = 0.0;
+    bool any = false;
+    for (const PassSample& p : f.passes)
+      if (in(p.pass)) {
+        sum += double(p.duration_ns());
+        any = true;
+      }
+    if (!any) continue;
+    out.frames.push_back(sum);
+    by_round[f.round].push_back(sum);
+  }
+  for (const auto& [round, v] : by_round) out.round_medians.push_back(quantile(v, 0.5));
+  return out;
+}
+
+PassSamples pass_round_medians(const TimingResult& timing) {
+  PassSamples out;
+  const std::uint32_t rounds = round_count(timing);
+  for (std::uint32_t r = 0; r < rounds; ++r) {
+    for (auto& [pass, samples] : frame_pass_samples(timing, [r](const FrameSample& f) { return f.round == r; })) {
+      const double med = quantile(samples, 0.5);
+      auto it = std::find_if(out.begin(), out.end(), [&](auto& e) { return e.first == pass; });
+      if (it == out.end())
+        out.push_back({pass, {med}});
+      else
+        it->second.push_back(med);
     }
   }
   return out;

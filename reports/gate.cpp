@@ -146,6 +146,60 @@ std::vector<std::string> environment_differences(const Environment& a, const Env
 
 namespace {
 
+// The loads a run recorded: every cell's (and round's) 1-minute load at its start and end; none when a cell
+// did not record them.
+std::optional<std::pair<double, double>> load_range(const std::vector<CellResult>& cells) {
+  double lo = 1e300, hi = -1e300;
+  for (const CellResult& c : cells) {
+    const json l = c.line.value("load_1min", json());
+    if (!l.is_object() || !l.value("start", json()).is_number() || !l.value("end", json()).is_number())
+      return std::nullopt;
+    for (const char* k : {"start", "end"}) {
+      lo = std::min(lo, l[k].get<double>());
+      hi = std::max(hi, l[k].get<double>());
+    }
+    for (const json& v : c.line.value("rounds", json::object()).value("visits", json::array()))
+      for (const char* k : {"start", "end"}) {
+        const json x = v.value("load_1min", json::object()).value(k, json());
+        if (x.is_number()) {
+          lo = std::min(lo, x.get<double>());
+          hi = std::max(hi, x.get<double>());
+        }
+      }
+  }
+  if (cells.empty()) return std::nullopt;
+  return std::pair{lo, hi};
+}
+
+}  // namespace
+
+std::vector<std::string> machine_state_differences(const std::vector<CellResult>& base,
+                                                   const std::vector<CellResult>& cand) {
+  std::vector<std::string> d;
+  const auto lb = load_range(base), lc = load_range(cand);
+  const auto text = [](const std::pair<double, double>& r) {
+    return fmt("%.2f", r.first) + " … " + fmt("%.2f", r.second);
+  };
+  if (!lb || !lc) {
+    d.push_back("the machine's load was not recorded for every cell of the " +
+                std::string(!lb ? "baseline" : "candidate"));
+  } else if (!base.empty()) {
+    const double cores = double(std::max<std::uint32_t>(1, base.front().timing.environment.core_count));
+    const double tolerance = std::max(0.5, cores / 4.0);
+    if (std::abs(lb->second - lc->second) > tolerance || std::abs(lb->first - lc->first) > tolerance)
+      d.push_back("the 1-minute load was " + text(*lb) + " for the baseline and " + text(*lc) +
+                  " for the candidate (more apart than " + fmt("%.2f", tolerance) + " on " + fmt("%.0f", cores) +
+                  " cores)");
+  }
+  if (!base.empty() && !cand.empty() &&
+      base.front().timing.environment.cpu_governor != cand.front().timing.environment.cpu_governor)
+    d.push_back("CPU governor '" + base.front().timing.environment.cpu_governor + "' vs '" +
+                cand.front().timing.environment.cpu_governor + "'");
+  return d;
+}
+
+namespace {
+
 using CellPairs = std::vector<std::pair<const CellResult*, const CellResult*>>;
 
 // The cells of the two sides paired by match_key; cells on one side only go to out.cannot_compare.
@@ -300,7 +354,11 @@ GateOutcome run_gate(const GateSide& base, const GateSide& cand, const GateOptio
   for (const auto& [b, c] : pairs)
     for (const std::string& d : environment_differences(b->timing.environment, c->timing.environment))
       if (std::find(env_diff.begin(), env_diff.end(), d) == env_diff.end()) env_diff.push_back(d);
-  const bool compare_timings = !o.deterministic_only && env_diff.empty();
+  // Two separate runs: their frames are one process each, so only a machine in the same state makes them
+  // comparable at all; fresh processes interleaved (--ab) are the design that does not need it.
+  if (!o.deterministic_only && env_diff.empty() && base.sample_kind == "frames" && cand.sample_kind == "frames")
+    out.incomparable = machine_state_differences(base.cells, cand.cells);
+  const bool compare_timings = !o.deterministic_only && env_diff.empty() && out.incomparable.empty();
   for (const std::string& d : env_diff) {
     if (o.deterministic_only)
       out.notes.push_back("environments differ (timings are not compared anyway): " + d);
@@ -312,7 +370,10 @@ GateOutcome run_gate(const GateSide& base, const GateSide& cand, const GateOptio
   if (compare_timings) compare_timings_of(base, cand, pairs, o, out);
   // A gate whose timing comparisons could not have failed has not passed them: INCONCLUSIVE (exit 4),
   // unless a regression was found anyway.
-  out.exit_code = !out.cannot_compare.empty() ? 2 : out.fails > 0 ? 1 : out.cannot_fail > 0 ? 4 : 0;
+  out.exit_code = !out.cannot_compare.empty()                        ? 2
+                  : out.fails > 0                                    ? 1
+                  : out.cannot_fail > 0 || !out.incomparable.empty() ? 4
+                                                                     : 0;
   return out;
 }
 
@@ -352,7 +413,11 @@ std::string format_gate(const GateOutcome& o) {
     s += "result: CANNOT COMPARE (exit 2)\n";
   else if (o.exit_code == 1)
     s += "result: REGRESSION: " + std::to_string(o.fails) + " failure(s) (exit 1)\n";
-  else if (o.exit_code == 4)
+  else if (o.exit_code == 4 && !o.incomparable.empty()) {
+    for (const std::string& c : o.incomparable) s += "timings not compared: " + c + "\n";
+    s += "result: INCONCLUSIVE: separate runs in different machine states cannot be told apart from a "
+         "regression; run `hybridprof gate --ab` to interleave fresh processes of both builds (exit 4)\n";
+  } else if (o.exit_code == 4)
     s += "result: INCONCLUSIVE: " + std::to_string(o.cannot_fail) +
          " timing comparison(s) could not have failed (exit 4)\n";
   else

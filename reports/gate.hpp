@@ -15,6 +15,10 @@
 //    not compared and the gate exits 2 with the reason. The deterministic metrics are still compared
 //    and shown, but the exit code stays 2 (the run as a whole is not a valid comparison); to gate only
 //    the deterministic metrics across machines (a committed baseline), use deterministic_only.
+//  - Two separate runs (folders) compare timings only when the machine was in the same state for both: the
+//    same CPU governor and 1-minute loads (over every cell's start and end) within max(0.5, cores / 4) of
+//    each other, both recorded. Otherwise timings are not compared and the verdict is INCONCLUSIVE (exit 4)
+//    naming both loads, with a pointer to `gate --ab`, which interleaves fresh processes instead.
 //  - Samples: from two folders, the raw per-frame samples; from `--ab`, one median per fresh process
 //    (frames within one process are not independent across processes), runs interleaved A/B/B/A.
 #pragma once
@@ -58,6 +62,11 @@ GateSide side_from_dir(const std::string& dir);
 /// hold the same cells with identical deterministic metrics (else a problem is recorded).
 GateSide side_from_runs(const std::vector<std::string>& dirs, const std::string& label);
 
+/// Why two separate runs' timings cannot be compared though they ran on one device and driver: loads that
+/// differ (or were not recorded), another CPU governor. Empty: comparable.
+std::vector<std::string> machine_state_differences(const std::vector<CellResult>& baseline,
+                                                   const std::vector<CellResult>& candidate);
+
 /// "device: 'A' vs 'B'" lines for the fields that make timings incomparable.
 std::vector<std::string> environment_differences(const Environment& baseline, const Environment& candidate);
 
@@ -80,6 +89,8 @@ struct GateOutcome {
   std::vector<std::string> notes;
   size_t identical = 0, timing_comparisons = 0, fails = 0, warns = 0;
   size_t cannot_fail = 0;  ///< timing comparisons whose smallest possible Holm-adjusted p exceeds alpha
+  /// Why the two runs' timings were not compared (separate runs whose machine state differed): INCONCLUSIVE.
+  std::vector<std::string> incomparable;
 };
 
 GateOutcome run_gate(const GateSide& baseline, const GateSide& candidate, const GateOptions& options);

@@ -52,6 +52,54 @@ const EnvField kEnv[] = {
     {"CPU governor", [](const Environment& e) { return e.cpu_governor; }, true},
 };
 
+// How the cells were measured: interleaved rounds (their number, how often a frame was rebuilt, the load
+// over the visits) or one after another.
+std::string design_text(const std::vector<CellResult>& cells) {
+  std::set<std::uint32_t> counts;
+  size_t visits = 0, rebuilt = 0, sequential = 0;
+  double load_lo = 1e300, load_hi = -1e300;
+  for (const CellResult& c : cells) {
+    const json r = c.line.value("rounds", json());
+    if (!r.is_object() || r.value("count", 1) < 2) {
+      ++sequential;
+      continue;
+    }
+    counts.insert(r["count"].get<std::uint32_t>());
+    for (const json& v : r.value("visits", json::array())) {
+      ++visits;
+      rebuilt += v.value("rebuilt", false) ? 1 : 0;
+      for (const char* k : {"start", "end"}) {
+        const json l = v.value("load_1min", json::object()).value(k, json());
+        if (l.is_number()) {
+          load_lo = std::min(load_lo, l.get<double>());
+          load_hi = std::max(load_hi, l.get<double>());
+        }
+      }
+    }
+  }
+  std::string s;
+  if (!counts.empty()) {
+    std::string n;
+    for (std::uint32_t c : counts) n += (n.empty() ? "" : ", ") + std::to_string(c);
+    s += "**Measurement design.** " + std::to_string(cells.size() - sequential) + " cell(s) were measured in " + n +
+         " interleaved rounds: each round visited every cell once, in a fresh shuffled order, and timed its share "
+         "of the cell's frames, so a drift of the machine reaches every cell alike. Of the " +
+         std::to_string(visits) + " visits, " + std::to_string(rebuilt) +
+         " built the cell's frame anew (first visits, and frames evicted beyond `run --live-frames`); the others "
+         "kept it alive from the previous round and re-warmed it with one frame." +
+         (load_hi >= load_lo
+              ? " The 1-minute load over the visits ranged " + fmt("%.2f", load_lo) + " … " + fmt("%.2f", load_hi) + "."
+              : std::string()) +
+         "\n";
+  }
+  if (sequential > 0) {
+    s += std::string(counts.empty() ? "**Measurement design.** " : "") + std::to_string(sequential) +
+         " cell(s) were measured in one round, one cell after another: a drift of the machine between them can "
+         "read as a change between cells (matrix key `rounds`, or `run --rounds`, interleaves them).\n";
+  }
+  return s;
+}
+
 std::string environment_section(const std::vector<CellResult>& cells) {
   std::string s = "## Environment\n\n| | |\n|---|---|\n";
   std::vector<std::string> differing;
@@ -87,6 +135,7 @@ std::string environment_section(const std::vector<CellResult>& cells) {
   s += "\nTimes come from " +
        std::string(t.source == TimingSource::GpuTimestamps ? "GPU timestamps" : "CPU wall clocks") +
        " around each pass, after discarded warm-up frames; raw results keep nanoseconds.\n";
+  s += "\n" + design_text(cells);
   return s;
 }
 
@@ -454,18 +503,26 @@ std::vector<CellPair> axis_pairs(const std::vector<CellResult>& cells, const std
 }
 
 // One pass's time in two cells: the test, its Holm adjustment over every timing comparison of the report,
-// and the verdict.
+// the change with its interval, the noise floor and the verdict. Interleaved cells (two or more rounds
+// each) are compared by their round medians, the level where the variance between rounds is; cells of one
+// round by their frames.
 struct TimeComparison {
   const CellResult* a;
   const CellResult* b;
   std::string axis, pass;
-  Summary sa, sb;
+  Summary sa, sb;  ///< over the frames (the tables' medians)
   double p_raw = 1.0, p_holm = 1.0;
   bool exact = false, b_slower = false;
-  size_t na = 0, nb = 0;
+  bool by_rounds = false;  ///< the samples tested are round medians (else frames)
+  size_t na = 0, nb = 0;   ///< samples tested a side
+  double change = 0.0;     ///< b against a: Hodges-Lehmann ratio of round medians, else ratio of medians, minus 1
+  std::optional<std::pair<double, double>> ci;  ///< the change's 95% interval
+  /// The spread between rounds of the same cell ((max - min) / median of its round medians), the larger of
+  /// the two cells': what an A/A of this pass moves. 0 without rounds (not measured).
+  double noise_floor = 0.0;
   bool identical_work = false;  ///< both cells count the pass's work, and every counter is equal per frame
   std::string verdict;          ///< "faster", "slower", "no change" or "inconclusive"
-  double ratio() const { return sb.median / sa.median; }
+  double ratio() const { return 1.0 + change; }
 };
 
 double per_frame(const CellResult& c, const std::string& pass, const std::string& name) {
@@ -499,35 +556,98 @@ bool identical_work(const CellResult& a, const CellResult& b, const std::string&
 
 // A pass that did the same work in both cells did not change speed: whatever its times did is the
 // machine's. Where even the smallest p the samples allow exceeds alpha the comparison cannot tell.
-// Otherwise the U test, Holm-adjusted over the family, decides in the direction the frames moved.
+// Otherwise the U test, Holm-adjusted over the family, decides in the direction the samples moved, and
+// only for a change larger than the noise floor: what the pass moves between rounds of one cell is never
+// an effect.
 std::string time_verdict(const TimeComparison& t) {
   if (t.identical_work) return "no change";
   // The bound holds for the permutation test with ties too (they only coarsen its distribution); the normal
   // approximation used with ties can go lower, but at these sizes that is the approximation, not evidence.
   if (mann_whitney_min_p(t.na, t.nb) > kAlpha) return "inconclusive";
-  if (t.p_holm <= kAlpha && t.b_slower && t.ratio() > 1.0) return "slower";
-  if (t.p_holm <= kAlpha && !t.b_slower && t.ratio() < 1.0) return "faster";
+  if (std::abs(t.change) <= t.noise_floor) return "no change";
+  if (t.p_holm <= kAlpha && t.b_slower && t.change > 0.0) return "slower";
+  if (t.p_holm <= kAlpha && !t.b_slower && t.change < 0.0) return "faster";
   return "no change";
 }
+
+// (max - min) / median of a cell's round medians.
+double round_spread(const std::vector<double>& medians) {
+  const auto [lo, hi] = std::minmax_element(medians.begin(), medians.end());
+  const double mid = quantile(medians, 0.5);
+  return mid > 0 ? (*hi - *lo) / mid : 0.0;
+}
+
+const std::vector<double>* find_pass(const PassSamples& samples, const std::string& pass) {
+  for (const auto& [name, v] : samples)
+    if (name == pass) return &v;
+  return nullptr;
+}
+
+// The change's 95% interval from the two medians' distribution-free intervals (conservative: the
+// extremes of the ratio), when both are valid.
+std::optional<std::pair<double, double>> median_ratio_interval(const Summary& sa, const Summary& sb) {
+  const MedianCi &ca = sa.median_ci, &cb = sb.median_ci;
+  if (!ca.valid || !cb.valid || ca.low <= 0 || ca.high <= 0) return std::nullopt;
+  return std::pair{cb.low / ca.high - 1.0, cb.high / ca.low - 1.0};
+}
+
+// The test, change, interval and noise floor of one series of times in two cells (verdict and Holm later).
+TimeComparison compare_series(const CellPair& cp, const std::string& pass, const TimeSeries& a, const TimeSeries& b) {
+  TimeComparison t{cp.a, cp.b, cp.axis, pass, summarize(a.frames), summarize(b.frames)};
+  const auto positive = [](const std::vector<double>& v) {
+    return v.size() >= 2 && v.size() < 50 && std::all_of(v.begin(), v.end(), [](double x) { return x > 0; });
+  };
+  t.by_rounds = positive(a.round_medians) && positive(b.round_medians);
+  const std::vector<double>& ya = t.by_rounds ? a.round_medians : a.frames;
+  const std::vector<double>& yb = t.by_rounds ? b.round_medians : b.frames;
+  const MannWhitneyResult mw = mann_whitney_u(yb, ya);
+  t.p_raw = mw.p_value;
+  t.exact = mw.exact;
+  t.na = ya.size();
+  t.nb = yb.size();
+  t.b_slower = mw.u > 0.5 * double(t.na) * double(t.nb);
+  if (t.by_rounds) {
+    // The shift of the log round medians is the ratio's logarithm: its interval is the ratio's.
+    std::vector<double> la, lb;
+    for (double v : ya) la.push_back(std::log(v));
+    for (double v : yb) lb.push_back(std::log(v));
+    const ShiftCi hl = hodges_lehmann_ci(lb, la);
+    t.change = std::exp(hl.shift) - 1.0;
+    if (hl.ci.valid) t.ci = std::pair{std::exp(hl.ci.low) - 1.0, std::exp(hl.ci.high) - 1.0};
+    t.noise_floor = std::max(round_spread(ya), round_spread(yb));
+  } else {
+    t.change = t.sb.median / t.sa.median - 1.0;
+    t.ci = median_ratio_interval(t.sa, t.sb);
+  }
+  return t;
+}
+
+// The passes that trace reflections: the direct pass, or the compacted path's compaction, sort and consume.
+bool reflection_work(const std::string& pass) {
+  return pass == "reflections" || pass == "compact" || pass == "consume" || pass.starts_with("sort");
+}
+constexpr const char* kReflectionWork = "reflection work";
 
 std::vector<TimeComparison> time_comparisons(const std::vector<CellResult>& cells) {
   std::vector<TimeComparison> out;
   for (const std::string& axis : axes_of(cells))
     for (const CellPair& cp : axis_pairs(cells, axis)) {
-      const std::vector<PassStat> sa = pass_stats(*cp.a), sb = pass_stats(*cp.b);
-      for (const PassStat& pa : sa) {
-        auto it = std::find_if(sb.begin(), sb.end(), [&](const PassStat& p) { return p.pass == pa.pass; });
-        if (it == sb.end()) continue;
-        const MannWhitneyResult mw = mann_whitney_u(it->samples, pa.samples);
-        TimeComparison t{cp.a, cp.b, axis, pa.pass, pa.summary, it->summary};
-        t.p_raw = mw.p_value;
-        t.exact = mw.exact;
-        t.na = pa.samples.size();
-        t.nb = it->samples.size();
-        t.b_slower = mw.u > 0.5 * double(t.na) * double(t.nb);
-        t.identical_work = identical_work(*cp.a, *cp.b, pa.pass);
+      const PassSamples fa = pass_samples(cp.a->timing), fb = pass_samples(cp.b->timing);
+      const PassSamples ra = pass_round_medians(cp.a->timing), rb = pass_round_medians(cp.b->timing);
+      for (const auto& [pass, frames_a] : fa) {
+        const std::vector<double>* frames_b = find_pass(fb, pass);
+        if (!frames_b) continue;
+        const std::vector<double>*xa = find_pass(ra, pass), *xb = find_pass(rb, pass);
+        TimeComparison t = compare_series(cp, pass, TimeSeries{frames_a, xa ? *xa : std::vector<double>{}},
+                                          TimeSeries{*frames_b, xb ? *xb : std::vector<double>{}});
+        t.identical_work = identical_work(*cp.a, *cp.b, pass);
         out.push_back(t);
       }
+      // The direct and the compacted path trace reflections in different passes: their sums compare.
+      const bool direct_a = find_pass(fa, "reflections") != nullptr, direct_b = find_pass(fb, "reflections") != nullptr;
+      if (direct_a != direct_b && find_pass(direct_a ? fb : fa, "consume"))
+        out.push_back(compare_series(cp, kReflectionWork, summed_pass_series(cp.a->timing, reflection_work),
+                                     summed_pass_series(cp.b->timing, reflection_work)));
     }
   std::vector<double> raw;
   for (const TimeComparison& t : out) raw.push_back(t.p_raw);
@@ -537,14 +657,6 @@ std::vector<TimeComparison> time_comparisons(const std::vector<CellResult>& cell
     out[i].verdict = time_verdict(out[i]);
   }
   return out;
-}
-
-// The change's 95% interval from the two medians' distribution-free intervals (conservative: the
-// extremes of the ratio), when both are valid.
-std::optional<std::pair<double, double>> change_interval(const TimeComparison& t) {
-  const MedianCi &ca = t.sa.median_ci, &cb = t.sb.median_ci;
-  if (!ca.valid || !cb.valid || ca.low <= 0 || ca.high <= 0) return std::nullopt;
-  return std::pair{cb.low / ca.high - 1.0, cb.high / ca.low - 1.0};
 }
 
 std::string comparison(const CellResult& a, const CellResult& b, const std::string& axis,
@@ -557,7 +669,8 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
 
   std::string table =
       "| pass | " + md::escape(va) + " (ms) | " + md::escape(vb) +
-      " (ms) | change | p (Holm) | rays | nodes visited | triangles tested | verdict |\n|---|---|---|---|---|---|---|---|---|\n";
+      " (ms) | change [95% CI] | noise floor | p (Holm) | rays | nodes visited | triangles tested | verdict "
+      "|\n|---|---|---|---|---|---|---|---|---|---|\n";
   std::vector<std::string> significant, same_work;
   std::string largest;
   double largest_abs = -1.0;
@@ -571,10 +684,11 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
       if (x == y) return "=";
       return x == 0 ? "new" : pct(y / x);
     };
-    table += "| " + t.pass + " | " + ms(t.sa.median) + " | " + ms(t.sb.median) + " | " + pct(ratio) + " | " +
-             p_text(t.p_holm) + " | " + counter_change(counter::rays_cast) + " | " +
-             counter_change(counter::nodes_visited) + " | " + counter_change(counter::triangles_tested) + " | " +
-             t.verdict + " |\n";
+    table += "| " + t.pass + " | " + ms(t.sa.median) + " | " + ms(t.sb.median) + " | " + pct(ratio) +
+             (t.ci ? " [" + pct(1.0 + t.ci->first) + ", " + pct(1.0 + t.ci->second) + "]" : std::string()) + " | " +
+             (t.by_rounds ? fmt("±%.1f%%", t.noise_floor * 100.0) : std::string("—")) + " | " + p_text(t.p_holm) +
+             " | " + counter_change(counter::rays_cast) + " | " + counter_change(counter::nodes_visited) + " | " +
+             counter_change(counter::triangles_tested) + " | " + t.verdict + " |\n";
     const std::string desc = t.pass + " " + fmt("%.1f%%", std::abs(ratio - 1.0) * 100.0) +
                              (ratio >= 1.0 ? " slower" : " faster") + " (" + ms(t.sa.median) + " → " + ms(t.sb.median) +
                              " ms, Holm p " + (t.p_holm < 0.001 ? "< 0.001" : "= " + p_text(t.p_holm)) + ")";
@@ -734,16 +848,32 @@ void comparisons_section(const std::vector<CellResult>& cells, const std::vector
     s += "This run has no axes (a single scenario), so there is nothing to compare.\n\n";
     return;
   }
-  s +=
-      "For each axis and each pair of its values, cells whose other axes are equal are compared. Change is the "
-      "ratio of the medians minus one; p is a two-sided Mann-Whitney U test over the raw frame samples of the "
-      "two cells, Holm-adjusted over all " +
-      std::to_string(family.size()) +
-      " pass-time comparisons of this report (tied samples use the normal approximation). Verdict: a pass whose "
-      "work counters and simulated cache counts are identical in both cells is \"no change\" whatever its time did; otherwise \"slower\" or "
-      "\"faster\" when the adjusted p is at most 0.05 in the direction the frames moved, \"inconclusive\" when "
-      "the cells have too few frames for any p to reach 0.05 (fewer than 4 untied frames a side), else \"no "
-      "change\". The same verdicts are in findings.json. Counter changes are per frame; \"=\" means identical.\n\n";
+  s += "For each axis and each pair of its values, cells whose other axes are equal are compared. ";
+  const size_t by_rounds =
+      size_t(std::count_if(family.begin(), family.end(), [](const TimeComparison& t) { return t.by_rounds; }));
+  if (by_rounds > 0) {
+    s += "Cells measured in interleaved rounds are compared by their round medians (one sample per round and "
+         "cell: the frames of one round are not independent of each other): change is the Hodges-Lehmann ratio "
+         "of the two cells' round medians, with its distribution-free 95% interval, and p a two-sided "
+         "Mann-Whitney U test over them. The noise floor is what the pass moved between rounds of the same "
+         "cell ((max - min) / median of its round medians, the larger of the two cells'): a change inside it "
+         "is \"no change\", whatever p says. ";
+  }
+  if (by_rounds < family.size()) {
+    s += std::string(by_rounds > 0 ? "Cells of one round"
+                                   : "These cells were measured in one round each, one after "
+                                     "another, so a drift of the machine between them reads "
+                                     "as a change and no noise floor is measured. They") +
+         " are compared by their frames: change is the ratio of the medians with the interval from the two "
+         "medians' intervals, p a two-sided Mann-Whitney U test over the frames. ";
+  }
+  s += "p is Holm-adjusted over all " + std::to_string(family.size()) +
+       " pass-time comparisons of this report (tied samples use the normal approximation). Verdict: a pass whose "
+       "work counters and simulated cache counts are identical in both cells is \"no change\" whatever its time "
+       "did; \"inconclusive\" when the samples are too few for any p to reach 0.05 (fewer than 4 untied samples "
+       "a side); otherwise \"slower\" or \"faster\" when the adjusted p is at most 0.05 in the direction the "
+       "samples moved and the change is outside the noise floor, else \"no change\". The same verdicts are in "
+       "findings.json. Counter changes are per frame; \"=\" means identical.\n\n";
   for (const std::string& axis : axes) {
     s += "### `" + axis + "`\n\n";
     const std::vector<CellPair> pairs = axis_pairs(cells, axis);
@@ -754,6 +884,141 @@ void comparisons_section(const std::vector<CellResult>& cells, const std::vector
     const std::string note = study::comparison_note(axis_leaf(axis), have_cache);
     if (!note.empty()) s += note + "\n";
   }
+}
+
+// The study's questions, answered first: each of its comparisons this run's cells make, in the study's
+// direction, with our verdicts for time and the reflection pass's cache counts, the study's figure in the
+// same direction and whether the two agree.
+struct StudyQuestion {
+  const char* axis_leaf;
+  const char *from, *to;  ///< axis values, in the study's direction
+  const char* title;
+};
+constexpr StudyQuestion kQuestions[] = {
+    {"geometry", "soup", "indexed", "Index buffer (EBO) against de-indexed triangles: `geometry` soup → indexed"},
+    {"jitter", "per-thread", "shared",
+     "One shared jitter offset against per-thread jitter: `jitter` per-thread → shared"},
+    {"reflection_path", "direct", "compact",
+     "Compacted (sorted) rays against the direct pass: `reflection_path` direct → compact"},
+};
+
+std::string agreement(std::optional<double> ours, std::optional<double> theirs, const std::string& why_not) {
+  if (!theirs || !ours) return "not comparable: " + why_not;
+  if (*ours == 0.0) return "disagrees: no change here";
+  return (*ours > 0) == (*theirs > 0) ? "agrees" : "disagrees";
+}
+
+// A verdict read in the other direction.
+std::string reversed(const std::string& v) { return v == "slower" ? "faster" : v == "faster" ? "slower" : v; }
+
+std::string study_questions_section(const std::vector<CellResult>& cells, const std::vector<TimeComparison>& family) {
+  std::string body;
+  for (const StudyQuestion& q : kQuestions) {
+    std::string axis;
+    for (const std::string& a : axes_of(cells))
+      if (axis_leaf(a) == q.axis_leaf) axis = a;
+    if (axis.empty()) continue;
+    std::string rows;
+    for (const CellPair& cp : axis_pairs(cells, axis)) {
+      const json va = cp.a->axes[axis], vb = cp.b->axes[axis];
+      const bool forward = va == q.from && vb == q.to;
+      if (!forward && !(va == q.to && vb == q.from)) continue;
+      const CellResult& from = forward ? *cp.a : *cp.b;
+      const CellResult& to = forward ? *cp.b : *cp.a;
+      std::string context = others_text(from, axis);
+      context = context.empty() ? "—" : md::escape(context);
+      const bool sorting = std::string(q.axis_leaf) == "reflection_path";
+      const std::string pass = sorting ? kReflectionWork : "reflections";
+      // Time: our verdict in the study's direction.
+      auto t = std::find_if(family.begin(), family.end(), [&](const TimeComparison& c) {
+        return c.a == cp.a && c.b == cp.b && c.axis == axis && c.pass == pass;
+      });
+      if (t != family.end()) {
+        const double change = forward ? t->change : 1.0 / (1.0 + t->change) - 1.0;
+        const std::string verdict = forward ? t->verdict : reversed(t->verdict);
+        std::string study_time = "no time given", agree = "not comparable: the study gives no time for this comparison";
+        if (sorting) {
+          study_time = "slower: \"worse than the classic one\" (sorting " + fmt("%.2f", study::kSortingMs) +
+                       " ms + traversal " + fmt("%.2f", study::kSortedTraversalMs) + " ms)";
+          agree = verdict == "slower"         ? "agrees"
+                  : verdict == "faster"       ? "disagrees"
+                  : verdict == "inconclusive" ? "not comparable: too few samples here"
+                                              : "disagrees: no change measured here";
+        }
+        rows += "| " + context + " | " + pass + " time | " + ms(forward ? t->sa.median : t->sb.median) + " → " +
+                ms(forward ? t->sb.median : t->sa.median) + " ms | " + pct(1.0 + change) + " | " + verdict + " | " +
+                study_time + " | " + agree + " |\n";
+      }
+      // Cache counts of the reflection pass, against Table 1 in the same context.
+      const auto find_cache = [](const CellResult& c) -> std::optional<CachePass> {
+        for (const CachePass& p : cache_passes(c))
+          if (p.pass == "reflections") return p;
+        return std::nullopt;
+      };
+      const std::optional<CachePass> ca = find_cache(from), cb = find_cache(to);
+      const auto jitter_shared = [](const CellResult& c) { return c.config.value("jitter", "per-thread") == "shared"; };
+      const auto indexed = [](const CellResult& c) { return c.config.value("geometry", "indexed") == "indexed"; };
+      std::optional<study::Table1Row> sa, sb;
+      if (!sorting) {
+        sa = study::table1(jitter_shared(from), indexed(from));
+        sb = study::table1(jitter_shared(to), indexed(to));
+      }
+      struct Metric {
+        const char* name;
+        double (*count)(double hits, double misses);
+        bool rate;
+      };
+      const Metric metrics[] = {{"L1 hits", [](double h, double) { return h; }, false},
+                                {"L1 hit rate", [](double h, double m) { return h / (h + m); }, true},
+                                {"L2 hits", [](double h, double) { return h; }, false},
+                                {"L2 hit rate", [](double h, double m) { return h / (h + m); }, true}};
+      for (const Metric& mt : metrics) {
+        const bool l1 = std::string(mt.name).starts_with("L1");
+        std::optional<double> x, y, ours, theirs;
+        if (ca && cb) {
+          x = mt.count(l1 ? ca->l1_hits : ca->l2_hits, l1 ? ca->l1_misses : ca->l2_misses);
+          y = mt.count(l1 ? cb->l1_hits : cb->l2_hits, l1 ? cb->l1_misses : cb->l2_misses);
+          ours = mt.rate ? *y - *x : (*x > 0 ? *y / *x - 1.0 : 0.0);
+        }
+        std::string study_text = "—";
+        if (sa && sb) {
+          const double sx = mt.count(l1 ? sa->l1_hit : sa->l2_hit, l1 ? sa->l1_miss : sa->l2_miss);
+          const double sy = mt.count(l1 ? sb->l1_hit : sb->l2_hit, l1 ? sb->l1_miss : sb->l2_miss);
+          theirs = mt.rate ? sy - sx : sy / sx - 1.0;
+          study_text = mt.rate ? fmt("%.1f%%", 100 * sx) + " → " + fmt("%.1f%%", 100 * sy) + " (" +
+                                     fmt("%+.1f pp", 100 * *theirs) + ", " + sa->label + " → " + sb->label + ")"
+                               : md::count(sx) + " → " + md::count(sy) + " (" + pct(1.0 + *theirs) + ", " + sa->label +
+                                     " → " + sb->label + ")";
+        }
+        const std::string why = sorting ? "the study's counts of the compacted passes come from another configuration "
+                                          "than its direct pass (no Table 1 row)"
+                                        : "this run's cells carry no cache tables of the reflection pass";
+        const std::string ours_text = !ours ? std::string("—")
+                                            : (mt.rate ? fmt("%.1f%%", 100 * *x) + " → " + fmt("%.1f%%", 100 * *y)
+                                                       : md::count(*x) + " → " + md::count(*y));
+        const std::string change_text = !ours     ? std::string("—")
+                                        : mt.rate ? fmt("%+.1f pp", 100 * *ours)
+                                                  : pct(1.0 + *ours);
+        const std::string verdict = !ours ? std::string("—") : *ours > 0 ? "higher" : *ours < 0 ? "lower" : "same";
+        rows += "| " + context + " | " + mt.name + " | " + ours_text + " | " + change_text + " | " + verdict + " | " +
+                study_text + " | " + agreement(ours, theirs, why) + " |\n";
+      }
+    }
+    if (rows.empty()) continue;
+    body += "### " + std::string(q.title) +
+            "\n\n| with | metric | ours | change | verdict | study, same direction | "
+            "agreement |\n|---|---|---|---|---|---|---|\n" +
+            rows + "\n";
+  }
+  if (body.empty()) return "";
+  return "## The study's questions\n\nEach comparison the study made (Santoro 2020: Unity + PIX on a Vega 56) that "
+         "this run's cells also make, read in the study's direction. Time verdicts are this report's (see "
+         "\"Comparisons along each axis\"); cache counts are the simulated reflection pass's, deterministic, so "
+         "their verdict is the sign of the change. \"Agrees\" means the change goes the same way as the study's; "
+         "the sizes are not expected to match (another scene, our cache model). Our hits are counted per "
+         "coalesced request, the study's by the hardware counter (docs/cache-model.md): compare directions and "
+         "rates, not raw hit counts.\n\n" +
+         body;
 }
 
 // findings.json: the verdicts of the comparisons section, for scripts and CI bots.
@@ -773,11 +1038,13 @@ json findings(const std::vector<TimeComparison>& family) {
               {"change", t.ratio() - 1.0},
               {"ci", nullptr},
               {"p_holm", t.p_holm},
-              {"frames", {t.na, t.nb}},
+              {"samples", t.by_rounds ? "round medians" : "frames"},
+              {"n", {t.na, t.nb}},
+              {"noise_floor", t.by_rounds ? json(t.noise_floor) : json(nullptr)},
               {"exact_test", t.exact},
               {"identical_work", t.identical_work},
               {"verdict", t.verdict}};
-    if (const auto ci = change_interval(t)) e["ci"] = {ci->first, ci->second};
+    if (t.ci) e["ci"] = {t.ci->first, t.ci->second};
     list.push_back(std::move(e));
   }
   return {{"alpha", kAlpha}, {"correction", "holm"}, {"comparisons", std::move(list)}};
@@ -795,6 +1062,8 @@ Report build_report(const std::vector<CellResult>& cells, const json& unsupporte
        " cell(s) from `results.jsonl`. Pass times are in milliseconds: the median "
        "over the measured frames with its distribution-free 95% confidence interval (order statistics; none "
        "below 6 frames), and the coefficient of variation (CV = standard deviation / mean) of the frames.\n\n";
+  const std::vector<TimeComparison> family = time_comparisons(cells);
+  s += study_questions_section(cells, family);
   s += environment_section(cells) + "\n";
   charts_section(cells, r, s);
   s += error_metrics_section(cells);
@@ -803,7 +1072,6 @@ Report build_report(const std::vector<CellResult>& cells, const json& unsupporte
   s += unsupported_section(unsupported);
   s += "## Cells\n\n";
   for (const CellResult& c : cells) s += cell_section(c);
-  const std::vector<TimeComparison> family = time_comparisons(cells);
   r.findings = findings(family).dump(1) + "\n";
   comparisons_section(cells, family, s);
   s += "## Cache simulation\n\n";

@@ -10,25 +10,23 @@ namespace {
 std::string fmt(const char* f, double v) { return format_number(f, v); }
 std::string pct(double ratio) { return fmt("%+.1f%%", (ratio - 1.0) * 100.0); }
 
+using StudyRow = Table1Row;
 // Study Table 1 (PIX on a Vega 56, reflection pass): L1 hit, L1 miss, L2 hit, L2 miss.
-struct StudyRow {
-  const char* label;
-  bool shared_offset, indexed;
-  double l1_hit, l1_miss, l2_hit, l2_miss;
-};
 constexpr StudyRow kTable1[] = {
     {"offset + noEBO", true, false, 4873530, 291719, 115552, 217475},
     {"offset + EBO", true, true, 6251450, 258988, 91876, 214712},
     {"nooffset + noEBO", false, false, 5374096, 290892, 134387, 194732},
     {"nooffset + EBO", false, true, 5979267, 241950, 87422, 192207},
 };
-const StudyRow& study(bool shared, bool indexed) {
+const StudyRow& study(bool shared, bool indexed) { return table1(shared, indexed); }
+
+}  // namespace
+
+const Table1Row& table1(bool shared, bool indexed) {
   for (const StudyRow& r : kTable1)
     if (r.shared_offset == shared && r.indexed == indexed) return r;
   return kTable1[0];
 }
-
-}  // namespace
 
 std::string comparison_note(const std::string& leaf, bool have_cache) {
   if (leaf != "geometry" && leaf != "jitter") return "";

@@ -95,6 +95,43 @@ CellAccel parse_accel(const LineReader& r, const json& a) {
   return out;
 }
 
+CellRoundVisit read_visit(const LineReader& r, const json& v, const std::string& prefix) {
+  const auto member = [&](const char* key) -> const json& {
+    static const json missing;
+    return v.contains(key) ? v[key] : missing;
+  };
+  CellRoundVisit c;
+  c.round = std::uint32_t(r.count(member("round"), prefix + "round"));
+  c.position = std::uint32_t(r.count(member("position"), prefix + "position"));
+  c.cells = std::uint32_t(r.count(member("cells"), prefix + "cells"));
+  c.frames = std::uint32_t(r.count(member("frames"), prefix + "frames"));
+  if (!member("rebuilt").is_boolean()) r.fail("field '" + prefix + "rebuilt' missing or not a boolean");
+  c.rebuilt = v["rebuilt"].get<bool>();
+  const json& l = member("load_1min");
+  if (!l.is_object()) r.fail("field '" + prefix + "load_1min' missing or not an object");
+  c.load = CellLoad{r.nullable_number(l, "start", prefix + "load_1min.start"),
+                    r.nullable_number(l, "end", prefix + "load_1min.end")};
+  return c;
+}
+
+CellRounds parse_rounds(const LineReader& r, const json& j) {
+  const auto member = [&](const json& o, const char* key) -> const json& {
+    static const json missing;
+    return o.contains(key) ? o[key] : missing;
+  };
+  CellRounds out;
+  out.count = std::uint32_t(r.count(member(j, "count"), "rounds.count"));
+  out.seed = r.count(member(j, "seed"), "rounds.seed");
+  const json& visits = member(j, "visits");
+  if (!visits.is_array()) r.fail("field 'rounds.visits' missing or not a list");
+  for (const json& v : visits) {
+    if (!v.is_object()) r.fail("field 'rounds.visits' holds a non-object");
+    CellRoundVisit c = read_visit(r, v, "rounds.visits.");
+    out.visits.push_back(c);
+  }
+  return out;
+}
+
 CellExpect parse_expect(const LineReader& r, const json& e) {
   CellExpect out;
   out.spec = e.contains("spec") ? e["spec"] : json();
@@ -126,15 +163,37 @@ void to_json(json& j, const CellAccel& a) {
        {"tlas_bytes", a.tlas_bytes}, {"scratch_bytes", a.scratch_bytes}};
 }
 
+void to_json(json& j, const CellRoundVisit& v) {
+  j = {{"round", v.round},
+       {"position", v.position},
+       {"cells", v.cells},
+       {"frames", v.frames},
+       {"rebuilt", v.rebuilt},
+       {"load_1min", {{"start", optional_number(v.load.start)}, {"end", optional_number(v.load.end)}}}};
+}
+
+CellRoundVisit parse_round_visit(const json& v, const std::string& where) {
+  const LineReader r{v, where};
+  if (!v.is_object()) r.fail("field 'visit' missing or not an object");
+  return read_visit(r, v, "visit.");
+}
+
+void to_json(json& j, const CellRounds& r) {
+  json visits = json::array();
+  for (const CellRoundVisit& v : r.visits) visits.push_back(v);
+  j = {{"count", r.count}, {"seed", r.seed}, {"visits", std::move(visits)}};
+}
+
 bool operator==(const CellRecord& a, const CellRecord& b) {
   const auto same_timing = [](const TimingResult& x, const TimingResult& y) {
     return x.environment == y.environment && x.timings == y.timings && x.summary == y.summary &&
            x.counters == y.counters;
   };
   return a.id == b.id && a.matrix == b.matrix && a.name == b.name && a.axes == b.axes && a.config == b.config &&
-         same_timing(a.result, b.result) && a.load_1min == b.load_1min && a.triangles == b.triangles &&
-         a.bvh == b.bvh && a.accel == b.accel && a.cache == b.cache && a.error == b.error && a.report == b.report &&
-         a.expect == b.expect && a.images == b.images && a.wall_s == b.wall_s;
+         same_timing(a.result, b.result) && a.load_1min == b.load_1min && a.rounds == b.rounds &&
+         a.triangles == b.triangles && a.bvh == b.bvh && a.accel == b.accel && a.cache == b.cache &&
+         a.error == b.error && a.report == b.report && a.expect == b.expect && a.images == b.images &&
+         a.wall_s == b.wall_s;
 }
 
 json to_json(const CellRecord& r) {
@@ -152,6 +211,7 @@ json to_json(const CellRecord& r) {
   if (r.triangles) line["scene"] = {{"triangles", *r.triangles}};
   if (r.bvh) line["bvh"] = *r.bvh;
   if (r.accel) line["accel"] = *r.accel;
+  if (r.rounds) line["rounds"] = *r.rounds;
   if (!r.cache.is_null()) line["cache"] = r.cache;
   if (!r.error.is_null()) line["error"] = r.error;
   if (!r.report.is_null()) line["report"] = r.report;
@@ -190,6 +250,7 @@ CellRecord parse_cell_record(const json& line, const std::string& where) {
   }
   if (const json* b = r.object("bvh")) c.bvh = parse_bvh(r, *b);
   if (const json* a = r.object("accel")) c.accel = parse_accel(r, *a);
+  if (const json* x = r.object("rounds")) c.rounds = parse_rounds(r, *x);
   if (const json* v = r.object("cache")) c.cache = *v;
   if (const json* v = r.object("report")) c.report = *v;
   if (const json* v = r.object("error")) c.error = *v;

@@ -5,7 +5,7 @@
 // The line ("schema": "hybridprof.cell", "version": 1; keys sorted, as nlohmann::json dumps them):
 //   id, matrix, name, axes: {axis key path: value}, config: canonical scenario (Scenario::canonical),
 //   result: timing result (profiler/timing/result_json.hpp), load_1min: {start, end} (null: unreadable;
-//   absent in lines written before it existed), scene: {triangles}, bvh?: {build_ms, nodes, leaves,
+//   absent in lines written before it existed), rounds?: the interleaved rounds (CellRounds), scene: {triangles}, bvh?: {build_ms, nodes, leaves,
 //   max_depth, sah_cost} (absent: no ray traced), accel?: the driver's acceleration structure (CellAccel;
 //   ray-query and pipeline cells), cache?: cache-simulator tables, error?: error against the
 //   CPU reference, report?: the matrix's "report" object, expect?: {spec, unmet: [sentences]},
@@ -30,6 +30,29 @@ struct CellLoad {
   std::optional<double> start, end;  ///< null in the line: unreadable
   bool operator==(const CellLoad&) const = default;
 };
+
+/// How an interleaved run measured the cell: the matrix's rounds, and per round where the cell came in
+/// that round's shuffled order, how many frames it timed, the load around them and whether its frame
+/// was built anew for the visit (else kept alive from the previous round).
+struct CellRoundVisit {
+  std::uint32_t round = 0, position = 0, cells = 0;  ///< position of `cells` in the round's order (0-based)
+  std::uint32_t frames = 0;
+  bool rebuilt = false;
+  CellLoad load;
+  bool operator==(const CellRoundVisit&) const = default;
+};
+struct CellRounds {
+  std::uint32_t count = 1;  ///< the matrix's rounds
+  std::uint64_t seed = 0;   ///< of the rounds' shuffled orders
+  std::vector<CellRoundVisit> visits;
+  bool operator==(const CellRounds&) const = default;
+};
+/// {round, position, cells, frames, rebuilt, load_1min: {start, end}}
+void to_json(nlohmann::json& j, const CellRoundVisit& v);
+/// Reads one visit back; InputError starting with `where` and naming the field.
+CellRoundVisit parse_round_visit(const nlohmann::json& v, const std::string& where);
+/// {count, seed, visits: [visit, ...]}
+void to_json(nlohmann::json& j, const CellRounds& r);
 
 /// The BVH the ray-tracing passes traversed (bvh::bvh_stats and the build time).
 struct CellBvh {
@@ -77,6 +100,7 @@ struct CellRecord {
   /// read back with the summary as stored.
   TimingResult result;
   std::optional<CellLoad> load_1min;       ///< absent in lines written before it existed
+  std::optional<CellRounds> rounds;        ///< "rounds": absent in lines written before runs had rounds
   std::optional<std::uint64_t> triangles;  ///< "scene": {"triangles"}
   std::optional<CellBvh> bvh;              ///< absent when no ray was traced
   std::optional<CellAccel> accel;          ///< "accel": present for the driver traversals only

@@ -18,7 +18,9 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <optional>
+#include <random>
 #include <set>
 #include <unistd.h>
 
@@ -32,17 +34,15 @@ namespace {
 constexpr const char* kResults = "results.jsonl";
 constexpr const char* kFolderFile = "matrix.json";
 constexpr const char* kUnsupportedFile = "unsupported.json";
+constexpr const char* kRoundsFile = "rounds.jsonl";  // finished rounds of cells not finished yet
 
 // What a results folder belongs to: the matrix's name and a hash of its expanded cells' ids.
-json folder_identity(const std::string& matrix, std::vector<std::string> ids) {
+json folder_identity(const std::string& matrix, std::vector<std::string> ids, std::uint32_t rounds) {
   std::sort(ids.begin(), ids.end());
   std::string all;
   for (const std::string& id : ids) all += id + "\n";
-  return {{"schema", "hybridprof.results-folder"},
-          {"version", 1},
-          {"matrix", matrix},
-          {"cells", ids.size()},
-          {"cells_hash", stable_id(all)}};
+  return {{"schema", "hybridprof.results-folder"}, {"version", 1},    {"matrix", matrix}, {"cells", ids.size()},
+          {"cells_hash", stable_id(all)},          {"rounds", rounds}};
 }
 
 // OUT/matrix.json, or null when the folder has none (new, or written before folders recorded their matrix).
@@ -76,6 +76,12 @@ void check_folder_matrix(const fs::path& dir, const json& have, const json& want
   if (have["matrix"] != want["matrix"] || have["cells_hash"] != want["cells_hash"]) {
     throw InputError(dir.string() + ": holds the results of matrix " + identity_text(have) + ", not of " +
                      identity_text(want) + hint);
+  }
+  // Folders written before runs had rounds measured one round.
+  const json rounds_have = have.value("rounds", json(1)), rounds_want = want.value("rounds", json(1));
+  if (rounds_have != rounds_want) {
+    throw InputError(dir.string() + ": holds matrix " + identity_text(have) + " measured in " + rounds_have.dump() +
+                     " round(s), not " + rounds_want.dump() + hint);
   }
 }
 
@@ -371,24 +377,105 @@ struct RunContext {
   std::map<std::string, Scene> scenes;
 };
 
-// Renders, times and measures cell `i` (images written into OUT/cells/<id>/) into its record.
-CellRecord run_cell(RunContext& run, const Matrix& m, size_t i, const std::string& id) {
-  const Scenario& s = m.cells[i];
-  const auto t_cell = std::chrono::steady_clock::now();
+// A cell folder that goes unless kept: only cells with a results line keep files.
+struct CellDirGuard {
+  fs::path dir;
+  bool keep = false;
+  CellDirGuard(fs::path d) : dir(std::move(d)) {}
+  CellDirGuard(const CellDirGuard&) = delete;
+  CellDirGuard& operator=(const CellDirGuard&) = delete;
+  ~CellDirGuard() {
+    std::error_code e;
+    if (!keep) fs::remove_all(dir, e);
+  }
+};
+
+// A cell's frame kept between its rounds (with the scene it renders, which the frame refers to).
+struct LiveFrame {
+  std::unique_ptr<CellScene> scene;
+  std::unique_ptr<Frame> frame;
+  std::uint64_t last_use = 0;
+};
+
+LiveFrame build_frame(RunContext& run, const Scenario& s) {
   auto it = run.scenes.find(s.scene);
   if (it == run.scenes.end()) it = run.scenes.emplace(s.scene, load_scene(s.scene)).first;
-  const CellScene cs = prepare_cell_scene(s, it->second);
-  Frame frame(run.ctx, cs.scene, cs.camera, s.frame);
+  LiveFrame live;
+  live.scene = std::make_unique<CellScene>(prepare_cell_scene(s, it->second));
+  live.frame = std::make_unique<Frame>(run.ctx, live.scene->scene, live.scene->camera, s.frame);
+  return live;
+}
+
+// One round of one cell: its timed frames, the load around them and where the visit came in the round.
+struct RoundRecord {
+  CellRoundVisit visit;
+  Environment env;  ///< as the visit started
+  FrameTimings timings;
+  QueryOverheadSamples overhead;
+  double wall_s = 0.0;
+};
+
+json to_json(const std::string& id, const RoundRecord& r) {
+  return {{"schema", "hybridprof.round"},
+          {"version", 1},
+          {"id", id},
+          {"visit", r.visit},
+          {"result", timing_result_json(r.env, r.timings)},
+          {"overhead_samples", {{"with", r.overhead.with_queries}, {"without", r.overhead.without_queries}}},
+          {"wall_s", r.wall_s}};
+}
+
+// A rounds.jsonl line back (checked: a line that does not read is InputError naming the file and line).
+RoundRecord parse_round(const json& line, const std::string& where) {
+  const CellRoundVisit visit = parse_round_visit(line.value("visit", json()), where);
+  try {
+    TimingResult t = parse_timing_result(line.at("result"));
+    const json& o = line.at("overhead_samples");
+    return RoundRecord{visit, std::move(t.environment), std::move(t.timings),
+                       QueryOverheadSamples{o.at("with").get<std::vector<double>>(),
+                                            o.at("without").get<std::vector<double>>()},
+                       line.at("wall_s").get<double>()};
+  } catch (const json::exception& e) {
+    throw InputError(where + ": not a round of an interleaved run (" + std::string(e.what()).substr(0, 120) + ")");
+  } catch (const InputError& e) {
+    throw InputError(where + ": " + e.what());
+  }
+}
+
+// The frames round `r` of `rounds` times of a cell measuring `frames` in all (the first frames % rounds
+// rounds take one more).
+std::uint32_t frames_in_round(std::uint32_t frames, std::uint32_t rounds, std::uint32_t r) {
+  return frames / rounds + (r < frames % rounds ? 1u : 0u);
+}
+
+// Times one round of cell `s` on `live` (built for this visit when `rebuilt`).
+RoundRecord measure_round(RunContext& run, const Scenario& s, Frame& frame, CellRoundVisit visit) {
+  const auto t0 = std::chrono::steady_clock::now();
   ProfileOptions po;
-  po.warmup = s.warmup;
-  po.frames = s.frames;
+  // A frame built for the visit warms up as the scenario says; one kept alive re-warms with one frame
+  // (the host's caches went to the other cells meanwhile).
+  po.warmup = visit.rebuilt ? s.warmup : std::min<std::uint32_t>(s.warmup, 1u);
+  po.frames = visit.frames;
   po.measure_query_overhead = s.query_overhead;
   po.measure_overlap = s.overlap;
-  // The environment as the cell starts (its date and the machine's load), and the load once its timed
-  // frames are done: a cell timed while other work loads the cores says so.
-  const Environment cell_env = capture_environment(run.env.device);
-  FrameTimings timings = profile_frames(frame, po);
-  const std::optional<double> load_end = read_load_1min();
+  po.count_invocations = visit.round == 0 || visit.rebuilt;
+  // The environment as the visit starts (its date and the machine's load), and the load once its timed
+  // frames are done: a round timed while other work loads the cores says so.
+  RoundRecord r{visit, capture_environment(run.env.device), FrameTimings(0, 0, TimingSource::GpuTimestamps), {}, 0.0};
+  r.visit.load.start = r.env.load_1min;
+  r.timings = profile_frames(frame, po, &r.overhead);
+  r.visit.load.end = read_load_1min();
+  r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return r;
+}
+
+// The cell's record from its rounds (in round order), with its images, cache tables and error measured on
+// `frame`, which has rendered its last round. Images go into OUT/cells/<id>/.
+CellRecord finish_cell(RunContext& run, const Matrix& m, size_t i, const std::string& id, LiveFrame& live,
+                       std::vector<RoundRecord>& rounds, std::uint64_t seed) {
+  const Scenario& s = m.cells[i];
+  const auto t0 = std::chrono::steady_clock::now();
+  Frame& frame = *live.frame;
   const fs::path cell_dir = run.out / "cells" / id;
   fs::create_directories(cell_dir);
   json images = json::object();
@@ -401,16 +488,28 @@ CellRecord run_cell(RunContext& run, const Matrix& m, size_t i, const std::strin
   if (run.ctx.validation_enabled() && run.ctx.validation_message_count() > 0) {
     throw std::runtime_error("cell " + id + ": validation messages; last: " + run.ctx.last_validation_message());
   }
-  TimingSummary summary = timings.summarize();
-  Counters counters = timings.total_counters();
-  CellRecord rec(TimingResult{cell_env, std::move(timings), std::move(summary), std::move(counters)});
+  std::vector<FrameTimings> timings;
+  std::vector<QueryOverheadSamples> overhead;
+  CellRounds design{m.rounds, seed, {}};
+  double wall_s = 0.0;
+  for (RoundRecord& r : rounds) {
+    timings.push_back(std::move(r.timings));
+    overhead.push_back(std::move(r.overhead));
+    design.visits.push_back(r.visit);
+    wall_s += r.wall_s;
+  }
+  FrameTimings pooled = FrameTimings::pool_rounds(timings, overhead);
+  TimingSummary summary = pooled.summarize();
+  Counters counters = pooled.total_counters();
+  CellRecord rec(TimingResult{rounds.front().env, std::move(pooled), std::move(summary), std::move(counters)});
   rec.id = id;
   rec.matrix = m.name;
   rec.name = s.name;
   rec.axes = m.cell_axis_values[i];
   rec.config = s.canonical();
-  rec.load_1min = CellLoad{cell_env.load_1min, load_end};
-  rec.triangles = triangle_count(cs.scene);
+  rec.load_1min = CellLoad{rounds.front().visit.load.start, rounds.back().visit.load.end};
+  rec.rounds = design;
+  rec.triangles = triangle_count(live.scene->scene);
   if (const RtGeometry* g = frame.rt_geometry()) {
     const bvh::BvhStats st = bvh::bvh_stats(g->bvh);
     rec.bvh = CellBvh{g->build_ms, st.nodes, st.leaves, st.max_depth, st.sah_cost};
@@ -432,7 +531,8 @@ CellRecord run_cell(RunContext& run, const Matrix& m, size_t i, const std::strin
   }
   if (!s.trace_passes.empty()) rec.cache = capture_cache(frame, s, run.out, cell_dir);
   if (s.error) {
-    rec.error = measure_error(frame, s, cs.reference_scene, cs.reference_camera, run.out, cell_dir, images, id);
+    rec.error = measure_error(frame, s, live.scene->reference_scene, live.scene->reference_camera, run.out, cell_dir,
+                              images, id);
   }
   rec.report = m.report;
   if (m.expect.is_object() && m.cell_axis_values[i].contains("case")) {
@@ -440,8 +540,56 @@ CellRecord run_cell(RunContext& run, const Matrix& m, size_t i, const std::strin
     if (m.expect.contains(name)) rec.expect = CellExpect{m.expect[name], unmet_expectations(rec, m.expect[name])};
   }
   for (const auto& [k, v] : images.items()) rec.images[k] = v.get<std::string>();
-  rec.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_cell).count();
+  rec.wall_s = wall_s + std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return rec;
+}
+
+// OUT/rounds.jsonl: the finished rounds of the cells not finished yet, by id and round. Lines of cells
+// that are not to run, measured by another build or driver (`now`), or of rounds the matrix does not have
+// are dropped (the file is rewritten without them); a partial last line is cut off.
+std::map<std::string, std::map<std::uint32_t, RoundRecord>> read_rounds(const fs::path& out,
+                                                                        const std::set<std::string>& todo,
+                                                                        std::uint32_t rounds, const std::string& now) {
+  std::map<std::string, std::map<std::uint32_t, RoundRecord>> done;
+  const fs::path path = out / kRoundsFile;
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return done;
+  const std::string content = read_input_file(path, "rounds file");
+  std::string kept;
+  bool dropped = false;
+  size_t start = 0, line_no = 0;
+  while (start < content.size()) {
+    const size_t end = content.find('\n', start);
+    if (end == std::string::npos) {
+      dropped = true;  // an interrupted write
+      break;
+    }
+    ++line_no;
+    const std::string text = content.substr(start, end - start);
+    start = end + 1;
+    if (text.empty()) continue;
+    const std::string where = path.string() + ":" + std::to_string(line_no);
+    check_json_depth(text, where);
+    json line;
+    try {
+      line = json::parse(text);
+    } catch (const json::exception& e) {
+      throw InputError(where + ": corrupt round line (" + std::string(e.what()).substr(0, 120) + ")");
+    }
+    if (!line.is_object() || line.value("schema", json()) != "hybridprof.round" || !line.contains("id") ||
+        !line["id"].is_string())
+      throw InputError(where + ": not a hybridprof round (field 'schema' or 'id')");
+    const std::string id = line["id"].get<std::string>();
+    RoundRecord r = parse_round(line, where);
+    if (!todo.count(id) || r.visit.round >= rounds || measured_by(line) != now) {
+      dropped = true;
+      continue;
+    }
+    kept += text + "\n";
+    done[id].insert_or_assign(r.visit.round, std::move(r));
+  }
+  if (dropped) write_file_atomically(path, kept);
+  return done;
 }
 
 }  // namespace
@@ -457,7 +605,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   const fs::path out(o.out_dir);
   std::vector<std::string> cell_ids;  // each cell's id, computed once (it hashes the canonical config)
   for (const Scenario& c : m.cells) cell_ids.push_back(c.id());
-  const json identity = folder_identity(m.name, cell_ids);
+  const json identity = folder_identity(m.name, cell_ids, m.rounds);
   FinishedCells done = read_finished(o, cell_ids, identity);
 
   const std::vector<bool> selected = select_cells(m, o.filters);
@@ -516,29 +664,89 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   RunContext run{ctx, env, out, {}};
   const bool tty = o.progress && ::isatty(::fileno(stderr));
   const auto t_start = std::chrono::steady_clock::now();
-  for (size_t k = 0; k < todo.size(); ++k) {
-    const size_t i = todo[k];
+  // Interleaved rounds: every round visits the cells still to run in a fresh shuffled order (seeded by the
+  // matrix's name and the round) and times frames/rounds of each cell's frames, so a drift of the machine
+  // reaches every cell alike. Each finished round is a line of OUT/rounds.jsonl: an interrupted run loses
+  // no finished round. A cell's frame stays alive between rounds while at most `live_frames` are; beyond
+  // that the least recently used goes and is built again (and warmed up again) at its next visit.
+  std::set<std::string> todo_ids;
+  for (size_t i : todo) todo_ids.insert(cell_ids[i]);
+  std::map<std::string, std::map<std::uint32_t, RoundRecord>> rounds = read_rounds(out, todo_ids, m.rounds, now);
+  const std::uint64_t seed = stable_hash64("rounds:" + m.name);
+  std::map<size_t, LiveFrame> live;
+  std::uint64_t uses = 0;
+  size_t visits_total = 0, visits_done = 0;
+  for (size_t i : todo) {
+    visits_total += m.rounds;
+    visits_done += rounds[cell_ids[i]].size();
+  }
+  const size_t visits_resumed = visits_done;
+  // A cell's last round done: its record from the rounds, images and the measurements that need no timing.
+  // A cell that fails takes its half-written folder with it.
+  const auto finish = [&](size_t i, LiveFrame& frame) {
     const std::string& id = cell_ids[i];
-    if (tty) {
-      const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-      const std::string left = k == 0 ? "?" : eta(el / double(k) * double(todo.size() - k));
-      std::fprintf(stderr, "\r[%zu/%zu] %s %s  ETA %s   ", k + 1, todo.size(), id.c_str(),
-                   m.cell_axis_values[i].dump().c_str(), left.c_str());
-      std::fflush(stderr);
-    }
-    // A cell that fails takes its half-written folder with it: only cells with a results line keep files.
-    struct CellDirGuard {
-      fs::path dir;
-      bool keep = false;
-      ~CellDirGuard() {
-        std::error_code e;
-        if (!keep) fs::remove_all(dir, e);
-      }
-    } cell_guard{out / "cells" / id};
-    append_line(out / kResults, to_json(run_cell(run, m, i, id)).dump());
+    CellDirGuard cell_guard(out / "cells" / id);
+    std::vector<RoundRecord> in_order;
+    for (auto& [round, rr] : rounds[id]) in_order.push_back(std::move(rr));
+    rounds.erase(id);
+    append_line(out / kResults, to_json(finish_cell(run, m, i, id, frame, in_order, seed)).dump());
     cell_guard.keep = true;
     ++sum.ran;
+  };
+  for (std::uint32_t r = 0; r < m.rounds; ++r) {
+    std::vector<size_t> order;
+    for (size_t i : todo)
+      if (!rounds[cell_ids[i]].count(r)) order.push_back(i);
+    std::mt19937_64 rng(seed + r);
+    std::shuffle(order.begin(), order.end(), rng);
+    for (size_t k = 0; k < order.size(); ++k) {
+      const size_t i = order[k];
+      const std::string& id = cell_ids[i];
+      const Scenario& s = m.cells[i];
+      if (tty) {
+        const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+        const size_t ran = visits_done - visits_resumed;
+        const std::string left = ran == 0 ? "?" : eta(el / double(ran) * double(visits_total - visits_done));
+        std::fprintf(stderr, "\r[round %u/%u, cell %zu/%zu] %s %s  ETA %s   ", r + 1, m.rounds, k + 1, order.size(),
+                     id.c_str(), m.cell_axis_values[i].dump().c_str(), left.c_str());
+        std::fflush(stderr);
+      }
+      auto it = live.find(i);
+      const bool rebuilt = it == live.end();
+      if (rebuilt) {
+        if (live.size() >= std::max<size_t>(o.live_frames, 1)) {
+          auto lru = std::min_element(live.begin(), live.end(), [](const auto& a, const auto& b) {
+            return a.second.last_use < b.second.last_use;
+          });
+          live.erase(lru);
+        }
+        it = live.emplace(i, build_frame(run, s)).first;
+      }
+      it->second.last_use = ++uses;
+      const CellRoundVisit visit{
+          r, std::uint32_t(k), std::uint32_t(order.size()), frames_in_round(s.frames, m.rounds, r), rebuilt, {}};
+      RoundRecord rec = measure_round(run, s, *it->second.frame, visit);
+      append_line(out / kRoundsFile, to_json(id, rec).dump());
+      rounds[id].insert_or_assign(r, std::move(rec));
+      ++visits_done;
+      if (rounds[id].size() < m.rounds) continue;
+      // The cell's last round: its record, images and the measurements that need no timing.
+      finish(i, it->second);
+      live.erase(it);
+    }
   }
+  // Cells whose every round was already in the journal (interrupted before their record was written).
+  for (size_t i : todo) {
+    const std::string& id = cell_ids[i];
+    auto rit = rounds.find(id);
+    if (rit == rounds.end() || rit->second.size() < m.rounds) continue;
+    LiveFrame fresh = build_frame(run, m.cells[i]);
+    fresh.frame->render(FrameQueries::none);
+    finish(i, fresh);
+  }
+  // Every cell of this run has its record: the rounds' journal has served.
+  std::error_code rm;
+  fs::remove(out / kRoundsFile, rm);
   if (tty) std::fprintf(stderr, "\n");
   return sum;
 }

@@ -1,5 +1,8 @@
 // Runs every cell of a matrix and appends one JSON line per finished cell to OUT/results.jsonl (flushed
-// and synced), so an interrupted run loses no finished cell and a re-run resumes where it stopped. OUT
+// and synced), so an interrupted run loses no finished cell and a re-run resumes where it stopped. The
+// matrix's "rounds" interleave the cells: every round visits each cell still to run once, in a fresh
+// shuffled order, and times its share of the frames; each finished round is a line of OUT/rounds.jsonl
+// (removed once every cell has its record), so an interrupted run loses no finished round either. OUT
 // belongs to one matrix (OUT/matrix.json: its name and a hash of its cells' ids): another matrix's run into
 // it, or a merge of different matrices, is an InputError; a finished cell measured by another build (git
 // commit) or device and driver is removed and run again.
@@ -26,6 +29,9 @@ struct RunOptions {
   /// Only the cells every filter selects (`run --filter`): a cell id, or AXIS=VALUE with AXIS an axis key
   /// path or its last component and VALUE as the axis value reads ("soup", "2", "128x72" or JSON).
   std::vector<std::string> filters;
+  /// Interleaved rounds: the most cells' frames kept alive between their rounds (`run --live-frames`);
+  /// beyond it the least recently used is destroyed and built again at its next visit.
+  size_t live_frames = 8;
 };
 
 struct RunSummary {

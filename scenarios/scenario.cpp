@@ -358,6 +358,16 @@ void expand(Matrix& m, const json& base, const std::vector<Axis>& ax, const std:
 
 }  // namespace
 
+void set_rounds(Matrix& m, std::uint32_t rounds, const std::string& where) {
+  if (rounds < 1 || rounds > kMaxRounds)
+    throw InputError(where + ": " + std::to_string(rounds) + " rounds (from 1 to " + std::to_string(kMaxRounds) + ")");
+  for (const Scenario& c : m.cells)
+    if (c.frames < rounds)
+      throw InputError(where + ": " + std::to_string(rounds) + " rounds need at least " + std::to_string(rounds) +
+                       " frames per cell; cell '" + c.name + "' measures " + std::to_string(c.frames));
+  m.rounds = rounds;
+}
+
 Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<std::string>& axis_order) {
   Matrix m;
   m.file = file;
@@ -369,7 +379,7 @@ Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<
     m.cell_axis_values.push_back(json::object());
     return m;
   }
-  only_keys(doc, {"name", "base", "axes", "exclude", "report", "cells", "expect"}, file, "");
+  only_keys(doc, {"name", "base", "axes", "exclude", "report", "cells", "expect", "rounds"}, file, "");
   if (doc.contains("name") && !doc["name"].is_string()) {
     fail(file, "name", std::string("expected a string, got ") + doc["name"].type_name());
   }
@@ -399,6 +409,12 @@ Matrix parse_matrix(const json& doc, const std::string& file, const std::vector<
   const json excludes = doc.value("exclude", json::array());
   check_excludes(excludes, axes, !case_patches.empty(), file);
   expand(m, base, ax, case_patches, excludes, file);
+  if (doc.contains("rounds")) {
+    const json& r = doc["rounds"];
+    if (!r.is_number_integer() || r.get<std::int64_t>() < 1 || r.get<std::int64_t>() > kMaxRounds)
+      fail(file, "rounds", "expected an integer from 1 to " + std::to_string(kMaxRounds) + ", got " + r.dump());
+    set_rounds(m, std::uint32_t(r.get<std::int64_t>()), file + ": field 'rounds'");
+  }
   return m;
 }
 

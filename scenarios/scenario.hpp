@@ -83,12 +83,20 @@ struct Matrix {
   nlohmann::json report;
   /// The matrix's "expect" object: per cell name of "cells", the results a test holds it to (hard cases).
   nlohmann::json expect;
+  /// "rounds": the runner measures every cell in this many interleaved rounds (each round visits the cells
+  /// in a fresh shuffled order and times frames/rounds of each cell's frames); 1 measures the cells one
+  /// after another. At most the smallest cell's "frames".
+  std::uint32_t rounds = 1;
 };
 
 /// Expands a matrix (or single scenario) document. `axis_order` lists the axes in file order (nlohmann::json
 /// objects are key-sorted); without it the axes vary in key order.
 Matrix parse_matrix(const nlohmann::json& doc, const std::string& file,
                     const std::vector<std::string>& axis_order = {});
+constexpr std::uint32_t kMaxRounds = 1000;
+/// Sets the matrix's rounds (a file's "rounds", or `run --rounds`): InputError starting with `where` when
+/// outside 1..kMaxRounds or above a cell's frames.
+void set_rounds(Matrix& m, std::uint32_t rounds, const std::string& where);
 /// Reads and expands a scenario or matrix file (errors name the file; broken JSON gives line/column).
 Matrix load_matrix(const std::string& path);
 

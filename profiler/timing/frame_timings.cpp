@@ -191,4 +191,37 @@ FrameTimings FrameTimings::from_measured(std::uint32_t warmup, TimingSource sour
   return t;
 }
 
+FrameTimings FrameTimings::pool_rounds(const std::vector<FrameTimings>& rounds,
+                                       const std::vector<QueryOverheadSamples>& overhead) {
+  if (rounds.empty()) throw std::invalid_argument("pool_rounds: no rounds");
+  if (overhead.size() != rounds.size())
+    throw std::invalid_argument("pool_rounds: " + std::to_string(overhead.size()) + " overhead entries for " +
+                                std::to_string(rounds.size()) + " rounds");
+  const FrameTimings& first = rounds.front();
+  std::vector<FrameSample> frames;
+  std::vector<FrameSpan> overlapped;
+  std::vector<double> with_queries, without_queries;
+  for (std::size_t r = 0; r < rounds.size(); ++r) {
+    const FrameTimings& t = rounds[r];
+    if (t.source() != first.source() || t.pass_isolation() != first.pass_isolation())
+      throw std::invalid_argument("pool_rounds: round " + std::to_string(r) + " was timed another way");
+    if (!t.complete()) throw std::invalid_argument("pool_rounds: round " + std::to_string(r) + " is incomplete");
+    for (FrameSample f : t.measured()) {
+      f.round = static_cast<std::uint32_t>(r);
+      frames.push_back(std::move(f));
+    }
+    overlapped.insert(overlapped.end(), t.overlapped().begin(), t.overlapped().end());
+    with_queries.insert(with_queries.end(), overhead[r].with_queries.begin(), overhead[r].with_queries.end());
+    without_queries.insert(without_queries.end(), overhead[r].without_queries.begin(),
+                           overhead[r].without_queries.end());
+  }
+  // Overlapped frames pair with measured frames by index: only when every round has them.
+  if (overlapped.size() != frames.size()) overlapped.clear();
+  std::optional<QueryOverhead> pooled;
+  if (!with_queries.empty() && with_queries.size() == without_queries.size())
+    pooled = paired_query_overhead(with_queries, without_queries);
+  return from_measured(first.warmup_frames(), first.source(), std::move(frames), pooled, first.frame_invocations(),
+                       std::move(overlapped), first.pass_isolation());
+}
+
 }  // namespace hp

@@ -39,6 +39,9 @@ struct FrameSample {
   std::optional<std::uint64_t> end_ns;
   // Work counters of this frame (empty when the scenario does not ask for them).
   Counters counters;
+  // The round of an interleaved run this frame was measured in (0 in a run of one round): the runner
+  // visits every cell once per round, so frames of one round ran close together in time.
+  std::uint32_t round = 0;
 
   // Span actually used: the explicit one, else the passes'; {0, 0} for a frame with neither.
   std::uint64_t span_begin_ns() const;
@@ -121,6 +124,12 @@ struct OverlapSummary {
   bool operator==(const OverlapSummary&) const = default;
 };
 
+// The frames without queries beside the measured ones (profile_frames), raw, so that the rounds of an
+// interleaved cell can be pooled into one paired estimate: CPU wall times, one per measured frame.
+struct QueryOverheadSamples {
+  std::vector<double> with_queries, without_queries;
+};
+
 // Pairs serialized frame sums with the overlapped spans (same length, pairs by index).
 OverlapSummary paired_overlap(std::span<const double> serialized_sum_ns, std::span<const double> overlapped_ns);
 
@@ -198,6 +207,14 @@ class FrameTimings {
                                     std::optional<PassIsolation> isolation = std::nullopt);
 
   bool operator==(const FrameTimings&) const = default;
+
+  // The rounds of one interleaved cell pooled into one run: the measured frames in round order, each
+  // marked with its round (its index in `rounds`), the overlapped frames likewise, the query-overhead
+  // pairs of every round in one paired estimate (from `overhead`, one entry per round; empty entries where
+  // none was measured), warm-up and invocation counts of the first round. At least one round, every round
+  // of the same timing source and isolation, else std::invalid_argument.
+  static FrameTimings pool_rounds(const std::vector<FrameTimings>& rounds,
+                                  const std::vector<QueryOverheadSamples>& overhead);
 
  private:
   std::uint32_t warmup_wanted_ = 0;

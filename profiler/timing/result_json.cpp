@@ -256,7 +256,8 @@ json timing_result_json(const Environment& env, const FrameTimings& timings, con
                       {"end_ns", optional_json(f.end_ns)},
                       {"cpu_wall_ns", f.cpu_wall_ns},
                       {"passes", std::move(fp)},
-                      {"counters", f.counters}});
+                      {"counters", f.counters},
+                      {"round", f.round}});
   }
   json overlapped = json::array();
   for (const FrameSpan& o : timings.overlapped())
@@ -346,6 +347,8 @@ TimingResult parse_timing_result(const json& doc) {
         }));
       }
       f.counters = within("counters", [&] { return field(fj, "counters").get<Counters>(); });
+      // Absent in results written before runs had rounds: one round.
+      if (fj.contains("round")) f.round = get<std::uint32_t>(fj, "round");
       return f;
     }));
   }

@@ -197,6 +197,42 @@ double hodges_lehmann_shift(std::span<const double> x, std::span<const double> y
   return median_in_place(d);
 }
 
+ShiftCi hodges_lehmann_ci(std::span<const double> x, std::span<const double> y, double level) {
+  require_finite(x, "Hodges-Lehmann x");
+  require_finite(y, "Hodges-Lehmann y");
+  if (x.empty() || y.empty()) throw std::invalid_argument("Hodges-Lehmann: empty sample");
+  if (x.size() >= 50 || y.size() >= 50) throw std::invalid_argument("Hodges-Lehmann CI: 50 or more values a side");
+  if (!(level > 0.0 && level < 1.0)) throw std::invalid_argument("Hodges-Lehmann CI: level outside (0, 1)");
+  std::vector<double> d;
+  d.reserve(x.size() * y.size());
+  for (double a : x)
+    for (double b : y) d.push_back(a - b);
+  std::sort(d.begin(), d.end());
+  ShiftCi out;
+  out.shift = quantile_sorted(d, 0.5);
+  out.ci.level = level;
+  out.ci.method = "hodges-lehmann";
+  // The interval [d_(k), d_(N+1-k)] misses the true shift with probability 2 P(U <= k-1): the largest k
+  // whose two tails stay within 1 - level.
+  const std::vector<double> dist = exact_u_distribution(x.size(), y.size());
+  const double alpha = 1.0 - level;
+  double tail = 0.0;
+  std::size_t k = 0;
+  for (std::size_t u = 0; u < dist.size(); ++u) {
+    if (2.0 * (tail + dist[u]) > alpha + 1e-12) break;
+    tail += dist[u];
+    k = u + 1;
+  }
+  if (k == 0) return out;
+  out.ci.valid = true;
+  out.ci.lower_rank = k;
+  out.ci.upper_rank = d.size() + 1 - k;
+  out.ci.low = d[k - 1];
+  out.ci.high = d[d.size() - k];
+  out.ci.coverage = 1.0 - 2.0 * tail;
+  return out;
+}
+
 MannWhitneyResult mann_whitney_u(std::span<const double> x, std::span<const double> y, bool with_shift) {
   require_finite(x, "Mann-Whitney x");
   require_finite(y, "Mann-Whitney y");

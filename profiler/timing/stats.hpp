@@ -114,6 +114,17 @@ double mann_whitney_min_p(std::size_t n, std::size_t m);
 // Hodges-Lehmann two-sample shift: median of the m*n differences x_i - y_j.
 double hodges_lehmann_shift(std::span<const double> x, std::span<const double> y);
 
+// Hodges-Lehmann shift of x relative to y with its distribution-free confidence interval: the k-th
+// smallest and k-th largest of the m*n differences x_i - y_j, k from the exact null distribution of U
+// (Bauer 1972; R's wilcox.test(conf.int = TRUE) for small samples), so that coverage >= level. Both
+// samples under 50 values. `ci.valid` is false when the samples are too small for that level (no k >= 1
+// reaches it): e.g. 3 against 3 for 95%.
+struct ShiftCi {
+  double shift = 0.0;
+  MedianCi ci;  ///< low/high of the shift; lower_rank/upper_rank index the sorted differences (1-based)
+};
+ShiftCi hodges_lehmann_ci(std::span<const double> x, std::span<const double> y, double level = 0.95);
+
 // Holm's step-down adjustment (R's p.adjust(p, "holm")); the result is in the input's order.
 // Reject hypothesis i at family-wise level alpha when adjusted[i] <= alpha.
 std::vector<double> holm_adjust(std::span<const double> p_values);

@@ -7,6 +7,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <set>
 
 namespace hp {
 namespace {
@@ -122,6 +124,92 @@ TEST(Runner, ResumesShardsAndMerges) {
   // Resuming into a folder whose results file is not cells is an input error too, not a library exception.
   o.out_dir = (root / "bad").string();
   EXPECT_THROW(run_matrix(m, o), InputError);
+  fs::remove_all(root);
+}
+
+// Interleaved rounds: every round visits each cell once in a shuffled order and times its share of the
+// frames; frames beyond --live-frames are rebuilt; each finished round is journalled, so a run that fails
+// in its last round loses no finished round, and the resumed run times only what is missing.
+TEST(Runner, InterleavesRoundsAndResumesFromTheJournal) {
+  HP_REQUIRE_VULKAN(ctx);
+  const fs::path root = fs::temp_directory_path() / ("hp_rounds_" + std::to_string(::getpid()));
+  fs::remove_all(root);
+  const Matrix m = parse_matrix(nlohmann::json::parse(R"({"name": "tiny_rounds", "rounds": 3,
+      "base": {"scene": "builtin:cornell", "resolution": [32, 24], "frames": 4, "warmup": 1},
+      "axes": {"geometry": ["indexed", "soup"], "seed": [1, 2]}})"),
+                                "tiny_rounds.json");
+  ASSERT_EQ(m.rounds, 3u);
+  RunOptions o;
+  o.progress = false;
+  o.live_frames = 2;  // four cells: frames are evicted and rebuilt
+  o.out_dir = (root / "all").string();
+  EXPECT_EQ(run_matrix(m, o).ran, 4u);
+  EXPECT_FALSE(fs::exists(root / "all" / "rounds.jsonl")) << "the journal goes once every cell has its record";
+  const auto lines = read_results(o.out_dir);
+  ASSERT_EQ(lines.size(), 4u);
+  std::map<std::uint32_t, std::set<std::uint32_t>> positions;  // per round: the positions the cells took
+  size_t rebuilt_later = 0;
+  for (const auto& line : lines) {
+    const nlohmann::json& r = line["rounds"];
+    EXPECT_EQ(r["count"], 3);
+    ASSERT_EQ(r["visits"].size(), 3u);
+    std::vector<std::uint32_t> frames;
+    for (const auto& v : r["visits"]) {
+      positions[v["round"].get<std::uint32_t>()].insert(v["position"].get<std::uint32_t>());
+      EXPECT_EQ(v["cells"], 4);
+      frames.push_back(v["frames"].get<std::uint32_t>());
+      if (v["round"] != 0 && v["rebuilt"].get<bool>()) ++rebuilt_later;
+      EXPECT_TRUE(v["load_1min"]["start"].is_number());
+    }
+    EXPECT_EQ(frames, (std::vector<std::uint32_t>{2, 1, 1})) << "4 frames over 3 rounds";
+    EXPECT_TRUE(r["visits"][0]["rebuilt"].get<bool>());
+    // The pooled result: 4 measured frames, each marked with its round.
+    const auto& fr = line["result"]["frames"];
+    ASSERT_EQ(fr.size(), 4u);
+    std::vector<int> rounds;
+    for (const auto& f : fr) rounds.push_back(f["round"].get<int>());
+    EXPECT_EQ(rounds, (std::vector<int>{0, 0, 1, 2}));
+    EXPECT_EQ(line["result"]["timing"]["measured_frames"], 4);
+  }
+  for (std::uint32_t r = 0; r < 3; ++r)
+    EXPECT_EQ(positions[r], (std::set<std::uint32_t>{0, 1, 2, 3})) << "round " << r << " visits every cell once";
+  EXPECT_GT(rebuilt_later, 0u) << "with two live frames for four cells, later rounds rebuild some";
+
+  // The folder records the rounds: the same matrix in another number of rounds is refused.
+  Matrix five = m;
+  set_rounds(five, 4, "test");
+  EXPECT_THROW(run_matrix(five, o), InputError);
+  EXPECT_THROW(set_rounds(five, 5, "test"), InputError) << "5 rounds of 4 frames";
+
+  // A run that fails as it finishes its first cell (the reference cache is a file: the error measurement
+  // cannot save its reference): every round measured before the failure is in the journal.
+  const Matrix em = parse_matrix(nlohmann::json::parse(R"({"name": "tiny_error", "rounds": 2,
+      "base": {"scene": "builtin:cornell", "resolution": [32, 24], "frames": 2, "warmup": 0,
+               "error": {"reference_samples": 4}},
+      "axes": {"seed": [1, 2]}})"),
+                                 "tiny_error.json");
+  std::ofstream(root / "not_a_folder") << "x";
+  ::setenv("HP_REFERENCE_CACHE", (root / "not_a_folder").c_str(), 1);
+  o.out_dir = (root / "err").string();
+  EXPECT_THROW(run_matrix(em, o), InputError);
+  ::unsetenv("HP_REFERENCE_CACHE");
+  EXPECT_TRUE(read_results(o.out_dir).empty());
+  size_t journalled = 0;
+  {
+    std::ifstream j(root / "err" / "rounds.jsonl");
+    for (std::string l; std::getline(j, l);) ++journalled;
+  }
+  EXPECT_EQ(journalled, 3u) << "both cells' first round and one cell's second";
+  const RunSummary resumed = run_matrix(em, o);
+  EXPECT_EQ(resumed.ran, 2u);
+  const auto done = read_results(o.out_dir);
+  ASSERT_EQ(done.size(), 2u);
+  for (const auto& line : done) {
+    EXPECT_EQ(line["rounds"]["visits"].size(), 2u);
+    EXPECT_EQ(line["result"]["frames"].size(), 2u);
+    EXPECT_TRUE(line["error"].is_object());
+  }
+  EXPECT_FALSE(fs::exists(root / "err" / "rounds.jsonl"));
   fs::remove_all(root);
 }
 

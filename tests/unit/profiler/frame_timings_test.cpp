@@ -46,6 +46,44 @@ TEST(FrameTimings, DiscardsWarmupAndStopsAtMeasuredCount) {
   EXPECT_EQ(s.source, TimingSource::GpuTimestamps);
 }
 
+// The rounds of an interleaved cell pooled: frames in round order, each marked with its round; the
+// overlapped frames and the query-overhead pairs of every round together; warm-up and invocations of the
+// first round.
+TEST(FrameTimings, PoolRoundsKeepsEveryRoundsFrames) {
+  std::vector<FrameTimings> rounds;
+  std::vector<QueryOverheadSamples> overhead;
+  std::uint64_t call = 0;
+  for (std::uint32_t r = 0; r < 3; ++r) {
+    FrameTimings t(r == 0 ? 2 : 1, r == 0 ? 2 : 1, TimingSource::GpuTimestamps);
+    while (t.add(test::synthetic_frame(call++))) {
+    }
+    for (std::size_t i = 0; i < t.measured().size(); ++i) t.add_overlapped({0, 1000});
+    if (r == 0) {
+      Counters inv;
+      inv.set("shadows", counter::compute_invocations, 64);
+      t.set_frame_invocations(inv);
+    }
+    rounds.push_back(std::move(t));
+    overhead.push_back({std::vector<double>(rounds.back().measured().size(), 110.0),
+                        std::vector<double>(rounds.back().measured().size(), 100.0)});
+  }
+  const FrameTimings pooled = FrameTimings::pool_rounds(rounds, overhead);
+  ASSERT_EQ(pooled.measured().size(), 4u);
+  std::vector<std::uint32_t> marks;
+  for (const FrameSample& f : pooled.measured()) marks.push_back(f.round);
+  EXPECT_EQ(marks, (std::vector<std::uint32_t>{0, 0, 1, 2}));
+  EXPECT_EQ(pooled.measured()[2].passes, rounds[1].measured()[0].passes);
+  EXPECT_EQ(pooled.overlapped().size(), 4u);
+  EXPECT_EQ(pooled.warmup_frames(), 2u);
+  EXPECT_EQ(pooled.frame_invocations().get("shadows", counter::compute_invocations), 64u);
+  ASSERT_TRUE(pooled.query_overhead());
+  EXPECT_EQ(pooled.query_overhead()->frames, 4u);
+  EXPECT_NEAR(*pooled.query_overhead()->paired_fraction, 0.1, 1e-12);
+  EXPECT_EQ(pooled.summarize().measured_frames, 4u);
+  EXPECT_THROW(FrameTimings::pool_rounds({}, {}), std::invalid_argument);
+  EXPECT_THROW(FrameTimings::pool_rounds(rounds, {}), std::invalid_argument);
+}
+
 TEST(FrameTimings, ZeroWarmupKeepsEverything) {
   FrameTimings t(0, 2, TimingSource::CpuWall);
   EXPECT_TRUE(t.add(test::synthetic_frame(0)));

@@ -124,5 +124,24 @@ TEST(HodgesLehmann, MedianOfPairwiseDifferences) {
   EXPECT_DOUBLE_EQ(hodges_lehmann_shift(std::vector<double>{11, 13, 17}, std::vector<double>{1, 3, 7}), 10.0);
 }
 
+// The interval is the k-th smallest and k-th largest pairwise difference, k from the exact U distribution:
+// for 5 against 5 at 95%, k = 3 (2 P(U <= 2) = 8/252 <= 0.05 < 2 P(U <= 3) = 14/252), as R's
+// wilcox.test(conf.int = TRUE) picks it.
+TEST(HodgesLehmann, ConfidenceIntervalFromTheExactUDistribution) {
+  const std::vector<double> y = {1, 2, 3, 4, 5}, x = {11, 12, 13, 14, 15};
+  // x - y = 10 + (i - j): 6 once, 7 twice, 8 three times, ... 14 once.
+  const ShiftCi s = hodges_lehmann_ci(x, y);
+  EXPECT_DOUBLE_EQ(s.shift, 10.0);
+  ASSERT_TRUE(s.ci.valid);
+  EXPECT_EQ(s.ci.lower_rank, 3u);
+  EXPECT_EQ(s.ci.upper_rank, 23u);
+  EXPECT_DOUBLE_EQ(s.ci.low, 7.0);
+  EXPECT_DOUBLE_EQ(s.ci.high, 13.0);
+  EXPECT_NEAR(s.ci.coverage, 1.0 - 8.0 / 252.0, 1e-12);
+  // Three against three: even the widest interval covers only 90%.
+  EXPECT_FALSE(hodges_lehmann_ci(std::vector<double>{4, 5, 6}, std::vector<double>{1, 2, 3}).ci.valid);
+  EXPECT_THROW(hodges_lehmann_ci(std::vector<double>{}, y), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace hp

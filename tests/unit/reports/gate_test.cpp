@@ -191,6 +191,37 @@ TEST(Gate, DifferentDevicesCannotCompareTimings) {
   EXPECT_FALSE(d.notes.empty());
 }
 
+// Two separate runs while the machine was in other states: a 30% "slowdown" measured under load is not a
+// regression the gate can claim: INCONCLUSIVE (exit 4), naming both loads and pointing to --ab. Loads not
+// recorded cannot be told either. The deterministic metrics are still compared: a counter change fails.
+TEST(Gate, SeparateRunsInDifferentMachineStatesAreInconclusive) {
+  SynthCell quiet = with_passes(50, 1), loaded = with_passes(50, 2, 0.03, 1.3);
+  loaded.load = std::pair{1.8, 2.9};
+  const GateOutcome o = run_gate(side({quiet}, "a"), side({loaded}, "b"), {});
+  EXPECT_EQ(o.exit_code, 4) << format_gate(o);
+  EXPECT_EQ(o.timing_comparisons, 0u);
+  const std::string text = format_gate(o);
+  EXPECT_NE(text.find("timings not compared: the 1-minute load was 0.50 … 0.60 for the baseline and 1.80 … 2.90 for "
+                      "the candidate (more apart than 0.50 on 2 cores)"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("run `hybridprof gate --ab`"), std::string::npos);
+  // Close loads: compared, and the 30% fails as before.
+  loaded.load = std::pair{0.7, 0.9};
+  EXPECT_EQ(run_gate(side({quiet}, "a"), side({loaded}, "b"), {}).exit_code, 1);
+  // A side without load records.
+  loaded.load.reset();
+  const GateOutcome u = run_gate(side({quiet}, "a"), side({loaded}, "b"), {});
+  EXPECT_EQ(u.exit_code, 4);
+  EXPECT_NE(format_gate(u).find("the machine's load was not recorded for every cell of the candidate"),
+            std::string::npos);
+  // Another counter under other loads: still a regression (the deterministic gate is unchanged).
+  SynthCell changed = with_passes(50, 2);
+  changed.load = std::pair{1.8, 2.9};
+  changed.counters_per_frame.set("shadows", "nodes_visited", 99999);
+  EXPECT_EQ(run_gate(side({quiet}, "a"), side({changed}, "b"), {}).exit_code, 1);
+}
+
 TEST(Gate, CellOnOneSideOnlyCannotCompare) {
   SynthCell x = with_passes(10, 1), y = with_passes(10, 2);
   x.axes = {{"geometry", "indexed"}};

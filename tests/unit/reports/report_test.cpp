@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <regex>
 
 namespace hp {
@@ -229,7 +230,147 @@ TEST(Report, DriverTraversalsAreComparedNotAssumedIdentical) {
   EXPECT_NE(r.markdown.find("- `abc` (as_order=leaf, traversal=pipeline): 'GPU' has no ray-tracing pipelines"),
             std::string::npos)
       << r.markdown;
-  for (const json& e : json::parse(r.findings)["comparisons"]) EXPECT_FALSE(e["identical_work"].get<bool>());
+  const json found = json::parse(r.findings);
+  ASSERT_FALSE(found["comparisons"].empty());
+  for (const json& e : found["comparisons"]) EXPECT_FALSE(e["identical_work"].get<bool>());
+}
+
+// Interleaved cells are compared by their round medians, against the noise floor between rounds.
+test::SynthCell rounds_cell(const char* g, std::uint64_t seed, std::uint32_t rounds, std::size_t frames,
+                            double shadows_scale, const std::vector<double>& round_factor, double l1_hits) {
+  test::SynthCell c = cell(g, json{64, 36}, seed, shadows_scale);
+  c.passes = test::passes(frames, seed, 0.02, shadows_scale);
+  c.rounds = rounds;
+  // The machine's state per round: every pass of every cell measured in that round is scaled alike.
+  for (auto& [pass, d] : c.passes)
+    for (size_t f = 0; f < d.size(); ++f) d[f] *= round_factor[f % rounds];
+  // Other cache counts per cell: the work is not identical, so only the times decide.
+  json level = {{"requests", l1_hits + 1000}, {"hits", l1_hits}, {"misses", 1000}};
+  c.cache = {{"preset", "vega56"}, {"passes", {{{"pass", "shadows"}, {"l1", level}, {"l2", level}}}}};
+  return c;
+}
+
+std::map<std::string, json> findings_by_pass(const Report& r) {
+  std::map<std::string, json> out;
+  const json all = json::parse(r.findings);
+  for (const json& e : all["comparisons"]) out[e["pass"].get<std::string>()] = e;
+  return out;
+}
+
+// A/A while the machine's load climbs round after round (+6% a round, up to +42%): the same in both
+// cells, since each round visits both. No pass is "slower" or "faster"; frame by frame the drift is
+// between frames of one cell, not between the cells.
+TEST(Report, InterleavedAaUnderDriftIsNoChange) {
+  const std::vector<double> drift = {1.0, 1.06, 1.12, 1.18, 1.24, 1.30, 1.36, 1.42};
+  const Report r = build_report({test::cell(rounds_cell("indexed", 1, 8, 16, 1.0, drift, 5000)),
+                                 test::cell(rounds_cell("soup", 2, 8, 16, 1.0, drift, 6000))});
+  const auto f = findings_by_pass(r);
+  ASSERT_EQ(f.size(), 5u);
+  for (const auto& [pass, e] : f) {
+    EXPECT_EQ(e["verdict"], "no change") << e.dump();
+    EXPECT_EQ(e["samples"], "round medians");
+    EXPECT_EQ(e["n"], (json{8, 8}));
+    EXPECT_GT(e["noise_floor"].get<double>(), 0.3) << "the drift is the floor";
+  }
+  EXPECT_NE(r.markdown.find("measured in 8 interleaved rounds"), std::string::npos) << r.markdown;
+  EXPECT_NE(r.markdown.find("compared by their round medians"), std::string::npos);
+}
+
+// A true +10% on the shadow pass, 8 rounds of 2 frames, a quiet machine: caught, with an interval that
+// holds +10% and excludes 0, outside a noise floor of a few percent; the other passes are no change.
+TEST(Report, InterleavedTrueShiftIsSlower) {
+  const std::vector<double> quiet(8, 1.0);
+  const Report r = build_report({test::cell(rounds_cell("indexed", 1, 8, 16, 1.0, quiet, 5000)),
+                                 test::cell(rounds_cell("soup", 2, 8, 16, 1.1, quiet, 6000))});
+  const auto f = findings_by_pass(r);
+  const json& sh = f.at("shadows");
+  EXPECT_EQ(sh["verdict"], "slower") << sh.dump();
+  EXPECT_NEAR(sh["change"].get<double>(), 0.10, 0.02);
+  EXPECT_LT(sh["ci"][0].get<double>(), 0.10);
+  EXPECT_GT(sh["ci"][0].get<double>(), 0.0);
+  EXPECT_GT(sh["ci"][1].get<double>(), 0.10);
+  EXPECT_LT(sh["noise_floor"].get<double>(), 0.08);
+  for (const char* p : {"gbuffer", "reflections", "accumulate", "composite"})
+    EXPECT_EQ(f.at(p)["verdict"], "no change") << p << f.at(p).dump();
+  EXPECT_TRUE(
+      std::regex_search(r.markdown,
+                        std::regex(R"(\| shadows \|[^\n]*\| \+\d+\.\d% \[\+\d+\.\d%, \+\d+\.\d%\] \| ±\d+\.\d% \|)")))
+      << r.markdown;
+}
+
+// A bimodal machine (rounds alternate between a fast and a 30% slower state) and a +5% change: the
+// change is inside what the pass moves between rounds of one cell, so it is "no change", not "slower".
+TEST(Report, InterleavedChangeInsideTheNoiseFloorIsNoChange) {
+  // 40 rounds: enough for the rank test to call the +5% significant (the soup's fast rounds beat the fast
+  // rounds, its slow ones the slow ones), so only the noise floor keeps it from "slower".
+  std::vector<double> bimodal;
+  for (int r = 0; r < 40; ++r) bimodal.push_back(r % 2 ? 1.3 : 1.0);
+  const Report r = build_report({test::cell(rounds_cell("indexed", 1, 40, 80, 1.0, bimodal, 5000)),
+                                 test::cell(rounds_cell("soup", 2, 40, 80, 1.05, bimodal, 6000))});
+  const json sh = findings_by_pass(r).at("shadows");
+  EXPECT_LE(sh["p_holm"].get<double>(), 0.05) << sh.dump();
+  EXPECT_EQ(sh["verdict"], "no change") << sh.dump();
+  EXPECT_GT(sh["noise_floor"].get<double>(), 0.2);
+}
+
+// Three rounds a side: no p can reach 0.05 (2 / C(6, 3) = 0.1), whatever the frames: "inconclusive".
+TEST(Report, TooFewRoundsAreInconclusive) {
+  const std::vector<double> quiet(3, 1.0);
+  const Report r = build_report({test::cell(rounds_cell("indexed", 1, 3, 30, 1.0, quiet, 5000)),
+                                 test::cell(rounds_cell("soup", 2, 3, 30, 1.5, quiet, 6000))});
+  const auto f = findings_by_pass(r);
+  ASSERT_EQ(f.size(), 5u);
+  for (const auto& [pass, e] : f) EXPECT_EQ(e["verdict"], "inconclusive") << e.dump();
+}
+
+// The report opens with the study's questions: per comparison the study made, in its direction (soup ->
+// indexed), our verdicts for time and the reflection pass's L1/L2 hits and hit rates beside Table 1's
+// figures for the same context, and whether they agree.
+TEST(Report, OpensWithTheStudysQuestions) {
+  auto traced = [](const char* geometry, std::uint64_t seed, double l1_hits, double l1_misses) {
+    test::SynthCell c = cell(geometry, json{64, 36}, seed);
+    c.axes = {{"geometry", geometry}};
+    c.config_patch = {{"jitter", "shared"}};
+    json l1 = {{"requests", l1_hits + l1_misses}, {"hits", l1_hits}, {"misses", l1_misses}};
+    json l2 = {{"requests", 3000}, {"hits", 1000}, {"misses", 2000}};
+    c.cache = {{"preset", "vega56"}, {"passes", {{{"pass", "reflections"}, {"l1", l1}, {"l2", l2}}}}};
+    return test::cell(c);
+  };
+  // Cells in the other order (indexed first): the section still reads soup -> indexed.
+  const Report r = build_report({traced("indexed", 1, 4000, 1000), traced("soup", 2, 5000, 1000)});
+  const std::string& md = r.markdown;
+  const size_t q = md.find("## The study's questions");
+  ASSERT_NE(q, std::string::npos) << md;
+  EXPECT_LT(q, md.find("## Environment")) << "first";
+  EXPECT_NE(md.find("### Index buffer (EBO) against de-indexed triangles: `geometry` soup → indexed"),
+            std::string::npos);
+  // Ours: 5,000 -> 4,000 L1 hits (-20.0%), lower; the study (offset, since jitter is shared): +28.3%.
+  EXPECT_NE(md.find("| L1 hits | 5,000 → 4,000 | -20.0% | lower | 4,873,530 → 6,251,450 (+28.3%, offset + noEBO → "
+                    "offset + EBO) | disagrees |"),
+            std::string::npos)
+      << md;
+  // Hit rate: 83.3% -> 80.0%, the study's 94.4% -> 96.0%.
+  EXPECT_NE(md.find("| L1 hit rate | 83.3% → 80.0% | -3.3 pp | lower | 94.4% → 96.0% (+1.7 pp"), std::string::npos)
+      << md;
+  // L2: the same counts in both cells, the study's hits fell: no change here.
+  EXPECT_NE(md.find("| L2 hits | 1,000 → 1,000 | +0.0% | same | 115,552 → 91,876 (-20.5%"), std::string::npos) << md;
+  EXPECT_NE(md.find("disagrees: no change here"), std::string::npos);
+  EXPECT_NE(md.find("| reflections time |"), std::string::npos);
+  EXPECT_NE(md.find("not comparable: the study gives no time for this comparison"), std::string::npos);
+  // Without cache tables the counts are not comparable, and say why.
+  test::SynthCell a = cell("soup", json{64, 36}, 1), b = cell("indexed", json{64, 36}, 2);
+  a.axes = {{"geometry", "soup"}};
+  b.axes = {{"geometry", "indexed"}};
+  const std::string bare = build_report({test::cell(a), test::cell(b)}).markdown;
+  EXPECT_NE(bare.find("not comparable: this run's cells carry no cache tables of the reflection pass"),
+            std::string::npos)
+      << bare;
+  // An axis the study did not vary: no such section.
+  test::SynthCell small = cell("indexed", json{64, 36}, 1), big = cell("indexed", json{128, 72}, 2);
+  small.axes = {{"resolution", {64, 36}}};
+  big.axes = {{"resolution", {128, 72}}};
+  EXPECT_EQ(build_report({test::cell(small), test::cell(big)}).markdown.find("## The study's questions"),
+            std::string::npos);
 }
 
 // Too few frames for any p to reach 0.05: "inconclusive", never "slower" or "no change".

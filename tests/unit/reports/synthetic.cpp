@@ -62,6 +62,7 @@ json line(const SynthCell& c) {
     }
     fs.cpu_wall_ns = t;
     fs.counters = c.counters_per_frame;
+    fs.round = std::uint32_t(f % c.rounds);
     frames.push_back(fs);
   }
   std::vector<FrameSpan> overlapped;
@@ -94,6 +95,18 @@ json line(const SynthCell& c) {
   if (!c.report.is_null()) j["report"] = c.report;
   if (!c.error.is_null()) j["error"] = c.error;
   j["wall_s"] = 1.0;
+  if (c.load) j["load_1min"] = {{"start", c.load->first}, {"end", c.load->second}};
+  if (c.rounds > 1) {
+    json visits = json::array();
+    for (std::uint32_t r = 0; r < c.rounds; ++r)
+      visits.push_back({{"round", r},
+                        {"position", 0},
+                        {"cells", 1},
+                        {"frames", n / c.rounds},
+                        {"rebuilt", r == 0},
+                        {"load_1min", {{"start", 0.5}, {"end", 0.6}}}});
+    j["rounds"] = {{"count", c.rounds}, {"seed", 7}, {"visits", visits}};
+  }
   return j;
 }
 

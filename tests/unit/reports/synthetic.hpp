@@ -40,6 +40,10 @@ struct SynthCell {
   nlohmann::json error;         ///< the "error" object; null: none
   /// Spans of the frames timed as the application records them, one per frame (empty: not measured).
   std::vector<double> overlapped_ns;
+  /// Interleaved rounds: frame f was measured in round f % rounds (1: one round, no "rounds" record).
+  std::uint32_t rounds = 1;
+  /// The machine's 1-minute load at the cell's start and end ("load_1min"); nullopt: not recorded.
+  std::optional<std::pair<double, double>> load = std::pair{0.5, 0.6};
 };
 
 /// An "error" object as the runner writes it: image metrics with this relMSE and PSNR (nullopt:

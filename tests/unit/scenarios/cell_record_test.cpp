@@ -195,6 +195,27 @@ TEST(CellRecord, DriverAccelerationStructureRoundTrips) {
   EXPECT_EQ(error_of(bad), "r.jsonl:3: field 'accel.traversal' missing or not a string");
 }
 
+// The interleaved rounds a cell was measured in: written, read back, and errors that name the field.
+TEST(CellRecord, RoundsRoundTrip) {
+  CellRecord r = record(Measured{});
+  r.rounds = CellRounds{3,
+                        42,
+                        {{0, 1, 4, 2, true, {0.5, 0.75}},
+                         {1, 3, 4, 1, false, {0.75, std::nullopt}},
+                         {2, 0, 4, 1, false, {1.0, 1.25}}}};
+  const json line = to_json(r);
+  ASSERT_TRUE(line.contains("rounds"));
+  EXPECT_EQ(line["rounds"]["visits"][1]["load_1min"]["end"], nullptr);
+  EXPECT_EQ(line["rounds"]["visits"][0]["position"], 1);
+  EXPECT_TRUE(parse_cell_record(line, "r.jsonl:1") == r);
+  json bad = line;
+  bad["rounds"]["visits"][2].erase("frames");
+  EXPECT_EQ(error_of(bad), "r.jsonl:3: field 'rounds.visits.frames' is not a count");
+  bad = line;
+  bad["rounds"]["visits"][0]["rebuilt"] = 1;
+  EXPECT_EQ(error_of(bad), "r.jsonl:3: field 'rounds.visits.rebuilt' missing or not a boolean");
+}
+
 TEST(CellRecord, ErrorsNameTheLineAndTheField) {
   const json good = to_json(record(Measured{}));
   EXPECT_EQ(error_of(json::array()), "r.jsonl:3: not a hybridprof cell (field 'schema' is not \"hybridprof.cell\")");

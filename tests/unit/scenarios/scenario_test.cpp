@@ -96,6 +96,25 @@ TEST(Scenario, ErrorsNameFileAndKeyPath) {
   EXPECT_NE(error_of(json::parse(R"([1, 2])")).find("expected an object"), std::string::npos);
 }
 
+// A matrix's "rounds": 1 by default, at most every cell's frames, named in the error otherwise.
+TEST(Scenario, MatrixRounds) {
+  const json base = json::parse(R"({"base": {"frames": 4}, "axes": {"geometry": ["indexed", "soup"]}})");
+  EXPECT_EQ(parse_matrix(base, "f.json").rounds, 1u);
+  json r = base;
+  r["rounds"] = 4;
+  EXPECT_EQ(parse_matrix(r, "f.json").rounds, 4u);
+  r["rounds"] = 5;
+  EXPECT_EQ(error_of(r), "f.json: field 'rounds': 5 rounds need at least 5 frames per cell; cell '' measures 4");
+  r["rounds"] = 0;
+  EXPECT_EQ(error_of(r), "f.json: rounds: expected an integer from 1 to 1000, got 0");
+  r["rounds"] = "8";
+  EXPECT_EQ(error_of(r), "f.json: rounds: expected an integer from 1 to 1000, got \"8\"");
+  Matrix m = parse_matrix(base, "f.json");
+  EXPECT_THROW(set_rounds(m, 9, "run --rounds"), InputError);
+  set_rounds(m, 2, "run --rounds");
+  EXPECT_EQ(m.rounds, 2u);
+}
+
 TEST(Scenario, TraversalKeys) {
   const Scenario d = parse_scenario(json::object(), "d.json");
   EXPECT_EQ(d.frame.rt.traversal, Traversal::compute);
