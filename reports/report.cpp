@@ -517,9 +517,10 @@ struct TimeComparison {
   size_t na = 0, nb = 0;   ///< samples tested a side
   double change = 0.0;     ///< b against a: Hodges-Lehmann ratio of round medians, else ratio of medians, minus 1
   std::optional<std::pair<double, double>> ci;  ///< the change's 95% interval
-  /// The spread between rounds of the same cell ((max - min) / median of its round medians), the larger of
-  /// the two cells': what an A/A of this pass moves. 0 without rounds (not measured).
+  /// What an A/A of this pass moves: the change between the odd and the even rounds of the same cell, the
+  /// larger of the two cells'. 0 without rounds (not measured).
   double noise_floor = 0.0;
+  double ma = 0.0, mb = 0.0;    ///< the medians shown: of the round medians (by rounds), else of the frames
   bool identical_work = false;  ///< both cells count the pass's work, and every counter is equal per frame
   std::string verdict;          ///< "faster", "slower", "no change" or "inconclusive"
   double ratio() const { return 1.0 + change; }
@@ -570,11 +571,13 @@ std::string time_verdict(const TimeComparison& t) {
   return "no change";
 }
 
-// (max - min) / median of a cell's round medians.
-double round_spread(const std::vector<double>& medians) {
-  const auto [lo, hi] = std::minmax_element(medians.begin(), medians.end());
-  const double mid = quantile(medians, 0.5);
-  return mid > 0 ? (*hi - *lo) / mid : 0.0;
+// A measured A/A of one cell: the Hodges-Lehmann ratio between its odd and its even rounds (interleaved in
+// time as two cells' rounds are), as the size of the change, |ratio - 1|.
+double round_aa_change(const std::vector<double>& medians) {
+  std::vector<double> odd, even;
+  for (size_t r = 0; r < medians.size(); ++r) (r % 2 ? odd : even).push_back(std::log(medians[r]));
+  if (odd.empty() || even.empty()) return 0.0;
+  return std::abs(std::exp(hodges_lehmann_shift(odd, even)) - 1.0);
 }
 
 const std::vector<double>* find_pass(const PassSamples& samples, const std::string& pass) {
@@ -614,10 +617,14 @@ TimeComparison compare_series(const CellPair& cp, const std::string& pass, const
     const ShiftCi hl = hodges_lehmann_ci(lb, la);
     t.change = std::exp(hl.shift) - 1.0;
     if (hl.ci.valid) t.ci = std::pair{std::exp(hl.ci.low) - 1.0, std::exp(hl.ci.high) - 1.0};
-    t.noise_floor = std::max(round_spread(ya), round_spread(yb));
+    t.noise_floor = std::max(round_aa_change(ya), round_aa_change(yb));
+    t.ma = quantile(ya, 0.5);
+    t.mb = quantile(yb, 0.5);
   } else {
     t.change = t.sb.median / t.sa.median - 1.0;
     t.ci = median_ratio_interval(t.sa, t.sb);
+    t.ma = t.sa.median;
+    t.mb = t.sb.median;
   }
   return t;
 }
@@ -684,13 +691,13 @@ std::string comparison(const CellResult& a, const CellResult& b, const std::stri
       if (x == y) return "=";
       return x == 0 ? "new" : pct(y / x);
     };
-    table += "| " + t.pass + " | " + ms(t.sa.median) + " | " + ms(t.sb.median) + " | " + pct(ratio) +
+    table += "| " + t.pass + " | " + ms(t.ma) + " | " + ms(t.mb) + " | " + pct(ratio) +
              (t.ci ? " [" + pct(1.0 + t.ci->first) + ", " + pct(1.0 + t.ci->second) + "]" : std::string()) + " | " +
              (t.by_rounds ? fmt("±%.1f%%", t.noise_floor * 100.0) : std::string("—")) + " | " + p_text(t.p_holm) +
              " | " + counter_change(counter::rays_cast) + " | " + counter_change(counter::nodes_visited) + " | " +
              counter_change(counter::triangles_tested) + " | " + t.verdict + " |\n";
     const std::string desc = t.pass + " " + fmt("%.1f%%", std::abs(ratio - 1.0) * 100.0) +
-                             (ratio >= 1.0 ? " slower" : " faster") + " (" + ms(t.sa.median) + " → " + ms(t.sb.median) +
+                             (ratio >= 1.0 ? " slower" : " faster") + " (" + ms(t.ma) + " → " + ms(t.mb) +
                              " ms, Holm p " + (t.p_holm < 0.001 ? "< 0.001" : "= " + p_text(t.p_holm)) + ")";
     if (t.verdict == "slower" || t.verdict == "faster") significant.push_back(desc);
     if (t.identical_work) same_work.push_back(t.pass);
@@ -945,9 +952,9 @@ std::string study_questions_section(const std::vector<CellResult>& cells, const 
                   : verdict == "inconclusive" ? "not comparable: too few samples here"
                                               : "disagrees: no change measured here";
         }
-        rows += "| " + context + " | " + pass + " time | " + ms(forward ? t->sa.median : t->sb.median) + " → " +
-                ms(forward ? t->sb.median : t->sa.median) + " ms | " + pct(1.0 + change) + " | " + verdict + " | " +
-                study_time + " | " + agree + " |\n";
+        rows += "| " + context + " | " + pass + " time | " + ms(forward ? t->ma : t->mb) + " → " +
+                ms(forward ? t->mb : t->ma) + " ms | " + pct(1.0 + change) + " | " + verdict + " | " + study_time +
+                " | " + agree + " |\n";
       }
       // Cache counts of the reflection pass, against Table 1 in the same context.
       const auto find_cache = [](const CellResult& c) -> std::optional<CachePass> {
@@ -1033,8 +1040,8 @@ json findings(const std::vector<TimeComparison>& family) {
               {"fixed", fixed},
               {"pass", t.pass},
               {"metric", "time_ms"},
-              {"baseline", t.sa.median / 1e6},
-              {"candidate", t.sb.median / 1e6},
+              {"baseline", t.ma / 1e6},
+              {"candidate", t.mb / 1e6},
               {"change", t.ratio() - 1.0},
               {"ci", nullptr},
               {"p_holm", t.p_holm},
