@@ -271,6 +271,7 @@ void compare_timings_of(const GateSide& base, const GateSide& cand, const CellPa
     const CellResult* cell;
     std::string pass;
     double mb, mc, p;
+    double floor;  ///< fresh processes: the larger side's odd/even A/A change (0 for frames)
     size_t nb, nc;
     bool slower;  ///< the U test's direction: candidate frames above baseline frames more often than not
     bool exact;   ///< exact null distribution (no ties, fewer than 50 a side)
@@ -286,7 +287,16 @@ void compare_timings_of(const GateSide& base, const GateSide& cand, const CellPa
         continue;
       }
       const MannWhitneyResult mw = mann_whitney_u(it->second, xb);
-      tests.push_back({b, pass, median_of(xb), median_of(it->second), mw.p_value, xb.size(), it->second.size(),
+      // Process medians come in run order, and the runs alternate A B B A: each side's odd against its even
+      // processes is an A/A measured beside the comparison.
+      const bool processes = base.sample_kind == "process medians" && cand.sample_kind == "process medians";
+      const auto positive = [](const std::vector<double>& v) {
+        return std::all_of(v.begin(), v.end(), [](double x) { return x > 0; });
+      };
+      const double floor = processes && positive(xb) && positive(it->second)
+                               ? std::max(odd_even_change(xb), odd_even_change(it->second))
+                               : 0.0;
+      tests.push_back({b, pass, median_of(xb), median_of(it->second), mw.p_value, floor, xb.size(), it->second.size(),
                        mw.u > 0.5 * double(xb.size()) * double(it->second.size()), mw.exact});
     }
     for (const auto& [pass, xc] : sc)
@@ -312,12 +322,15 @@ void compare_timings_of(const GateSide& base, const GateSide& cand, const CellPa
                 "pass"};
     // The two-sided test's significance counts only in the direction the medians moved: a bimodal
     // candidate can have a higher median while its frames are mostly faster (audit find).
-    if (sig && t.slower && ratio > 1.0 + o.policy.threshold) {
+    // A slowdown inside what a side moves against itself (its noise floor) is not one.
+    if (sig && t.slower && ratio > 1.0 + std::max(o.policy.threshold, t.floor)) {
       row.verdict = "FAIL";
       ++out.fails;
-    } else if (sig && t.slower && ratio > 1.0 + o.policy.warn) {
+    } else if (sig && t.slower && ratio > 1.0 + std::max(o.policy.warn, t.floor)) {
       row.verdict = "WARN";
       ++out.warns;
+    } else if (sig && t.slower && ratio > 1.0 + o.policy.warn) {
+      row.verdict = "within noise floor " + fmt("±%.1f%%", t.floor * 100);
     } else if (sig && !t.slower && ratio < 1.0) {
       row.verdict = "pass (faster)";
     }
@@ -338,7 +351,11 @@ void compare_timings_of(const GateSide& base, const GateSide& cand, const CellPa
   out.notes.push_back("timings: " + std::to_string(tests.size()) + " (cell, pass) comparisons of " + base.sample_kind +
                       ", Mann-Whitney U, Holm-adjusted; fail when p <= " + fmt("%g", o.policy.alpha) +
                       " and slower by more than " + fmt("%g%%", o.policy.threshold * 100) + ", warn above " +
-                      fmt("%g%%", o.policy.warn * 100));
+                      fmt("%g%%", o.policy.warn * 100) +
+                      (base.sample_kind == "process medians"
+                           ? ", and in both cases above the noise floor (the larger side's change between its "
+                             "odd and its even processes)"
+                           : std::string()));
 }
 
 }  // namespace

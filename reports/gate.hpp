@@ -19,6 +19,9 @@
 //    same CPU governor and 1-minute loads (over every cell's start and end) within max(0.5, cores / 4) of
 //    each other, both recorded. Otherwise timings are not compared and the verdict is INCONCLUSIVE (exit 4)
 //    naming both loads, with a pointer to `gate --ab`, which interleaves fresh processes instead.
+//  - Fresh processes (--ab): a slowdown fails (or warns) only above the noise floor too, the larger side's
+//    change between its odd and its even processes (an A/A measured beside the comparison); a significant
+//    slowdown above `warn` but inside the floor is "within noise floor".
 //  - Samples: from two folders, the raw per-frame samples; from `--ab`, one median per fresh process
 //    (frames within one process are not independent across processes), runs interleaved A/B/B/A.
 #pragma once
@@ -73,7 +76,9 @@ std::vector<std::string> environment_differences(const Environment& baseline, co
 struct GateRow {
   std::string cell, metric, baseline, candidate, change;
   std::optional<double> p_raw, p_holm;
-  std::string verdict;  ///< "pass", "pass (faster)", "cannot fail", "WARN", "FAIL", "identical", "within tolerance"
+  /// "pass", "pass (faster)", "cannot fail", "WARN", "FAIL", "identical", "within tolerance", "within noise
+  /// floor ±X%"
+  std::string verdict;
 };
 
 struct GateOptions {

@@ -571,15 +571,6 @@ std::string time_verdict(const TimeComparison& t) {
   return "no change";
 }
 
-// A measured A/A of one cell: the Hodges-Lehmann ratio between its odd and its even rounds (interleaved in
-// time as two cells' rounds are), as the size of the change, |ratio - 1|.
-double round_aa_change(const std::vector<double>& medians) {
-  std::vector<double> odd, even;
-  for (size_t r = 0; r < medians.size(); ++r) (r % 2 ? odd : even).push_back(std::log(medians[r]));
-  if (odd.empty() || even.empty()) return 0.0;
-  return std::abs(std::exp(hodges_lehmann_shift(odd, even)) - 1.0);
-}
-
 const std::vector<double>* find_pass(const PassSamples& samples, const std::string& pass) {
   for (const auto& [name, v] : samples)
     if (name == pass) return &v;
@@ -617,7 +608,7 @@ TimeComparison compare_series(const CellPair& cp, const std::string& pass, const
     const ShiftCi hl = hodges_lehmann_ci(lb, la);
     t.change = std::exp(hl.shift) - 1.0;
     if (hl.ci.valid) t.ci = std::pair{std::exp(hl.ci.low) - 1.0, std::exp(hl.ci.high) - 1.0};
-    t.noise_floor = std::max(round_aa_change(ya), round_aa_change(yb));
+    t.noise_floor = std::max(odd_even_change(ya), odd_even_change(yb));
     t.ma = quantile(ya, 0.5);
     t.mb = quantile(yb, 0.5);
   } else {

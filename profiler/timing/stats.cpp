@@ -197,6 +197,16 @@ double hodges_lehmann_shift(std::span<const double> x, std::span<const double> y
   return median_in_place(d);
 }
 
+double odd_even_change(std::span<const double> in_order) {
+  std::vector<double> odd, even;
+  for (std::size_t i = 0; i < in_order.size(); ++i) {
+    if (!(in_order[i] > 0.0)) throw std::invalid_argument("odd_even_change: a sample <= 0");
+    (i % 2 ? odd : even).push_back(std::log(in_order[i]));
+  }
+  if (odd.empty() || even.empty()) return 0.0;
+  return std::abs(std::exp(hodges_lehmann_shift(odd, even)) - 1.0);
+}
+
 ShiftCi hodges_lehmann_ci(std::span<const double> x, std::span<const double> y, double level) {
   require_finite(x, "Hodges-Lehmann x");
   require_finite(y, "Hodges-Lehmann y");

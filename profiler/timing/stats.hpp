@@ -125,6 +125,12 @@ struct ShiftCi {
 };
 ShiftCi hodges_lehmann_ci(std::span<const double> x, std::span<const double> y, double level = 0.95);
 
+// A measured A/A of one series of positive samples taken in time order (interleaved rounds, alternating
+// processes): |r - 1| for r the Hodges-Lehmann ratio of its odd-indexed to its even-indexed samples (the
+// shift of their logarithms). Two halves interleaved in time, as two compared sides are: what the series
+// moves without any change. 0 with fewer than 2 samples; std::invalid_argument for a sample <= 0.
+double odd_even_change(std::span<const double> in_order);
+
 // Holm's step-down adjustment (R's p.adjust(p, "holm")); the result is in the input's order.
 // Reject hypothesis i at family-wise level alpha when adjusted[i] <= alpha.
 std::vector<double> holm_adjust(std::span<const double> p_values);

@@ -222,6 +222,35 @@ TEST(Gate, SeparateRunsInDifferentMachineStatesAreInconclusive) {
   EXPECT_EQ(run_gate(side({quiet}, "a"), side({changed}, "b"), {}).exit_code, 1);
 }
 
+// Fresh processes whose medians alternate between a fast and a 30% slower state (one side against itself
+// moves 30% between its odd and even processes): a significant +15% is inside that noise floor and does not
+// fail; the same +15% between steady processes does.
+TEST(Gate, FreshProcessSlowdownInsideTheNoiseFloorDoesNotFail) {
+  const SynthCell c = with_passes(10, 1);
+  auto gate = [&](double odd_state) {
+    GateSide a = side({c}, "a"), b = side({c}, "b");
+    a.sample_kind = b.sample_kind = "process medians";
+    std::vector<double> xa, xb;
+    for (int i = 0; i < 24; ++i) {
+      const double state = i % 2 ? odd_state : 1.0, jitter = 1.0 + 0.001 * i;
+      xa.push_back(3e6 * state * jitter);
+      xb.push_back(3e6 * 1.15 * state * jitter * 1.0003);
+    }
+    const std::string key = match_key(a.cells.front());
+    a.samples[key] = {{"shadows", xa}};
+    b.samples[key] = {{"shadows", xb}};
+    return run_gate(a, b, {});
+  };
+  const GateOutcome bimodal = gate(1.3);
+  ASSERT_NE(row(bimodal, "time shadows (ms)"), nullptr) << format_gate(bimodal);
+  EXPECT_LE(*row(bimodal, "time shadows (ms)")->p_holm, 0.05);
+  EXPECT_EQ(row(bimodal, "time shadows (ms)")->verdict.rfind("within noise floor ±30.", 0), 0u) << format_gate(bimodal);
+  EXPECT_EQ(bimodal.exit_code, 0) << format_gate(bimodal);
+  const GateOutcome steady = gate(1.0);
+  EXPECT_EQ(row(steady, "time shadows (ms)")->verdict, "FAIL") << format_gate(steady);
+  EXPECT_EQ(steady.exit_code, 1);
+}
+
 TEST(Gate, CellOnOneSideOnlyCannotCompare) {
   SynthCell x = with_passes(10, 1), y = with_passes(10, 2);
   x.axes = {{"geometry", "indexed"}};
