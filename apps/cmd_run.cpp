@@ -17,6 +17,7 @@ void add_run_command(CLI::App& app) {
     std::vector<std::string> filters;
     std::uint32_t rounds = 0;
     size_t live_frames = 8;
+    bool reuse_stale = false;
   };
   auto a = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand("run", "run every cell of a scenario matrix; resumable, shardable");
@@ -44,6 +45,9 @@ void add_run_command(CLI::App& app) {
                   "cells' frames kept alive between their rounds; more are rebuilt at each visit")
       ->capture_default_str()
       ->check(CLI::Range(size_t(1), size_t(4096)));
+  cmd->add_flag("--reuse-stale", a->reuse_stale,
+                "keep finished cells measured by another build or driver, marked stale (the report compares no "
+                "time with them), instead of running them again");
   cmd->callback([a] {
     Matrix m = load_matrix(a->file);
     if (a->rounds != 0) set_rounds(m, a->rounds, "run --rounds");
@@ -65,12 +69,15 @@ void add_run_command(CLI::App& app) {
     o.validate = a->validate;
     o.filters = a->filters;
     o.live_frames = a->live_frames;
+    o.reuse_stale = a->reuse_stale;
     const RunSummary s = run_matrix(m, o);
     std::printf("%s: %zu cells, %zu in shard %u/%u%s, %zu already done, %zu run%s -> %s/results.jsonl\n",
                 a->file.c_str(), s.cells, s.in_shard, shard.index, shard.count,
                 a->filters.empty() ? "" : " selected by --filter", s.already_done, s.ran,
                 s.stale
                     ? (" (" + std::to_string(s.stale) + " of them again: measured by another build or driver)").c_str()
+                : s.stale_reused
+                    ? (" (" + std::to_string(s.stale_reused) + " stale cell(s) kept: --reuse-stale)").c_str()
                     : "",
                 a->out.c_str());
     for (const std::string& u : s.unsupported) {

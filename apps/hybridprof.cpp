@@ -2,6 +2,7 @@
 // 2 bad input (file, field, option, limit), 3 no usable Vulkan device, 1 internal error.
 #include "apps/commands.hpp"
 #include "error.hpp"
+#include "hp_git_commit.hpp"
 
 #include <cstdio>
 #include <exception>

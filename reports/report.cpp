@@ -279,8 +279,16 @@ std::string overlap_text(const TimingSummary& t) {
   return s;
 }
 
+// A cell kept by `run --reuse-stale`: measured by another build or driver than the rest of the run.
+bool stale(const CellResult& c) { return c.line.contains("stale") && c.line["stale"].is_object(); }
+
 std::string cell_section(const CellResult& c) {
-  std::string s = "### " + md::escape(cell_label(c)) + "\n\nCell `" + c.id + "`";
+  std::string s = "### " + md::escape(cell_label(c)) + "\n\n";
+  if (stale(c))
+    s += "> **Stale:** measured by " + md::escape(c.line["stale"].value("measured_by", std::string("?"))) +
+         ", kept by `run --reuse-stale` under " + md::escape(c.line["stale"].value("reused_by", std::string("?"))) +
+         "; no time of this cell is compared.\n\n";
+  s += "Cell `" + c.id + "`";
   if (!c.name.empty()) s += " of `" + c.name + "`";
   s += ": " + std::to_string(c.timing.timings.measured().size()) + " measured frames after " +
        std::to_string(c.timing.summary.warmup_frames) + " warm-up.\n\n";
@@ -562,6 +570,7 @@ bool identical_work(const CellResult& a, const CellResult& b, const std::string&
 // an effect.
 std::string time_verdict(const TimeComparison& t) {
   if (t.identical_work) return "no change";
+  if (stale(*t.a) || stale(*t.b)) return "inconclusive";  // another build's times
   // The bound holds for the permutation test with ties too (they only coarsen its distribution); the normal
   // approximation used with ties can go lower, but at these sizes that is the approximation, not evidence.
   if (mann_whitney_min_p(t.na, t.nb) > kAlpha) return "inconclusive";
@@ -868,7 +877,8 @@ void comparisons_section(const std::vector<CellResult>& cells, const std::vector
   s += "p is Holm-adjusted over all " + std::to_string(family.size()) +
        " pass-time comparisons of this report (tied samples use the normal approximation). Verdict: a pass whose "
        "work counters and simulated cache counts are identical in both cells is \"no change\" whatever its time "
-       "did; \"inconclusive\" when the samples are too few for any p to reach 0.05 (fewer than 4 untied samples "
+       "did; \"inconclusive\" when a cell is stale (measured by another build, kept by `run --reuse-stale`) or the "
+       "samples are too few for any p to reach 0.05 (fewer than 4 untied samples "
        "a side); otherwise \"slower\" or \"faster\" when the adjusted p is at most 0.05 in the direction the "
        "samples moved and the change is outside the noise floor, else \"no change\". The same verdicts are in "
        "findings.json. Counter changes are per frame; \"=\" means identical.\n\n";

@@ -9,7 +9,8 @@
 //   max_depth, sah_cost} (absent: no ray traced), accel?: the driver's acceleration structure (CellAccel;
 //   ray-query and pipeline cells), cache?: cache-simulator tables, error?: error against the
 //   CPU reference, report?: the matrix's "report" object, expect?: {spec, unmet: [sentences]},
-//   images: {name: "cells/<id>/<file>.png"}, wall_s.
+//   images: {name: "cells/<id>/<file>.png"}, wall_s; stale?: {measured_by, reused_by}, added to the line by
+//   `run --reuse-stale` (not part of the record: the runner marks lines it did not measure).
 #pragma once
 
 #include "timing/result_json.hpp"

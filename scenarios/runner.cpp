@@ -321,6 +321,20 @@ void remove_stale(const RunOptions& o, FinishedCells& done, const std::vector<st
   }
 }
 
+// Marks the reused stale cells' lines (the file rewritten with every other line as it was).
+void mark_stale(const RunOptions& o, FinishedCells& done, const std::vector<std::string>& reused,
+                const std::string& now) {
+  std::fprintf(stderr,
+               "hybridprof run: %zu cell(s) in %s were measured by %s, not %s: kept (--reuse-stale) and "
+               "marked stale\n",
+               reused.size(), o.out_dir.c_str(), measured_by(done.lines[reused.front()]).c_str(), now.c_str());
+  for (const std::string& id : reused)
+    done.lines[id]["stale"] = {{"measured_by", measured_by(done.lines[id])}, {"reused_by", now}};
+  std::string all;
+  for (const std::string& id : done.file_order) all += done.lines[id].dump() + "\n";
+  write_file_atomically(fs::path(o.out_dir) / kResults, all);
+}
+
 // One more frame, traced (the timed frames ran uninstrumented), then the cache simulator: the cell's
 // "cache" tables, file names relative to OUT.
 json capture_cache(Frame& frame, const Scenario& s, const fs::path& out, const fs::path& cell_dir) {
@@ -624,7 +638,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   // again (its timings would not be comparable with the others').
   json now_line = {{"result", {{"environment", env}}}};
   const std::string now = measured_by(now_line);
-  std::vector<std::string> stale;
+  std::vector<std::string> stale, reused;
   std::vector<size_t> todo;
   json unsupported = json::array();
   for (size_t i : shard_cells) {
@@ -638,8 +652,9 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       continue;
     }
     const auto it = done.lines.find(cell_ids[i]);
-    if (it != done.lines.end() && measured_by(it->second) == now) {
+    if (it != done.lines.end() && (measured_by(it->second) == now || o.reuse_stale)) {
       ++sum.already_done;
+      if (measured_by(it->second) != now && !it->second.contains("stale")) reused.push_back(it->first);
       continue;
     }
     if (it != done.lines.end()) stale.push_back(it->first);
@@ -647,6 +662,8 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   }
   if (!stale.empty()) remove_stale(o, done, stale, now);
   sum.stale = stale.size();
+  if (!reused.empty()) mark_stale(o, done, reused, now);
+  sum.stale_reused = reused.size();
   // The cells this device cannot run, for the report; a device that can run them all leaves no list.
   if (!unsupported.empty() && fs::exists(out)) {
     write_json_atomically(out / kUnsupportedFile, unsupported);
@@ -681,6 +698,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     visits_done += rounds[cell_ids[i]].size();
   }
   const size_t visits_resumed = visits_done;
+  std::set<size_t> finished;  // cells with their results line
   // A cell's last round done: its record from the rounds, images and the measurements that need no timing.
   // A cell that fails takes its half-written folder with it.
   const auto finish = [&](size_t i, LiveFrame& frame) {
@@ -691,12 +709,13 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     rounds.erase(id);
     append_line(out / kResults, to_json(finish_cell(run, m, i, id, frame, in_order, seed)).dump());
     cell_guard.keep = true;
+    finished.insert(i);
     ++sum.ran;
   };
   for (std::uint32_t r = 0; r < m.rounds; ++r) {
     std::vector<size_t> order;
     for (size_t i : todo)
-      if (!rounds[cell_ids[i]].count(r)) order.push_back(i);
+      if (!finished.count(i) && !rounds[cell_ids[i]].count(r)) order.push_back(i);
     std::mt19937_64 rng(seed + r);
     std::shuffle(order.begin(), order.end(), rng);
     for (size_t k = 0; k < order.size(); ++k) {
@@ -737,9 +756,8 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   }
   // Cells whose every round was already in the journal (interrupted before their record was written).
   for (size_t i : todo) {
-    const std::string& id = cell_ids[i];
-    auto rit = rounds.find(id);
-    if (rit == rounds.end() || rit->second.size() < m.rounds) continue;
+    const auto rit = rounds.find(cell_ids[i]);
+    if (finished.count(i) || rit == rounds.end() || rit->second.size() < m.rounds) continue;
     LiveFrame fresh = build_frame(run, m.cells[i]);
     fresh.frame->render(FrameQueries::none);
     finish(i, fresh);

@@ -32,6 +32,10 @@ struct RunOptions {
   /// Interleaved rounds: the most cells' frames kept alive between their rounds (`run --live-frames`);
   /// beyond it the least recently used is destroyed and built again at its next visit.
   size_t live_frames = 8;
+  /// `run --reuse-stale`: a finished cell measured by another build or driver is kept and marked
+  /// ("stale": {"measured_by", "reused_by"} in its line; the report says so and compares no time with it)
+  /// instead of being run again.
+  bool reuse_stale = false;
 };
 
 struct RunSummary {
@@ -39,6 +43,7 @@ struct RunSummary {
   size_t in_shard = 0;      ///< of them, this shard's (among those the filters select)
   size_t already_done = 0;  ///< found in results.jsonl and skipped
   size_t stale = 0;         ///< found, but measured by another build or driver: removed and run again
+  size_t stale_reused = 0;  ///< of the already done, stale ones kept and marked (RunOptions::reuse_stale)
   size_t ran = 0;
   /// Cells this device cannot run (a driver traversal it lacks): "<id> (<name>): <reason>", also listed in
   /// OUT/unsupported.json for the report. Not failures: the rest of the matrix runs.

@@ -12,10 +12,9 @@
 #include <string>
 #include <thread>
 
-// Both come from profiler/CMakeLists.txt; the fallbacks keep a stray build of this file honest.
-#ifndef HP_GIT_COMMIT
-#define HP_GIT_COMMIT "unknown"
-#endif
+// The commit from the header the build refreshes (cmake/git_commit.cmake), the build type from
+// profiler/CMakeLists.txt; the fallback keeps a stray build of this file honest.
+#include "hp_git_commit.hpp"
 #ifndef HP_BUILD_TYPE
 #define HP_BUILD_TYPE "unknown"
 #endif

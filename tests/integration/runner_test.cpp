@@ -108,6 +108,24 @@ TEST(Runner, ResumesShardsAndMerges) {
   ASSERT_EQ(after.size(), 4u);
   EXPECT_EQ(after.back()["id"], stale_id) << "the re-run cell is appended";
   EXPECT_NE(after.back()["result"]["environment"]["git_commit"], "0123456789ab");
+  // With --reuse-stale such a cell is kept, marked, and not run again.
+  {
+    std::vector<nlohmann::json> lines = read_results(o.out_dir);
+    lines[0]["result"]["environment"]["git_commit"] = "0123456789ab";
+    std::ofstream f(root / "s1" / "results.jsonl", std::ios::trunc);
+    for (const auto& l : lines) f << l.dump() << "\n";
+  }
+  RunOptions reuse = o;
+  reuse.reuse_stale = true;
+  const RunSummary kept = run_matrix(m, reuse);
+  EXPECT_EQ(kept.ran, 0u);
+  EXPECT_EQ(kept.stale_reused, 1u);
+  const auto marked = read_results(o.out_dir);
+  ASSERT_EQ(marked.size(), 4u);
+  EXPECT_NE(marked[0]["stale"]["measured_by"].get<std::string>().find("commit 0123456789ab"), std::string::npos);
+  EXPECT_FALSE(marked[1].contains("stale"));
+  EXPECT_EQ(run_matrix(m, reuse).stale_reused, 0u) << "marked once";
+  EXPECT_EQ(run_matrix(m, o).stale, 1u) << "without the option the stale cell runs again";
 
   // A shard whose results are not cells: the merge names the line and writes nothing (audit find: the good
   // shard's lines and images used to be merged before the bad one failed).

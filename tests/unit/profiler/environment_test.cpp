@@ -20,7 +20,7 @@ TEST(Environment, CapturedFieldsAreFilled) {
   EXPECT_FALSE(env.build_type.empty());
   EXPECT_NE(env.build_type, "unknown");  // CMake passes it; the tests are built with a build type
   // CMake's `git rev-parse --short=12`, or "unknown" when built outside a git checkout.
-  EXPECT_TRUE(std::regex_match(env.git_commit, std::regex("[0-9a-f]{12}|unknown"))) << env.git_commit;
+  EXPECT_TRUE(std::regex_match(env.git_commit, std::regex("[0-9a-f]{12}(-dirty)?|unknown"))) << env.git_commit;
   EXPECT_FALSE(env.hostname.empty());
   EXPECT_TRUE(std::regex_match(env.compiler, std::regex(R"((gcc|clang) \d+\.\d+\.\d+)"))) << env.compiler;
   EXPECT_TRUE(std::regex_match(env.date_utc, std::regex(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\dZ)"))) << env.date_utc;

@@ -373,6 +373,23 @@ TEST(Report, OpensWithTheStudysQuestions) {
             std::string::npos);
 }
 
+// A cell kept by `run --reuse-stale` (measured by another build): the report says so, and no time compared
+// with it gets a verdict other than "inconclusive", however large the change.
+TEST(Report, StaleCellsAreMarkedAndInconclusive) {
+  CellResult a = test::cell(cell("indexed", json{64, 36}, 1)), b = test::cell(cell("soup", json{64, 36}, 2, 1.5));
+  a.axes = {{"geometry", "indexed"}};
+  b.axes = {{"geometry", "soup"}};
+  b.line["stale"] = {{"measured_by", "commit 0123456789ab, llvmpipe / Mesa"}, {"reused_by", "commit abc123"}};
+  const Report r = build_report({a, b});
+  EXPECT_NE(r.markdown.find("> **Stale:** measured by commit 0123456789ab, llvmpipe / Mesa, kept by `run "
+                            "--reuse-stale` under commit abc123"),
+            std::string::npos)
+      << r.markdown;
+  const auto f = findings_by_pass(r);
+  ASSERT_EQ(f.size(), 5u);
+  for (const auto& [pass, e] : f) EXPECT_EQ(e["verdict"], "inconclusive") << e.dump();
+}
+
 // Too few frames for any p to reach 0.05: "inconclusive", never "slower" or "no change".
 TEST(Report, TooFewFramesAreInconclusive) {
   auto few = [](const char* g, std::uint64_t seed, double scale) {
