@@ -522,6 +522,7 @@ struct TimeComparison {
   double p_raw = 1.0, p_holm = 1.0;
   bool exact = false, b_slower = false;
   bool by_rounds = false;  ///< the samples tested are round medians (else frames)
+  bool paired = false;     ///< round r of one cell against round r of the other (signed-rank test)
   size_t na = 0, nb = 0;   ///< samples tested a side
   double change = 0.0;     ///< b against a: Hodges-Lehmann ratio of round medians, else ratio of medians, minus 1
   std::optional<std::pair<double, double>> ci;  ///< the change's 95% interval
@@ -573,7 +574,7 @@ std::string time_verdict(const TimeComparison& t) {
   if (stale(*t.a) || stale(*t.b)) return "inconclusive";  // another build's times
   // The bound holds for the permutation test with ties too (they only coarsen its distribution); the normal
   // approximation used with ties can go lower, but at these sizes that is the approximation, not evidence.
-  if (mann_whitney_min_p(t.na, t.nb) > kAlpha) return "inconclusive";
+  if ((t.paired ? signed_rank_min_p(t.na) : mann_whitney_min_p(t.na, t.nb)) > kAlpha) return "inconclusive";
   if (std::abs(t.change) <= t.noise_floor) return "no change";
   if (t.p_holm <= kAlpha && t.b_slower && t.change > 0.0) return "slower";
   if (t.p_holm <= kAlpha && !t.b_slower && t.change < 0.0) return "faster";
@@ -601,15 +602,30 @@ TimeComparison compare_series(const CellPair& cp, const std::string& pass, const
     return v.size() >= 2 && v.size() < 50 && std::all_of(v.begin(), v.end(), [](double x) { return x > 0; });
   };
   t.by_rounds = positive(a.round_medians) && positive(b.round_medians);
+  // Rounds of one run pair up: round r of both cells ran in the same round, close in time, so the pair's
+  // ratio cancels the state the machine was in (both cells were measured in as many rounds).
+  t.paired = t.by_rounds && a.round_medians.size() == b.round_medians.size();
   const std::vector<double>& ya = t.by_rounds ? a.round_medians : a.frames;
   const std::vector<double>& yb = t.by_rounds ? b.round_medians : b.frames;
-  const MannWhitneyResult mw = mann_whitney_u(yb, ya);
-  t.p_raw = mw.p_value;
-  t.exact = mw.exact;
   t.na = ya.size();
   t.nb = yb.size();
-  t.b_slower = mw.u > 0.5 * double(t.na) * double(t.nb);
-  if (t.by_rounds) {
+  if (t.paired) {
+    std::vector<double> d;
+    for (size_t r = 0; r < ya.size(); ++r) d.push_back(std::log(yb[r]) - std::log(ya[r]));
+    const SignedRankResult w = wilcoxon_signed_rank(d);
+    t.p_raw = w.p_value;
+    t.exact = w.exact;
+    t.b_slower = w.v > 0.25 * double(w.n) * double(w.n + 1);
+    const ShiftCi hl = hodges_lehmann_paired_ci(d);
+    t.change = std::exp(hl.shift) - 1.0;
+    if (hl.ci.valid) t.ci = std::pair{std::exp(hl.ci.low) - 1.0, std::exp(hl.ci.high) - 1.0};
+  } else {
+    const MannWhitneyResult mw = mann_whitney_u(yb, ya);
+    t.p_raw = mw.p_value;
+    t.exact = mw.exact;
+    t.b_slower = mw.u > 0.5 * double(t.na) * double(t.nb);
+  }
+  if (t.by_rounds && !t.paired) {
     // The shift of the log round medians is the ratio's logarithm: its interval is the ratio's.
     std::vector<double> la, lb;
     for (double v : ya) la.push_back(std::log(v));
@@ -617,6 +633,8 @@ TimeComparison compare_series(const CellPair& cp, const std::string& pass, const
     const ShiftCi hl = hodges_lehmann_ci(lb, la);
     t.change = std::exp(hl.shift) - 1.0;
     if (hl.ci.valid) t.ci = std::pair{std::exp(hl.ci.low) - 1.0, std::exp(hl.ci.high) - 1.0};
+  }
+  if (t.by_rounds) {
     t.noise_floor = std::max(odd_even_change(ya), odd_even_change(yb));
     t.ma = quantile(ya, 0.5);
     t.mb = quantile(yb, 0.5);
@@ -860,11 +878,13 @@ void comparisons_section(const std::vector<CellResult>& cells, const std::vector
       size_t(std::count_if(family.begin(), family.end(), [](const TimeComparison& t) { return t.by_rounds; }));
   if (by_rounds > 0) {
     s += "Cells measured in interleaved rounds are compared by their round medians (one sample per round and "
-         "cell: the frames of one round are not independent of each other): change is the Hodges-Lehmann ratio "
-         "of the two cells' round medians, with its distribution-free 95% interval, and p a two-sided "
-         "Mann-Whitney U test over them. The noise floor is what the pass moved between rounds of the same "
-         "cell ((max - min) / median of its round medians, the larger of the two cells'): a change inside it "
-         "is \"no change\", whatever p says. ";
+         "cell: the frames of one round are not independent of each other). Cells measured in as many rounds "
+         "pair up round by round (both cells ran in each round, close in time): the change is the Hodges-Lehmann "
+         "estimate of the pairs' ratio with its distribution-free 95% interval, and p a two-sided Wilcoxon "
+         "signed-rank test over the pairs; otherwise the Hodges-Lehmann ratio of the two sets of round medians "
+         "and a Mann-Whitney U test. The times shown are the medians of the round medians. The noise floor is "
+         "an A/A measured in the same run: the change between the odd and the even rounds of the same cell (the "
+         "larger of the two cells'); a change inside it is \"no change\", whatever p says. ";
   }
   if (by_rounds < family.size()) {
     s += std::string(by_rounds > 0 ? "Cells of one round"
@@ -874,14 +894,15 @@ void comparisons_section(const std::vector<CellResult>& cells, const std::vector
          " are compared by their frames: change is the ratio of the medians with the interval from the two "
          "medians' intervals, p a two-sided Mann-Whitney U test over the frames. ";
   }
-  s += "p is Holm-adjusted over all " + std::to_string(family.size()) +
-       " pass-time comparisons of this report (tied samples use the normal approximation). Verdict: a pass whose "
-       "work counters and simulated cache counts are identical in both cells is \"no change\" whatever its time "
-       "did; \"inconclusive\" when a cell is stale (measured by another build, kept by `run --reuse-stale`) or the "
-       "samples are too few for any p to reach 0.05 (fewer than 4 untied samples "
-       "a side); otherwise \"slower\" or \"faster\" when the adjusted p is at most 0.05 in the direction the "
-       "samples moved and the change is outside the noise floor, else \"no change\". The same verdicts are in "
-       "findings.json. Counter changes are per frame; \"=\" means identical.\n\n";
+  s +=
+      "p is Holm-adjusted over all " + std::to_string(family.size()) +
+      " pass-time comparisons of this report (tied samples use the normal approximation). Verdict: a pass whose "
+      "work counters and simulated cache counts are identical in both cells is \"no change\" whatever its time "
+      "did; \"inconclusive\" when a cell is stale (measured by another build, kept by `run --reuse-stale`) or the "
+      "samples are too few for any p to reach 0.05 (fewer than 4 untied samples "
+      "a side, or 6 pairs); otherwise \"slower\" or \"faster\" when the adjusted p is at most 0.05 in the direction the "
+      "samples moved and the change is outside the noise floor, else \"no change\". The same verdicts are in "
+      "findings.json. Counter changes are per frame; \"=\" means identical.\n\n";
   for (const std::string& axis : axes) {
     s += "### `" + axis + "`\n\n";
     const std::vector<CellPair> pairs = axis_pairs(cells, axis);
@@ -1046,7 +1067,9 @@ json findings(const std::vector<TimeComparison>& family) {
               {"change", t.ratio() - 1.0},
               {"ci", nullptr},
               {"p_holm", t.p_holm},
-              {"samples", t.by_rounds ? "round medians" : "frames"},
+              {"samples", t.paired      ? "paired round medians"
+                          : t.by_rounds ? "round medians"
+                                        : "frames"},
               {"n", {t.na, t.nb}},
               {"noise_floor", t.by_rounds ? json(t.noise_floor) : json(nullptr)},
               {"exact_test", t.exact},

@@ -70,6 +70,20 @@ std::vector<double> exact_u_distribution(std::size_t m, std::size_t n) {
   return prev[n];
 }
 
+// Null distribution of the signed-rank statistic V for n pairs, as probabilities indexed by V: each rank
+// 1..n is positive with probability 1/2.
+std::vector<double> exact_signed_rank_distribution(std::size_t n) {
+  std::vector<double> p(n * (n + 1) / 2 + 1, 0.0);
+  p[0] = 1.0;
+  std::size_t top = 0;
+  for (std::size_t r = 1; r <= n; ++r) {
+    top += r;
+    for (std::size_t v = top; v >= r; --v) p[v] = 0.5 * (p[v] + p[v - r]);
+    for (std::size_t v = r; v-- > 0;) p[v] *= 0.5;
+  }
+  return p;
+}
+
 }  // namespace
 
 double quantile_sorted(std::span<const double> sorted, double p) {
@@ -195,6 +209,88 @@ double hodges_lehmann_shift(std::span<const double> x, std::span<const double> y
   for (double a : x)
     for (double b : y) d.push_back(a - b);
   return median_in_place(d);
+}
+
+SignedRankResult wilcoxon_signed_rank(std::span<const double> d) {
+  require_finite(d, "signed-rank d");
+  std::vector<double> x;
+  for (double v : d)
+    if (v != 0.0) x.push_back(v);
+  SignedRankResult r;
+  r.n = x.size();
+  if (x.empty()) return r;
+  // Mid-ranks of |x|.
+  std::vector<std::size_t> order(x.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return std::abs(x[a]) < std::abs(x[b]); });
+  std::vector<double> rank(x.size());
+  bool ties = false;
+  double tie_term = 0.0;
+  for (std::size_t i = 0; i < order.size();) {
+    std::size_t j = i;
+    while (j + 1 < order.size() && std::abs(x[order[j + 1]]) == std::abs(x[order[i]])) ++j;
+    const double t = double(j - i + 1);
+    if (t > 1) {
+      ties = true;
+      tie_term += t * t * t - t;
+    }
+    for (std::size_t k = i; k <= j; ++k) rank[order[k]] = 0.5 * double(i + j) + 1.0;
+    i = j + 1;
+  }
+  for (std::size_t i = 0; i < x.size(); ++i)
+    if (x[i] > 0) r.v += rank[i];
+  const double n = double(x.size());
+  if (x.size() < 50 && !ties && r.n == d.size()) {
+    r.exact = true;
+    const std::vector<double> dist = exact_signed_rank_distribution(x.size());
+    const auto v = static_cast<std::size_t>(r.v);
+    double lower = 0.0, upper = 0.0;
+    for (std::size_t k = 0; k <= v; ++k) lower += dist[k];
+    for (std::size_t k = v; k < dist.size(); ++k) upper += dist[k];
+    r.p_value = std::min(1.0, 2.0 * std::min(lower, upper));
+    return r;
+  }
+  const double mean = n * (n + 1) / 4.0;
+  const double var = n * (n + 1) * (2 * n + 1) / 24.0 - tie_term / 48.0;
+  if (var <= 0) return r;
+  const double diff = r.v - mean;
+  const double z = (diff - (diff > 0 ? 0.5 : diff < 0 ? -0.5 : 0.0)) / std::sqrt(var);
+  r.p_value = std::min(1.0, 2.0 * std::min(normal_cdf(z), normal_cdf(-z)));
+  return r;
+}
+
+double signed_rank_min_p(std::size_t n) { return std::min(1.0, 2.0 * std::pow(0.5, double(n))); }
+
+ShiftCi hodges_lehmann_paired_ci(std::span<const double> d, double level) {
+  require_finite(d, "Hodges-Lehmann d");
+  if (d.empty()) throw std::invalid_argument("Hodges-Lehmann: empty sample");
+  if (d.size() >= 50) throw std::invalid_argument("Hodges-Lehmann paired CI: 50 or more values");
+  if (!(level > 0.0 && level < 1.0)) throw std::invalid_argument("Hodges-Lehmann CI: level outside (0, 1)");
+  std::vector<double> w;
+  for (std::size_t i = 0; i < d.size(); ++i)
+    for (std::size_t j = i; j < d.size(); ++j) w.push_back(0.5 * (d[i] + d[j]));
+  std::sort(w.begin(), w.end());
+  ShiftCi out;
+  out.shift = quantile_sorted(w, 0.5);
+  out.ci.level = level;
+  out.ci.method = "hodges-lehmann-paired";
+  const std::vector<double> dist = exact_signed_rank_distribution(d.size());
+  const double alpha = 1.0 - level;
+  double tail = 0.0;
+  std::size_t k = 0;
+  for (std::size_t v = 0; v < dist.size(); ++v) {
+    if (2.0 * (tail + dist[v]) > alpha + 1e-12) break;
+    tail += dist[v];
+    k = v + 1;
+  }
+  if (k == 0) return out;
+  out.ci.valid = true;
+  out.ci.lower_rank = k;
+  out.ci.upper_rank = w.size() + 1 - k;
+  out.ci.low = w[k - 1];
+  out.ci.high = w[w.size() - k];
+  out.ci.coverage = 1.0 - 2.0 * tail;
+  return out;
 }
 
 double odd_even_change(std::span<const double> in_order) {

@@ -125,6 +125,27 @@ struct ShiftCi {
 };
 ShiftCi hodges_lehmann_ci(std::span<const double> x, std::span<const double> y, double level = 0.95);
 
+// Two-sided Wilcoxon signed-rank test of paired differences d (e.g. log b_r - log a_r per round),
+// following R's wilcox.test(d): zeros dropped; the exact null distribution of V (the sum of the ranks of
+// the positive differences) with fewer than 50 nonzero differences and no tied |d|, else the normal
+// approximation with tie and continuity correction. p = 1 and n = 0 when every difference is zero.
+struct SignedRankResult {
+  double v = 0.0;        // sum of the ranks of the positive differences
+  double p_value = 1.0;  // two-sided
+  std::size_t n = 0;     // nonzero differences
+  bool exact = false;
+};
+SignedRankResult wilcoxon_signed_rank(std::span<const double> d);
+
+// The smallest two-sided p-value the exact signed-rank test can give with n pairs: 2 / 2^n.
+double signed_rank_min_p(std::size_t n);
+
+// One-sample Hodges-Lehmann estimate of the centre of d (the median of the Walsh averages
+// (d_i + d_j) / 2, i <= j) with its distribution-free interval: the k-th smallest and largest Walsh
+// averages, k from the exact signed-rank distribution (R's wilcox.test(d, conf.int = TRUE)), coverage >=
+// level. Fewer than 50 values; ci.valid false when too few for that level (fewer than 6 at 95%).
+ShiftCi hodges_lehmann_paired_ci(std::span<const double> d, double level = 0.95);
+
 // A measured A/A of one series of positive samples taken in time order (interleaved rounds, alternating
 // processes): |r - 1| for r the Hodges-Lehmann ratio of its odd-indexed to its even-indexed samples (the
 // shift of their logarithms). Two halves interleaved in time, as two compared sides are: what the series

@@ -143,5 +143,41 @@ TEST(HodgesLehmann, ConfidenceIntervalFromTheExactUDistribution) {
   EXPECT_THROW(hodges_lehmann_ci(std::vector<double>{}, y), std::invalid_argument);
 }
 
+// Signed-rank test of paired differences, against values R gives: wilcox.test(1:5) p = 0.0625 (V = 15, the
+// smallest p 5 pairs allow); wilcox.test(c(1, -2, 3, 4, 5, 6)) p = 0.09375 (V = 19: 3 of the 64 sign
+// patterns have V <= 2); zeros dropped.
+TEST(SignedRank, ExactPValuesAndDirection) {
+  const SignedRankResult five = wilcoxon_signed_rank(std::vector<double>{1, 2, 3, 4, 5});
+  EXPECT_TRUE(five.exact);
+  EXPECT_DOUBLE_EQ(five.v, 15.0);
+  EXPECT_DOUBLE_EQ(five.p_value, 0.0625);
+  EXPECT_DOUBLE_EQ(signed_rank_min_p(5), 0.0625);
+  const SignedRankResult six = wilcoxon_signed_rank(std::vector<double>{1, -2, 3, 4, 5, 6});
+  EXPECT_DOUBLE_EQ(six.v, 19.0);
+  EXPECT_NEAR(six.p_value, 6.0 / 64.0, 1e-15);
+  const SignedRankResult negative = wilcoxon_signed_rank(std::vector<double>{-1, -2, -3, -4, -5, -6});
+  EXPECT_DOUBLE_EQ(negative.v, 0.0);
+  EXPECT_NEAR(negative.p_value, 2.0 / 64.0, 1e-15);
+  const SignedRankResult zeros = wilcoxon_signed_rank(std::vector<double>{0, 0, 0});
+  EXPECT_EQ(zeros.n, 0u);
+  EXPECT_DOUBLE_EQ(zeros.p_value, 1.0);
+  // A zero drops out and makes the test approximate, as in R.
+  EXPECT_FALSE(wilcoxon_signed_rank(std::vector<double>{0, 1, 2, 3, 4, 5, 6}).exact);
+}
+
+// The paired interval is the k-th smallest and largest Walsh average: for 6 pairs at 95%, k = 1
+// (2 P(V <= 0) = 2/64 <= 0.05 < 2 P(V <= 1) = 4/64).
+TEST(HodgesLehmann, PairedConfidenceIntervalFromWalshAverages) {
+  const ShiftCi s = hodges_lehmann_paired_ci(std::vector<double>{1, 2, 3, 4, 5, 6});
+  EXPECT_DOUBLE_EQ(s.shift, 3.5);
+  ASSERT_TRUE(s.ci.valid);
+  EXPECT_EQ(s.ci.lower_rank, 1u);
+  EXPECT_EQ(s.ci.upper_rank, 21u);
+  EXPECT_DOUBLE_EQ(s.ci.low, 1.0);
+  EXPECT_DOUBLE_EQ(s.ci.high, 6.0);
+  EXPECT_NEAR(s.ci.coverage, 1.0 - 2.0 / 64.0, 1e-12);
+  EXPECT_FALSE(hodges_lehmann_paired_ci(std::vector<double>{1, 2, 3, 4, 5}).ci.valid) << "5 pairs: at most 93.75%";
+}
+
 }  // namespace
 }  // namespace hp

@@ -268,7 +268,7 @@ TEST(Report, InterleavedAaUnderDriftIsNoChange) {
   ASSERT_EQ(f.size(), 5u);
   for (const auto& [pass, e] : f) {
     EXPECT_EQ(e["verdict"], "no change") << e.dump();
-    EXPECT_EQ(e["samples"], "round medians");
+    EXPECT_EQ(e["samples"], "paired round medians");
     EXPECT_EQ(e["n"], (json{8, 8}));
     EXPECT_GT(e["noise_floor"].get<double>(), 0.0);
   }
