@@ -1,5 +1,6 @@
 // `hybridprof cachesim`: replays memory traces through the GPU cache model.
 //   hybridprof cachesim TRACE --preset vega56 [--out result.json] [--mrc curves.csv] [--shards RATE]
+//                             [--l1-hit-counting request|quarter_wave|lane]
 //                             [--export-din FILE [--export-pass NAME] [--export-cu N]]
 //     per-pass and per-buffer L1/L2 tables of a trace file written by `hybridprof trace`.
 //   hybridprof cachesim --din FILE --l1 16k:64:4 --l2 4m:64:16 [--mrc curves.csv]
@@ -17,6 +18,7 @@
 
 #include "apps/cli_util.hpp"
 #include "atomic_file.hpp"
+#include "cache_analysis.hpp"
 #include "cachesim/din_replay.hpp"
 #include "cachesim/preset.hpp"
 #include "cachesim/simulator.hpp"
@@ -36,6 +38,7 @@ using namespace hp::cachesim;
 struct CachesimArgs {
   std::string trace_path, din_path, preset = "vega56", out_path, mrc_path, export_din_path, export_pass;
   std::string l1 = "16k:64:4", l2 = "4m:64:16";
+  std::string l1_hit_counting;  // empty: the preset's
   double shards = 1.0;
   uint32_t export_cu = 0;
   uint32_t scale_model = 1;
@@ -93,6 +96,13 @@ nlohmann::json report_pass(const PassResult& r, const trace::TraceHeader& header
               "sector misses");
   print_level("L1", s.l1);
   print_level("L2", s.l2);
+  std::printf("  L1 by counting (the L1 row: per %s; misses %llu under each):\n", to_string(r.l1_hit_counting),
+              (unsigned long long)s.l1.misses);
+  for (HitCounting c : {HitCounting::request, HitCounting::quarter_wave, HitCounting::lane}) {
+    const uint64_t lookups = r.l1_lookups.of(c);
+    std::printf("    %-12s %14llu lookups %14llu hits %9s\n", to_string(c), (unsigned long long)lookups,
+                (unsigned long long)(lookups - s.l1.misses), pct(lookups - s.l1.misses, lookups).c_str());
+  }
   std::printf("  stores %llu, atomics %llu (write through the L1 / performed at the L2)\n",
               (unsigned long long)s.stores, (unsigned long long)s.atomics);
   std::printf("  DRAM read %llu bytes, written back %llu bytes\n", (unsigned long long)s.dram_read_bytes,
@@ -114,7 +124,8 @@ nlohmann::json report_pass(const PassResult& r, const trace::TraceHeader& header
                        {"l1_misses", bs.l1_misses},
                        {"l2_requests", bs.l2_requests},
                        {"l2_misses", bs.l2_misses},
-                       {"dram_read_bytes", bs.dram_read_bytes}});
+                       {"dram_read_bytes", bs.dram_read_bytes},
+                       {"l1_by_counting", l1_by_counting_json(r.buffer_l1_lookups[b.id], bs.l1_misses)}});
   }
   nlohmann::json pj = {{"name", r.name},
                        {"lane_accesses", r.lane_accesses},
@@ -124,6 +135,8 @@ nlohmann::json report_pass(const PassResult& r, const trace::TraceHeader& header
                        {"workgroups", r.workgroups},
                        {"l1", level_json(s.l1)},
                        {"l2", level_json(s.l2)},
+                       {"l1_hit_counting", to_string(r.l1_hit_counting)},
+                       {"l1_by_counting", l1_by_counting_json(r.l1_lookups, s.l1.misses)},
                        {"stores", s.stores},
                        {"atomics", s.atomics},
                        {"dram_read_bytes", s.dram_read_bytes},
@@ -147,7 +160,9 @@ nlohmann::json report_pass(const PassResult& r, const trace::TraceHeader& header
 
 void run_trace(const CachesimArgs& a) {
   check_outputs(a);
-  const Preset preset = scale_for_sampling(find_preset(a.preset), a.scale_model);
+  Preset preset = scale_for_sampling(find_preset(a.preset), a.scale_model);
+  if (!a.l1_hit_counting.empty() && !parse_hit_counting(a.l1_hit_counting, preset.l1_hit_counting))
+    throw InputError("--l1-hit-counting: '" + a.l1_hit_counting + "' is not request, quarter_wave or lane");
   trace::TraceReader reader(a.trace_path);
   const auto& header = reader.header();
   if (!a.export_din_path.empty()) {
@@ -164,10 +179,12 @@ void run_trace(const CachesimArgs& a) {
   opt.mrc_sampling_rate = a.shards;
   Simulator sim(preset, header, opt);
 
-  std::printf("preset %s: %u CUs, wave%u, max %u waves/CU, %s coalescing\n  L1 %s per CU\n  L2 %s\n",
-              preset.name.c_str(), preset.compute_units, preset.wave_width, preset.max_waves_per_cu,
-              preset.coalescing == Coalescing::line ? "line" : "sector", describe(preset.l1).c_str(),
-              describe(preset.l2).c_str());
+  std::printf(
+      "preset %s: %u CUs, wave%u, max %u waves/CU, %s coalescing\n  L1 %s per CU, lookups and hits counted per "
+      "%s\n  L2 %s\n",
+      preset.name.c_str(), preset.compute_units, preset.wave_width, preset.max_waves_per_cu,
+      preset.coalescing == Coalescing::line ? "line" : "sector", describe(preset.l1).c_str(),
+      to_string(preset.l1_hit_counting), describe(preset.l2).c_str());
   nlohmann::json out = {{"trace", a.trace_path}, {"preset", preset.name}, {"passes", nlohmann::json::array()}};
   std::string csv = "pass,level,size_bytes,lines,miss_ratio\n";
   bool exported = a.export_din_path.empty();
@@ -260,13 +277,17 @@ void add_cachesim_command(CLI::App& app) {
              "The trace records 1 in K workgroups (trace --sample-every K): replay it on 1/K of the CUs and L2")
           ->check(CLI::Range(1u, 0xFFFFFu))
           ->capture_default_str();
+  auto* hit_counting =
+      cmd->add_option("--l1-hit-counting", args->l1_hit_counting,
+                      "Count the L1 table's lookups and hits per request, quarter_wave or lane (default: the "
+                      "preset's l1_hit_counting; misses and the L2 are the same under each, and --out has all three)");
   auto* export_din =
       cmd->add_option("--export-din", args->export_din_path, "Write one CU's coalesced L1 load stream as Dinero text");
   cmd->add_option("--export-pass", args->export_pass, "Pass to export (default: the first)")->needs(export_din);
   cmd->add_option("--export-cu", args->export_cu, "Compute unit to export")->capture_default_str()->needs(export_din);
   auto* l1 = cmd->add_option("--l1", args->l1, "Dinero replay L1 as SIZE:LINE:ASSOC")->capture_default_str();
   auto* l2 = cmd->add_option("--l2", args->l2, "Dinero replay L2 as SIZE:LINE:ASSOC")->capture_default_str();
-  for (CLI::Option* o : {preset, out, shards, per_inv, scale, export_din}) din_opt->excludes(o);
+  for (CLI::Option* o : {preset, out, shards, per_inv, scale, hit_counting, export_din}) din_opt->excludes(o);
   trace_opt->excludes(l1)->excludes(l2);
   cmd->callback([args] {
     if (!args->din_path.empty())

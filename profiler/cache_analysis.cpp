@@ -74,6 +74,19 @@ json curve_json(const cachesim::MissRatioCurve& c) {
 
 }  // namespace
 
+json l1_by_counting_json(const cachesim::L1Lookups& l, uint64_t misses) {
+  json out = json::object();
+  for (cachesim::HitCounting c :
+       {cachesim::HitCounting::request, cachesim::HitCounting::quarter_wave, cachesim::HitCounting::lane}) {
+    const uint64_t lookups = l.of(c), hits = lookups - misses;
+    out[cachesim::to_string(c)] = {{"lookups", lookups},
+                                   {"hits", hits},
+                                   {"misses", misses},
+                                   {"hit_rate", lookups ? double(hits) / double(lookups) : 0.0}};
+  }
+  return out;
+}
+
 CacheAnalysis::CacheAnalysis(const trace::TraceHeader& header, const CacheAnalysisOptions& o)
     : header_(header), options_(o) {
   const cachesim::Preset preset = cachesim::scale_for_sampling(cachesim::find_preset(o.preset), o.scale_for_sampling);
@@ -126,6 +139,8 @@ void CacheAnalysis::end_pass() {
   pj["peak_resident_records"] = r.peak_resident_records;
   pj["l1"] = level_json(r.stats.l1);
   pj["l2"] = level_json(r.stats.l2);
+  pj["l1_hit_counting"] = cachesim::to_string(r.l1_hit_counting);  // the counting of "l1" and buffers' l1_requests
+  pj["l1_by_counting"] = l1_by_counting_json(r.l1_lookups, r.stats.l1.misses);
   pj["stores"] = r.stats.stores;
   pj["atomics"] = r.stats.atomics;
   pj["dram_read_bytes"] = r.stats.dram_read_bytes;
@@ -138,7 +153,8 @@ void CacheAnalysis::end_pass() {
                        {"l1_misses", bs.l1_misses},
                        {"l2_requests", bs.l2_requests},
                        {"l2_misses", bs.l2_misses},
-                       {"dram_read_bytes", bs.dram_read_bytes}};
+                       {"dram_read_bytes", bs.dram_read_bytes},
+                       {"l1_by_counting", l1_by_counting_json(r.buffer_l1_lookups[b.id], bs.l1_misses)}};
   }
   pj["buffers"] = buffers;
   if (o.curves) pj["mrc"] = {{"l1", curve_json(r.l1_curve)}, {"l2", curve_json(r.l2_curve)}};

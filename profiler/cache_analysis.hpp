@@ -14,7 +14,8 @@ namespace hp {
 
 namespace cachesim {
 class Simulator;
-}
+struct L1Lookups;
+}  // namespace cachesim
 
 struct CacheAnalysisOptions {
   std::string preset = "vega56";  ///< name or JSON path (cachesim::find_preset)
@@ -51,6 +52,11 @@ class CacheAnalysis final : public trace::TraceSink {
   bool in_pass_ = false;
   double seconds_ = 0;  // spent replaying and writing results (not capturing or reading)
 };
+
+/// The L1 under every counting (cachesim::HitCounting), as the cache tables carry it per pass and per
+/// buffer ("l1_by_counting"): {"request" | "quarter_wave" | "lane": {"lookups", "hits", "misses",
+/// "hit_rate"}}, misses the same in all three (hits = lookups - misses).
+nlohmann::json l1_by_counting_json(const cachesim::L1Lookups& lookups, uint64_t misses);
 
 /// Replays every pass of `trace_path`, slice by slice and returns {"preset", "passes": [...]} (schema in README, "Cache
 /// tables"). Throws hp::InputError for a bad trace or preset.

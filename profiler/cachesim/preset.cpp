@@ -101,6 +101,24 @@ std::filesystem::path exe_dir() {
 
 }  // namespace
 
+const char* to_string(HitCounting c) {
+  switch (c) {
+    case HitCounting::request: return "request";
+    case HitCounting::quarter_wave: return "quarter_wave";
+    case HitCounting::lane: return "lane";
+  }
+  return "?";
+}
+
+bool parse_hit_counting(std::string_view text, HitCounting& out) {
+  for (HitCounting c : {HitCounting::request, HitCounting::quarter_wave, HitCounting::lane})
+    if (text == to_string(c)) {
+      out = c;
+      return true;
+    }
+  return false;
+}
+
 Preset parse_preset(std::string_view text, const std::string& origin) {
   check_json_depth(text, origin);
   json j;
@@ -133,6 +151,11 @@ Preset parse_preset(std::string_view text, const std::string& origin) {
     p.coalescing = Coalescing::sector;
   else
     f.fail("coalescing", "'" + co + "' is not line or sector");
+  if (f.find("l1_hit_counting")) {
+    const std::string hc = f.string("l1_hit_counting");
+    if (!parse_hit_counting(hc, p.l1_hit_counting))
+      f.fail("l1_hit_counting", "'" + hc + "' is not request, quarter_wave or lane");
+  }
   p.l1 = parse_cache(f.need("l1"), origin, "l1");
   p.l2 = parse_cache(f.need("l2"), origin, "l2");
   if (p.l1.size_bytes * p.compute_units > kMaxCacheBytes)

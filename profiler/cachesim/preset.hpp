@@ -11,6 +11,8 @@
 //   compute_units, wave_width, max_waves_per_cu (positive integers),
 //   coalescing ("line": unique lines per wavefront step, AMD-like; "sector": unique sectors grouped
 //               by line, NVIDIA-like),
+//   l1_hit_counting (optional, "request"): what the L1 table's lookups and hits count, see HitCounting
+//               ("request" | "quarter_wave" | "lane"); the L2 is always counted per request,
 //   l1, l2: { size_bytes, line_bytes, sector_bytes (optional, default line_bytes), ways,
 //             channels (optional, 1), channel_interleave_bytes (optional, line_bytes),
 //             replacement ("lru" | "fifo" | "random", optional, lru), seed (optional, 1) }
@@ -28,6 +30,23 @@ namespace hp::cachesim {
 
 enum class Coalescing : uint8_t { line, sector };
 
+// What one L1 load lookup is, for the L1's lookup and hit counts (docs/cache-model.md, "Counting L1
+// hits"). The caches see the same coalesced requests, in the same order, under every counting: a
+// request changes the L1's state once and misses or hits as a whole, so misses (and everything below
+// the L1: the L2 sees the L1's line requests) are the same under all three; only lookups and hits
+// (lookups - misses) differ. Per L1 load request of a wavefront step:
+//   request       one lookup (the coalesced line request; the default);
+//   quarter_wave  one lookup per quarter of the wavefront (lanes [0, q), [q, 2q), ..., q = wave_width / 4
+//                 rounded up: 16 lanes on wave64, GCN's vector memory unit taking 16 lanes a cycle) that
+//                 has a lane in the request: the first misses when the request misses, the others hit;
+//   lane          one lookup per lane access the request serves (a lane whose access spans two lines
+//                 counts once in each line's request): the first misses when the request misses, every
+//                 further lane hits (its line was just fetched).
+enum class HitCounting : uint8_t { request, quarter_wave, lane };
+const char* to_string(HitCounting c);
+// Parses "request", "quarter_wave" or "lane"; false for anything else.
+bool parse_hit_counting(std::string_view text, HitCounting& out);
+
 struct Preset {
   std::string name;
   std::string description;
@@ -36,6 +55,7 @@ struct Preset {
   uint32_t wave_width = 64;
   uint32_t max_waves_per_cu = 40;
   Coalescing coalescing = Coalescing::line;
+  HitCounting l1_hit_counting = HitCounting::request;
   CacheConfig l1, l2;
   std::filesystem::path file;  // where it was loaded from (empty when built in code)
 };

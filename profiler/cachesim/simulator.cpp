@@ -30,18 +30,29 @@ class Coalescer {
     slot_req_.resize(size);
     mask_ = size - 1;
     requests.reserve(size_t(wave_width) * 2);
+    lanes.reserve(size_t(wave_width) * 2);
+    quarters.reserve(size_t(wave_width) * 2);
     lane_request.reserve(size_t(wave_width) * 2);
+    // Quarter-waves of ceil(wave_width / 4) lanes (HitCounting::quarter_wave): a lane's bit of 4.
+    const uint32_t q = (wave_width + 3) / 4;
+    quarter_bit_.resize(wave_width);
+    for (uint32_t l = 0; l < wave_width; ++l) quarter_bit_[l] = uint8_t(1u << (l / q));
   }
 
   void begin() {
     ++gen_;
     requests.clear();
+    lanes.clear();
+    quarters.clear();
     lane_request.clear();
     last_key_ = ~uint64_t(0);  // no key: a line number is below 2^62
   }
 
-  // Adds one lane access; remembers (invocation, request) pairs when per_invocation.
-  [[gnu::always_inline]] void add(uint64_t address, uint32_t info, uint32_t invocation, bool per_invocation) {
+  // Adds one access of lane `lane` of the wavefront (global invocation `invocation`); remembers
+  // (invocation, request) pairs when per_invocation.
+  [[gnu::always_inline]] void add(uint64_t address, uint32_t info, uint32_t invocation, uint32_t lane,
+                                  bool per_invocation) {
+    const uint8_t quarter = quarter_bit_[lane];
     const uint32_t size = gpu::trace_size(info);
     const auto kind = AccessKind(gpu::trace_kind(info));
     const uint64_t last_byte = address + size - 1;
@@ -61,6 +72,8 @@ class Coalescer {
       if (key == last_key_) {
         req = last_req_;
         requests[req].sectors |= mask;
+        ++lanes[req];
+        quarters[req] |= quarter;
         if (per_invocation) lane_request.push_back({invocation, req});
         continue;
       }
@@ -72,11 +85,15 @@ class Coalescer {
           req = uint32_t(requests.size());
           slot_req_[h] = req;
           requests.push_back(Request{line, mask, kind, uint8_t(gpu::trace_buffer(info))});
+          lanes.push_back(1);
+          quarters.push_back(quarter);
           break;
         }
         if (keys_[h] == key) {
           req = slot_req_[h];
           requests[req].sectors |= mask;
+          ++lanes[req];
+          quarters[req] |= quarter;
           break;
         }
         h = (h + 1) & mask_;
@@ -88,9 +105,13 @@ class Coalescer {
   }
 
   std::vector<Request> requests;
+  // Per request: the lane accesses it serves, and the quarter-waves they are in (a bit each).
+  std::vector<uint32_t> lanes;
+  std::vector<uint8_t> quarters;
   std::vector<std::pair<uint32_t, uint32_t>> lane_request;
 
  private:
+  std::vector<uint8_t> quarter_bit_;  // per lane of a wavefront
   std::vector<uint64_t> keys_;
   std::vector<uint32_t> stamp_, slot_req_;
   uint64_t mask_ = 0;
@@ -270,6 +291,15 @@ class Builder {
     const LaneAccess* recs = recs_.data();
     auto end_step = [&] {
       const uint32_t base = uint32_t(ga->requests.size());
+      // The step's L1 lookups under every HitCounting: they do not depend on the caches' state.
+      for (size_t k = 0; k < co_.requests.size(); ++k) {
+        const Request& q = co_.requests[k];
+        if (q.kind != AccessKind::load) continue;  // stores and atomics do not look the L1 up
+        L1Lookups& l = lookups[q.buffer];
+        ++l.request;
+        l.quarter_wave += count_bits(uint32_t(co_.quarters[k]));
+        l.lane += co_.lanes[k];
+      }
       ga->requests.insert(ga->requests.end(), co_.requests.begin(), co_.requests.end());
       ga->step_end.push_back(uint32_t(ga->requests.size()));
       if (per_inv_) {
@@ -314,7 +344,7 @@ class Builder {
           if (s0 == s1) continue;
           co_.begin();
           for (uint32_t j = s0; j < s1; ++j)
-            co_.add(steps[j].address, steps[j].info, lane_base + steps[j].seq, per_inv_);
+            co_.add(steps[j].address, steps[j].info, lane_base + steps[j].seq, steps[j].seq, per_inv_);
           end_step();
         }
         ga->wave_steps_end.push_back(uint32_t(ga->step_end.size()));
@@ -339,7 +369,7 @@ class Builder {
             next = std::min<uint64_t>(next, a.seq);
             continue;
           }
-          co_.add(a.address, a.info, lane_base + l, per_inv_);
+          co_.add(a.address, a.info, lane_base + l, l, per_inv_);
           if (++c[l] < end[l]) next = std::min<uint64_t>(next, recs[c[l]].seq);
         }
         end_step();
@@ -349,6 +379,9 @@ class Builder {
     }
     return ga;
   }
+
+  // The L1 load lookups of every step this builder coalesced, by buffer.
+  std::array<L1Lookups, 256> lookups{};
 
  private:
   Coalescer co_;
@@ -690,9 +723,25 @@ PassResult Simulator::end_pass() {
   PassResult res = std::move(ps.res);
   res.lane_accesses = ps.lane_accesses;
   res.slices = ps.slices;
+  // Every fed workgroup was built by one of the two builders and issued by the scheduler.
+  for (size_t b = 0; b < res.buffer_l1_lookups.size(); ++b) {
+    L1Lookups& l = res.buffer_l1_lookups[b];
+    l = ps.builder.lookups[b];
+    l.add(ps.helper_builder.lookups[b]);
+    res.l1_lookups.add(l);
+  }
   pass_.reset();
   res.stats = hierarchy_.stats();
   res.buffers = hierarchy_.buffers();
+  // The preset's counting: lookups and hits change, misses do not (the first lookup of a request is
+  // the one that misses).
+  const HitCounting counting = preset_.l1_hit_counting;
+  res.l1_hit_counting = counting;
+  if (counting != HitCounting::request) {
+    res.stats.l1.requests = res.l1_lookups.of(counting);
+    res.stats.l1.hits = res.stats.l1.requests - res.stats.l1.misses;
+    for (size_t b = 0; b < res.buffers.size(); ++b) res.buffers[b].l1_requests = res.buffer_l1_lookups[b].of(counting);
+  }
   if (options_.l1_mrc) res.l1_curve = hierarchy_.l1_curve();
   if (options_.l2_mrc) res.l2_curve = hierarchy_.l2_curve();
   return res;

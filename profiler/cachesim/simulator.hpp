@@ -9,6 +9,8 @@
 //     number (lockstep by seq: with dense 0, 1, 2, ... numbering, the lanes' k-th accesses);
 //   - the coalescer merges one step's lane accesses into unique lines (Coalescing::line) or unique
 //     sectors grouped by line (Coalescing::sector), separately per access kind, in lane order;
+//   - the L1 counts lookups and hits per request, per quarter-wave or per lane (HitCounting, the
+//     preset's l1_hit_counting); all three are counted on every replay (L1Lookups), misses are the same;
 //   - each cycle every CU with resident wavefronts issues one step of its next wavefront in
 //     round-robin order, CUs in index order, so CUs interleave at the L2 step by step.
 #pragma once
@@ -35,10 +37,33 @@ struct SimOptions {
   std::function<void(uint32_t cu, const Request&)> observer;
 };
 
+// L1 load lookups under each HitCounting, of a pass or of one buffer. They follow from the coalesced
+// requests and the lanes each serves, not from the caches' state; misses are the same under every
+// counting, so hits under counting c are of(c) - the L1 misses.
+struct L1Lookups {
+  uint64_t request = 0;       // L1 load requests (= HierarchyStats::l1.requests under HitCounting::request)
+  uint64_t quarter_wave = 0;  // per request, the quarter-waves that have a lane in it
+  uint64_t lane = 0;          // per request, the lane accesses it serves
+  uint64_t of(HitCounting c) const {
+    return c == HitCounting::lane ? lane : c == HitCounting::quarter_wave ? quarter_wave : request;
+  }
+  void add(const L1Lookups& o) {
+    request += o.request;
+    quarter_wave += o.quarter_wave;
+    lane += o.lane;
+  }
+};
+
 struct PassResult {
   std::string name;
+  // stats.l1.requests and .hits, and buffers[].l1_requests, count lookups the preset's way
+  // (Preset::l1_hit_counting); every other count, the L1's misses, line and sector counts included, is
+  // per request.
   HierarchyStats stats;
-  std::array<BufferStats, 256> buffers{};  // by buffer id
+  std::array<BufferStats, 256> buffers{};              // by buffer id
+  HitCounting l1_hit_counting = HitCounting::request;  // the counting stats.l1 and buffers[] use
+  L1Lookups l1_lookups;                                // under every counting (stats.l1.misses: the misses)
+  std::array<L1Lookups, 256> buffer_l1_lookups{};      // by buffer id (buffers[].l1_misses: the misses)
   // Per global invocation: requests of its accesses that missed the L1 / the L2 (an access spanning
   // two lines counts for both; lanes sharing a request all see its outcome).
   std::vector<uint32_t> l1_misses, l2_misses;

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -123,6 +124,48 @@ TEST(Cli, HostTimingSaysSoAndLabelsTheTimes) {
   r = run("render --scene builtin:cornell --width 32 --height 24 --frames 2 --out " + (d / "c.png").string());
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_EQ(r.output.find("timed on the host"), std::string::npos) << "lavapipe and GPUs have timestamps";
+  fs::remove_all(d);
+}
+
+TEST(Cli, CachesimCountsTheL1PerRequestQuarterWaveOrLane) {
+  HP_CLI_REQUIRE_VULKAN();
+  const fs::path d = temp_dir();
+  const fs::path trace = d / "t.hptrace";
+  CmdResult r = run("trace --scene builtin:cornell --width 64 --height 48 --passes shadows --out " + trace.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  auto replay = [&](const std::string& counting) {
+    const fs::path out = d / (counting + ".json");
+    const CmdResult c =
+        run("cachesim " + trace.string() + " --preset vega56 --l1-hit-counting " + counting + " --out " + out.string());
+    EXPECT_EQ(c.code, 0) << c.output;
+    EXPECT_NE(c.output.find("lookups and hits counted per " + counting), std::string::npos) << c.output;
+    EXPECT_NE(c.output.find("L1 by counting (the L1 row: per " + counting), std::string::npos) << c.output;
+    std::ifstream in(out);
+    return nlohmann::json::parse(in)["passes"][0];
+  };
+  const nlohmann::json req = replay("request"), lane = replay("lane"), quarter = replay("quarter_wave");
+  EXPECT_EQ(req["l1_hit_counting"], "request");
+  EXPECT_EQ(lane["l1_hit_counting"], "lane");
+  // All three countings in every output, the same whichever the table uses; misses and the L2 unchanged.
+  EXPECT_EQ(req["l1_by_counting"], lane["l1_by_counting"]);
+  EXPECT_EQ(req["l1_by_counting"], quarter["l1_by_counting"]);
+  EXPECT_EQ(req["l2"], lane["l2"]);
+  EXPECT_EQ(req["l1"]["misses"], lane["l1"]["misses"]);
+  EXPECT_EQ(req["l1"]["requests"], req["l1_by_counting"]["request"]["lookups"]);
+  EXPECT_EQ(lane["l1"]["requests"], req["l1_by_counting"]["lane"]["lookups"]);
+  EXPECT_EQ(lane["l1"]["hits"], req["l1_by_counting"]["lane"]["hits"]);
+  EXPECT_EQ(quarter["l1"]["hits"], req["l1_by_counting"]["quarter_wave"]["hits"]);
+  EXPECT_GT(lane["l1"]["hits"].get<uint64_t>(), quarter["l1"]["hits"].get<uint64_t>());
+  EXPECT_GT(quarter["l1"]["hits"].get<uint64_t>(), req["l1"]["hits"].get<uint64_t>());
+  ASSERT_FALSE(req["buffers"].empty());
+  const nlohmann::json& b = req["buffers"][0];
+  EXPECT_EQ(b["l1_by_counting"]["request"]["lookups"], b["l1_requests"]);
+  EXPECT_EQ(b["l1_by_counting"]["lane"]["misses"], b["l1_misses"]);
+  r = run("cachesim " + trace.string() + " --l1-hit-counting lanes");
+  expect_bad_input(r, "--l1-hit-counting: 'lanes' is not request, quarter_wave or lane");
+  std::ofstream(d / "t.din") << "r 0 4\n";
+  r = run("cachesim --din " + (d / "t.din").string() + " --l1-hit-counting lane");
+  expect_bad_input(r, "--din excludes --l1-hit-counting");
   fs::remove_all(d);
 }
 

@@ -88,6 +88,35 @@ TEST(Preset, ErrorsNameFileAndKeyPath) {
             "custom.json: sources[0]: expected a string");
 }
 
+TEST(Preset, L1HitCountingIsOptionalAndNamed) {
+  EXPECT_EQ(parse_preset(kValid, "custom.json").l1_hit_counting, HitCounting::request);
+  for (const auto& [text, c] :
+       {std::pair{"request", HitCounting::request}, std::pair{"quarter_wave", HitCounting::quarter_wave},
+        std::pair{"lane", HitCounting::lane}}) {
+    const Preset p =
+        parse_preset(replace(kValid, "\"coalescing\": \"line\",",
+                             "\"coalescing\": \"line\", \"l1_hit_counting\": \"" + std::string(text) + "\","),
+                     "custom.json");
+    EXPECT_EQ(p.l1_hit_counting, c) << text;
+    EXPECT_STREQ(to_string(c), text);
+  }
+  EXPECT_EQ(error_of(replace(kValid, "\"coalescing\": \"line\",",
+                             "\"coalescing\": \"line\", \"l1_hit_counting\": \"lanes\",")),
+            "custom.json: l1_hit_counting: 'lanes' is not request, quarter_wave or lane");
+  EXPECT_EQ(error_of(replace(kValid, "\"coalescing\": \"line\",", "\"coalescing\": \"line\", \"l1_hit_counting\": 4,")),
+            "custom.json: l1_hit_counting: expected a string, got 4");
+  // The L2 is always counted per request: the key belongs to the preset, not to a cache.
+  EXPECT_EQ(error_of(replace(kValid, "\"ways\": 4}", "\"ways\": 4, \"hit_counting\": \"lane\"}")),
+            "custom.json: l1.hit_counting: unknown key");
+  for (const char* name : {"vega56", "ga102", "h100"})
+    EXPECT_EQ(find_preset(name).l1_hit_counting, HitCounting::request);
+  HitCounting c = HitCounting::lane;
+  EXPECT_FALSE(parse_hit_counting("Lane", c));
+  EXPECT_EQ(c, HitCounting::lane);
+  EXPECT_TRUE(parse_hit_counting("quarter_wave", c));
+  EXPECT_EQ(c, HitCounting::quarter_wave);
+}
+
 // Audit find (2026-11-30): a 2^44-byte L2 overflowed the set arithmetic and corrupted the heap; a billion
 // compute units was a bad_alloc. The simulator's bounds are named instead.
 TEST(Preset, SizesBeyondTheSimulatorsLimitsAreNamed) {

@@ -1,8 +1,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <map>
 #include <random>
+#include <set>
 #include <sstream>
+#include <tuple>
 
 #include "cachesim/din_replay.hpp"
 #include "cachesim/simulator.hpp"
@@ -341,6 +344,170 @@ TEST(Simulator, DineroExportReplaysToTheSameL1Counts) {
         export_din(s, small_preset(1, 16, 4), t.header, t.passes[0], t.records[0], 3);
       },
       hp::InputError);
+}
+
+constexpr HitCounting kCountings[] = {HitCounting::request, HitCounting::quarter_wave, HitCounting::lane};
+
+PassResult replay_counting(Preset p, HitCounting c, const trace::PassInfo& pass, const std::vector<TraceRecord>& recs) {
+  p.l1_hit_counting = c;
+  Simulator sim(p, one_buffer());
+  return sim.run_pass(pass, recs);
+}
+
+TEST(Simulator, L1HitCountingsOfOneWaveReadingOneLine) {
+  // 64 lanes read 4 bytes each of one 64-byte line: one request, which misses.
+  std::vector<TraceRecord> recs;
+  for (uint32_t l = 0; l < 64; ++l) recs.push_back(load(l, 0, (l % 16) * 4));
+  const uint64_t lookups[] = {1, 4, 64}, hits[] = {0, 3, 63};
+  for (size_t k = 0; k < 3; ++k) {
+    const PassResult r = replay_counting(small_preset(1, 64, 8), kCountings[k], pass_of(64, 1), recs);
+    SCOPED_TRACE(to_string(kCountings[k]));
+    EXPECT_EQ(r.l1_hit_counting, kCountings[k]);
+    EXPECT_EQ(r.stats.l1.misses, 1u);
+    EXPECT_EQ(r.stats.l1.requests, lookups[k]);
+    EXPECT_EQ(r.stats.l1.hits, hits[k]);
+    EXPECT_EQ(r.buffers[0].l1_requests, lookups[k]);
+    EXPECT_EQ(r.buffers[0].l1_misses, 1u);
+    // Every counting is there whichever the preset picks.
+    EXPECT_EQ(r.l1_lookups.request, 1u);
+    EXPECT_EQ(r.l1_lookups.quarter_wave, 4u);
+    EXPECT_EQ(r.l1_lookups.lane, 64u);
+    EXPECT_EQ(r.buffer_l1_lookups[0].lane, 64u);
+    // Below the L1 nothing changes: one L2 request, one L2 miss.
+    EXPECT_EQ(r.stats.l2.requests, 1u);
+    EXPECT_EQ(r.stats.l2.misses, 1u);
+  }
+}
+
+TEST(Simulator, L1HitCountingsFollowTheLanesAndQuarterWavesOfEachRequest) {
+  std::vector<TraceRecord> recs;
+  for (uint32_t l = 0; l < 64; ++l) {
+    // Step 0: lanes 0-15 (quarter 0) read line A, lanes 16-63 (quarters 1-3) line B: two misses.
+    recs.push_back(load(l, 0, l < 16 ? l * 4 : 64 + (l % 16) * 4));
+    // Step 1: every lane reads A again: a hit.
+    recs.push_back(load(l, 1, 0));
+    // Step 3: stores are not L1 lookups.
+    recs.push_back(load(l, 3, 1024 + l * 4, 4, HP_TRACE_STORE));
+  }
+  // Step 2: lane 40 alone reads 8 bytes across A and B: two requests of one lane each, both hits.
+  recs.push_back(load(40, 2, 60, 8));
+  std::shuffle(recs.begin(), recs.end(), std::mt19937(5));
+  for (HitCounting c : kCountings) {
+    const PassResult r = replay_counting(small_preset(1, 64, 8), c, pass_of(64, 1), recs);
+    SCOPED_TRACE(to_string(c));
+    EXPECT_EQ(r.stats.l1.misses, 2u);
+    EXPECT_EQ(r.l1_lookups.request, 5u);
+    EXPECT_EQ(r.l1_lookups.quarter_wave, 1u + 3u + 4u + 1u + 1u);
+    EXPECT_EQ(r.l1_lookups.lane, 16u + 48u + 64u + 1u + 1u);
+    EXPECT_EQ(r.stats.l1.requests, r.l1_lookups.of(c));
+    EXPECT_EQ(r.stats.l1.hits, r.l1_lookups.of(c) - 2u);
+    EXPECT_EQ(r.stats.stores, 4u);  // 256 bytes of stores: four lines
+  }
+  // A wave of 32 has quarters of 8 lanes; one of 6, quarters of 2 lanes (the last one short).
+  std::vector<TraceRecord> narrow;
+  for (uint32_t l = 0; l < 6; ++l) narrow.push_back(load(l, 0, 0));
+  EXPECT_EQ(
+      replay_counting(small_preset(1, 6, 8), HitCounting::quarter_wave, pass_of(6, 1), narrow).l1_lookups.quarter_wave,
+      3u);
+  EXPECT_EQ(
+      replay_counting(small_preset(1, 32, 8), HitCounting::quarter_wave, pass_of(6, 1), narrow).l1_lookups.quarter_wave,
+      1u);
+}
+
+// A random trace: workgroups of 128 on waves of 64, each lane a random number of accesses with strictly
+// increasing seqs (dense in some lanes, with large gaps in others), loads, stores and atomics, some
+// crossing a line, some lanes sharing lines. The lookups each counting expects are counted here from the
+// records alone: per wave and seq (one step), per line touched by loads, its lanes and quarter-waves.
+struct RandomTrace {
+  trace::PassInfo pass = pass_of(128, 24);
+  std::vector<TraceRecord> records;
+  L1Lookups expected;
+};
+
+RandomTrace random_trace(uint32_t seed) {
+  RandomTrace t;
+  std::mt19937 rng(seed);
+  std::map<std::tuple<uint32_t, uint32_t, uint64_t>, std::pair<std::set<uint32_t>, std::set<uint32_t>>> steps;
+  const uint32_t invocations = 128 * 24;
+  for (uint32_t inv = 0; inv < invocations; ++inv) {
+    const uint32_t n = rng() % 12;
+    const bool sparse = (inv / 64) % 3 == 0;  // these waves take the general (non-dense) step path
+    uint32_t seq = rng() % 3;
+    for (uint32_t k = 0; k < n; ++k) {
+      seq += sparse ? 1 + rng() % 700 : 1 + rng() % 2;
+      // Neighbouring lanes often share a line; a few accesses spread over 256 KiB.
+      const uint32_t offset = rng() % 8 == 0 ? (rng() % 65536) * 4 : ((inv / 8) * 64 + seq * 128 + rng() % 64) % 65536;
+      const uint32_t size = rng() % 6 == 0 ? 16 : 4;
+      const uint32_t r = rng() % 20;
+      const uint32_t kind = r == 0 ? HP_TRACE_ATOMIC : r < 4 ? HP_TRACE_STORE : HP_TRACE_LOAD;
+      t.records.push_back(load(inv, seq, offset, size, kind));
+      if (kind != HP_TRACE_LOAD) continue;
+      const uint32_t wave = inv / 64, lane = inv % 64;
+      const uint64_t a = 0x10000 + offset;
+      for (uint64_t line = a / 64; line <= (a + size - 1) / 64; ++line) {
+        auto& [lanes, quarters] = steps[{wave, seq, line}];
+        lanes.insert(lane);
+        quarters.insert(lane / 16);
+      }
+    }
+  }
+  for (const auto& [key, v] : steps) {
+    ++t.expected.request;
+    t.expected.lane += v.first.size();
+    t.expected.quarter_wave += v.second.size();
+  }
+  std::shuffle(t.records.begin(), t.records.end(), rng);
+  return t;
+}
+
+TEST(Simulator, MissesAreTheSameUnderEveryHitCounting) {
+  for (uint32_t seed : {1u, 2u, 3u}) {
+    const RandomTrace t = random_trace(seed);
+    for (Preset p : {small_preset(3, 64, 4), small_preset(2, 64, 8, Coalescing::sector)}) {
+      SCOPED_TRACE("seed " + std::to_string(seed) + (p.coalescing == Coalescing::sector ? ", sectors" : ", lines"));
+      std::vector<PassResult> r;
+      for (HitCounting c : kCountings) {
+        p.l1_hit_counting = c;
+        SimOptions so;
+        so.l2_mrc = true;
+        Simulator sim(p, one_buffer(), so);
+        r.push_back(sim.run_pass(t.pass, t.records));
+      }
+      const PassResult& ref = r[0];
+      if (p.coalescing == Coalescing::line) {  // the records' lines are 64-byte lines
+        EXPECT_EQ(ref.l1_lookups.request, t.expected.request);
+        EXPECT_EQ(ref.l1_lookups.quarter_wave, t.expected.quarter_wave);
+        EXPECT_EQ(ref.l1_lookups.lane, t.expected.lane);
+      }
+      EXPECT_GT(ref.stats.l1.misses, 0u);
+      EXPECT_GT(ref.stats.l1.hits, 0u);
+      EXPECT_LT(ref.l1_lookups.request, ref.l1_lookups.quarter_wave);
+      EXPECT_LT(ref.l1_lookups.quarter_wave, ref.l1_lookups.lane);
+      for (size_t k = 0; k < r.size(); ++k) {
+        const PassResult& x = r[k];
+        SCOPED_TRACE(to_string(kCountings[k]));
+        EXPECT_EQ(x.l1_lookups.request, ref.stats.l1.requests);  // the request counting is the hierarchy's
+        EXPECT_EQ(x.l1_lookups.request, ref.l1_lookups.request);
+        EXPECT_EQ(x.l1_lookups.quarter_wave, ref.l1_lookups.quarter_wave);
+        EXPECT_EQ(x.l1_lookups.lane, ref.l1_lookups.lane);
+        EXPECT_EQ(x.stats.l1.requests, x.l1_lookups.of(kCountings[k]));
+        EXPECT_EQ(x.stats.l1.hits + x.stats.l1.misses, x.stats.l1.requests);
+        // Misses, sectors, the L2, DRAM, per-invocation counts and curves: identical.
+        EXPECT_EQ(x.stats.l1.misses, ref.stats.l1.misses);
+        EXPECT_EQ(x.stats.l1.sector_misses, ref.stats.l1.sector_misses);
+        EXPECT_EQ(x.stats.l2.requests, ref.stats.l2.requests);
+        EXPECT_EQ(x.stats.l2.hits, ref.stats.l2.hits);
+        EXPECT_EQ(x.stats.l2.misses, ref.stats.l2.misses);
+        EXPECT_EQ(x.stats.dram_read_bytes, ref.stats.dram_read_bytes);
+        EXPECT_EQ(x.l1_misses, ref.l1_misses);
+        EXPECT_EQ(x.l2_misses, ref.l2_misses);
+        EXPECT_EQ(x.l2_curve.misses(64), ref.l2_curve.misses(64));
+        EXPECT_EQ(x.buffers[0].l1_misses, ref.buffers[0].l1_misses);
+        EXPECT_EQ(x.buffers[0].l2_misses, ref.buffers[0].l2_misses);
+        EXPECT_EQ(x.buffers[0].l1_requests, x.buffer_l1_lookups[0].of(kCountings[k]));
+      }
+    }
+  }
 }
 
 TEST(BufferLayout, ImagesMapLogicalOffsetsByDeclaredLayout) {
