@@ -333,7 +333,10 @@ TEST(Report, OpensWithTheStudysQuestions) {
     c.config_patch = {{"jitter", "shared"}};
     json l1 = {{"requests", l1_hits + l1_misses}, {"hits", l1_hits}, {"misses", l1_misses}};
     json l2 = {{"requests", 3000}, {"hits", 1000}, {"misses", 2000}};
-    c.cache = {{"preset", "vega56"}, {"passes", {{{"pass", "reflections"}, {"l1", l1}, {"l2", l2}}}}};
+    // Per lane, as the model counts it beside the requests: more hits, the same misses.
+    json by = {{"lane", {{"lookups", 7 * l1_hits + l1_misses}, {"hits", 7 * l1_hits}, {"misses", l1_misses}}}};
+    c.cache = {{"preset", "vega56"},
+               {"passes", {{{"pass", "reflections"}, {"l1", l1}, {"l2", l2}, {"l1_by_counting", by}}}}};
     return test::cell(c);
   };
   // Cells in the other order (indexed first): the section still reads soup -> indexed.
@@ -352,6 +355,10 @@ TEST(Report, OpensWithTheStudysQuestions) {
   // Hit rate: 83.3% -> 80.0%, the study's 94.4% -> 96.0%.
   EXPECT_NE(md.find("| L1 hit rate | 83.3% → 80.0% | -3.3 pp | lower | 94.4% → 96.0% (+1.7 pp"), std::string::npos)
       << md;
+  // Per lane: 35,000 -> 28,000 (-20.0%), at 97.2% -> 96.6% (-0.67 pp).
+  EXPECT_NE(md.find("| L1 hits per lane | 35,000 → 28,000 | -20.0% | lower | 4,873,530 → 6,251,450"), std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| L1 hit rate per lane | 97.2% → 96.6% | -0.7 pp | lower |"), std::string::npos) << md;
   // L2: the same counts in both cells, the study's hits fell: no change here.
   EXPECT_NE(md.find("| L2 hits | 1,000 → 1,000 | +0.0% | same | 115,552 → 91,876 (-20.5%"), std::string::npos) << md;
   EXPECT_NE(md.find("disagrees: no change here"), std::string::npos);
