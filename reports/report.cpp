@@ -581,9 +581,14 @@ std::string time_verdict(const TimeComparison& t) {
   // approximation used with ties can go lower, but at these sizes that is the approximation, not evidence.
   if ((t.paired ? signed_rank_min_p(t.na) : mann_whitney_min_p(t.na, t.nb)) > kAlpha) return "inconclusive";
   if (std::abs(t.change) <= t.noise_floor) return "no change";
-  if (t.p_holm <= kAlpha && t.b_slower && t.change > 0.0) return "slower";
-  if (t.p_holm <= kAlpha && !t.b_slower && t.change < 0.0) return "faster";
-  return "no change";
+  const bool significant_up = t.p_holm <= kAlpha && t.b_slower && t.change > 0.0;
+  const bool significant_down = t.p_holm <= kAlpha && !t.b_slower && t.change < 0.0;
+  if (!significant_up && !significant_down) return "no change";
+  // Measured by rounds, the whole interval must clear the noise floor: a significant change whose interval
+  // reaches into what an A/A moves cannot be told from one.
+  if (t.by_rounds && (!t.ci || (significant_up ? t.ci->first <= t.noise_floor : t.ci->second >= -t.noise_floor)))
+    return "inconclusive";
+  return significant_up ? "slower" : "faster";
 }
 
 const std::vector<double>* find_pass(const PassSamples& samples, const std::string& pass) {
@@ -906,7 +911,8 @@ void comparisons_section(const std::vector<CellResult>& cells, const std::vector
       "did; \"inconclusive\" when a cell is stale (measured by another build, kept by `run --reuse-stale`) or the "
       "samples are too few for any p to reach 0.05 (fewer than 4 untied samples "
       "a side, or 6 pairs); otherwise \"slower\" or \"faster\" when the adjusted p is at most 0.05 in the direction the "
-      "samples moved and the change is outside the noise floor, else \"no change\". The same verdicts are in "
+      "samples moved and the change is outside the noise floor (by rounds: its whole interval), \"inconclusive\" "
+      "when such a change's interval reaches into the floor, else \"no change\". The same verdicts are in "
       "findings.json. Counter changes are per frame; \"=\" means identical.\n\n";
   for (const std::string& axis : axes) {
     s += "### `" + axis + "`\n\n";

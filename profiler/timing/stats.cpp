@@ -211,6 +211,37 @@ double hodges_lehmann_shift(std::span<const double> x, std::span<const double> y
   return median_in_place(d);
 }
 
+namespace {
+
+// The Hodges-Lehmann estimate (the median of `values`: pairwise differences or Walsh averages) and its
+// interval [v_(k), v_(N+1-k)], which misses the true shift with probability 2 P(S <= k-1) for S the rank
+// statistic of null distribution `dist`: the largest k whose two tails stay within 1 - level.
+ShiftCi rank_interval(std::vector<double> values, const std::vector<double>& dist, double level, const char* method) {
+  std::sort(values.begin(), values.end());
+  ShiftCi out;
+  out.shift = quantile_sorted(values, 0.5);
+  out.ci.level = level;
+  out.ci.method = method;
+  const double alpha = 1.0 - level;
+  double tail = 0.0;
+  std::size_t k = 0;
+  for (std::size_t s = 0; s < dist.size(); ++s) {
+    if (2.0 * (tail + dist[s]) > alpha + 1e-12) break;
+    tail += dist[s];
+    k = s + 1;
+  }
+  if (k == 0) return out;
+  out.ci.valid = true;
+  out.ci.lower_rank = k;
+  out.ci.upper_rank = values.size() + 1 - k;
+  out.ci.low = values[k - 1];
+  out.ci.high = values[values.size() - k];
+  out.ci.coverage = 1.0 - 2.0 * tail;
+  return out;
+}
+
+}  // namespace
+
 SignedRankResult wilcoxon_signed_rank(std::span<const double> d) {
   require_finite(d, "signed-rank d");
   std::vector<double> x;
@@ -269,28 +300,7 @@ ShiftCi hodges_lehmann_paired_ci(std::span<const double> d, double level) {
   std::vector<double> w;
   for (std::size_t i = 0; i < d.size(); ++i)
     for (std::size_t j = i; j < d.size(); ++j) w.push_back(0.5 * (d[i] + d[j]));
-  std::sort(w.begin(), w.end());
-  ShiftCi out;
-  out.shift = quantile_sorted(w, 0.5);
-  out.ci.level = level;
-  out.ci.method = "hodges-lehmann-paired";
-  const std::vector<double> dist = exact_signed_rank_distribution(d.size());
-  const double alpha = 1.0 - level;
-  double tail = 0.0;
-  std::size_t k = 0;
-  for (std::size_t v = 0; v < dist.size(); ++v) {
-    if (2.0 * (tail + dist[v]) > alpha + 1e-12) break;
-    tail += dist[v];
-    k = v + 1;
-  }
-  if (k == 0) return out;
-  out.ci.valid = true;
-  out.ci.lower_rank = k;
-  out.ci.upper_rank = w.size() + 1 - k;
-  out.ci.low = w[k - 1];
-  out.ci.high = w[w.size() - k];
-  out.ci.coverage = 1.0 - 2.0 * tail;
-  return out;
+  return rank_interval(std::move(w), exact_signed_rank_distribution(d.size()), level, "hodges-lehmann-paired");
 }
 
 double odd_even_change(std::span<const double> in_order) {
@@ -313,30 +323,7 @@ ShiftCi hodges_lehmann_ci(std::span<const double> x, std::span<const double> y, 
   d.reserve(x.size() * y.size());
   for (double a : x)
     for (double b : y) d.push_back(a - b);
-  std::sort(d.begin(), d.end());
-  ShiftCi out;
-  out.shift = quantile_sorted(d, 0.5);
-  out.ci.level = level;
-  out.ci.method = "hodges-lehmann";
-  // The interval [d_(k), d_(N+1-k)] misses the true shift with probability 2 P(U <= k-1): the largest k
-  // whose two tails stay within 1 - level.
-  const std::vector<double> dist = exact_u_distribution(x.size(), y.size());
-  const double alpha = 1.0 - level;
-  double tail = 0.0;
-  std::size_t k = 0;
-  for (std::size_t u = 0; u < dist.size(); ++u) {
-    if (2.0 * (tail + dist[u]) > alpha + 1e-12) break;
-    tail += dist[u];
-    k = u + 1;
-  }
-  if (k == 0) return out;
-  out.ci.valid = true;
-  out.ci.lower_rank = k;
-  out.ci.upper_rank = d.size() + 1 - k;
-  out.ci.low = d[k - 1];
-  out.ci.high = d[d.size() - k];
-  out.ci.coverage = 1.0 - 2.0 * tail;
-  return out;
+  return rank_interval(std::move(d), exact_u_distribution(x.size(), y.size()), level, "hodges-lehmann");
 }
 
 MannWhitneyResult mann_whitney_u(std::span<const double> x, std::span<const double> y, bool with_shift) {

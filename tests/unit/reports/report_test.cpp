@@ -313,6 +313,26 @@ TEST(Report, InterleavedChangeInsideTheNoiseFloorIsNoChange) {
   EXPECT_GT(sh["noise_floor"].get<double>(), 0.2);
 }
 
+// Significant and larger than the noise floor, but with an interval that reaches into the floor: the run
+// cannot tell it from what an A/A moves, so "inconclusive", neither "slower" nor "no change".
+TEST(Report, InterleavedChangeWhoseIntervalReachesTheFloorIsInconclusive) {
+  std::vector<double> alternating;
+  for (int r = 0; r < 16; ++r) alternating.push_back(r % 2 ? 1.08 : 1.0);
+  test::SynthCell a = rounds_cell("indexed", 1, 16, 32, 1.0, alternating, 5000);
+  test::SynthCell b = rounds_cell("soup", 2, 16, 32, 1.10, alternating, 6000);
+  for (test::SynthCell* c : {&a, &b}) {
+    std::uint64_t seed = c == &a ? 11 : 12;
+    c->passes = test::passes(32, seed, 0.08, c == &a ? 1.0 : 1.10);
+    for (auto& [pass, d] : c->passes)
+      for (size_t f = 0; f < d.size(); ++f) d[f] *= alternating[f % 16];
+  }
+  const json sh = findings_by_pass(build_report({test::cell(a), test::cell(b)})).at("shadows");
+  ASSERT_LE(sh["p_holm"].get<double>(), 0.05) << sh.dump();
+  ASSERT_GT(sh["change"].get<double>(), sh["noise_floor"].get<double>()) << sh.dump();
+  ASSERT_LE(sh["ci"][0].get<double>(), sh["noise_floor"].get<double>()) << sh.dump();
+  EXPECT_EQ(sh["verdict"], "inconclusive") << sh.dump();
+}
+
 // Three rounds a side: no p can reach 0.05 (2 / C(6, 3) = 0.1), whatever the frames: "inconclusive".
 TEST(Report, TooFewRoundsAreInconclusive) {
   const std::vector<double> quiet(3, 1.0);
