@@ -6,6 +6,7 @@
 #include "error.hpp"
 #include "input_file.hpp"
 #include "json_depth.hpp"
+#include "timing/jsonl.hpp"
 
 #include <algorithm>
 #include <filesystem>
@@ -42,28 +43,10 @@ std::vector<CellResult> load_cells(const std::string& out_dir) {
   const fs::path file = fs::path(out_dir) / "results.jsonl";
   if (!fs::exists(file)) throw InputError(file.string() + ": no such file (run `hybridprof run` first)");
   std::vector<CellResult> cells;
-  std::string line;
-  size_t line_no = 0;
   // Read line by line rather than through read_results so each cell can name its own line.
   const std::string content = read_input_file(file, "results file");
-  size_t start = 0;
-  while (start < content.size()) {
-    const size_t end = content.find('\n', start);
-    if (end == std::string::npos) break;  // an unterminated last line is an interrupted write
-    ++line_no;
-    line = content.substr(start, end - start);
-    start = end + 1;
-    if (line.empty()) continue;
-    const std::string where = file.string() + ":" + std::to_string(line_no);
-    check_json_depth(line, where);
-    json j;
-    try {
-      j = json::parse(line);
-    } catch (const json::exception&) {
-      throw InputError(where + ": corrupt result line (not JSON)");
-    }
-    cells.push_back(parse_cell(j, where));
-  }
+  for_each_jsonl_line(content, file.string(), "result",
+                      [&](const json& j, const std::string& where) { cells.push_back(parse_cell(j, where)); });
   if (cells.empty()) throw InputError(file.string() + ": no finished cell");
   return cells;
 }

@@ -10,6 +10,7 @@
 #include "reference/compare.hpp"
 #include "scene/load.hpp"
 #include "stable_id.hpp"
+#include "timing/jsonl.hpp"
 #include "timing/result_json.hpp"
 
 #include <algorithm>
@@ -239,29 +240,15 @@ std::vector<json> read_results(const std::string& out_dir) {
   std::error_code ec;
   if (!fs::exists(path, ec)) return out;
   const std::string content = read_input_file(path, "results file");
-  size_t start = 0, line_no = 0;
-  while (start < content.size()) {
-    const size_t end = content.find('\n', start);
-    if (end == std::string::npos) break;  // an unterminated last line: an interrupted write, ignored
-    ++line_no;
-    const std::string line = content.substr(start, end - start);
-    start = end + 1;
-    if (line.empty()) continue;
-    const std::string where = path.string() + ":" + std::to_string(line_no);
-    check_json_depth(line, where);
-    try {
-      out.push_back(json::parse(line));
-    } catch (const json::exception& e) {
-      throw InputError(where + ": corrupt result line (" + std::string(e.what()).substr(0, 120) + ")");
-    }
+  for_each_jsonl_line(content, path.string(), "result", [&](json r, const std::string& where) {
     // What resuming and merging rely on; `report` and `gate` check the rest of the line (parse_cell).
-    const json& r = out.back();
     if (!r.is_object() || r.value("schema", json()) != "hybridprof.cell")
       throw InputError(where + ": not a hybridprof cell (field 'schema' is not \"hybridprof.cell\")");
     if (!r.contains("id") || !r["id"].is_string()) throw InputError(where + ": field 'id' missing or not a string");
     if (!r.contains("result") || !r["result"].is_object())
       throw InputError(where + ": field 'result' missing or not an object");
-  }
+    out.push_back(std::move(r));
+  });
   return out;
 }
 
@@ -571,38 +558,21 @@ std::map<std::string, std::map<std::uint32_t, RoundRecord>> read_rounds(const fs
   const std::string content = read_input_file(path, "rounds file");
   std::string kept;
   bool dropped = false;
-  size_t start = 0, line_no = 0;
-  while (start < content.size()) {
-    const size_t end = content.find('\n', start);
-    if (end == std::string::npos) {
-      dropped = true;  // an interrupted write
-      break;
-    }
-    ++line_no;
-    const std::string text = content.substr(start, end - start);
-    start = end + 1;
-    if (text.empty()) continue;
-    const std::string where = path.string() + ":" + std::to_string(line_no);
-    check_json_depth(text, where);
-    json line;
-    try {
-      line = json::parse(text);
-    } catch (const json::exception& e) {
-      throw InputError(where + ": corrupt round line (" + std::string(e.what()).substr(0, 120) + ")");
-    }
-    if (!line.is_object() || line.value("schema", json()) != "hybridprof.round" || !line.contains("id") ||
-        !line["id"].is_string())
-      throw InputError(where + ": not a hybridprof round (field 'schema' or 'id')");
-    const std::string id = line["id"].get<std::string>();
-    RoundRecord r = parse_round(line, where);
-    if (!todo.count(id) || r.visit.round >= rounds || measured_by(line) != now) {
-      dropped = true;
-      continue;
-    }
-    kept += text + "\n";
-    done[id].insert_or_assign(r.visit.round, std::move(r));
-  }
-  if (dropped) write_file_atomically(path, kept);
+  const bool partial =
+      for_each_jsonl_line(content, path.string(), "round", [&](const json& line, const std::string& where) {
+        if (!line.is_object() || line.value("schema", json()) != "hybridprof.round" || !line.contains("id") ||
+            !line["id"].is_string())
+          throw InputError(where + ": not a hybridprof round (field 'schema' or 'id')");
+        const std::string id = line["id"].get<std::string>();
+        RoundRecord r = parse_round(line, where);
+        if (!todo.count(id) || r.visit.round >= rounds || measured_by(line) != now) {
+          dropped = true;
+          return;
+        }
+        kept += line.dump() + "\n";
+        done[id].insert_or_assign(r.visit.round, std::move(r));
+      });
+  if (dropped || partial) write_file_atomically(path, kept);  // a partial last line: an interrupted write
   return done;
 }
 

@@ -218,6 +218,8 @@ TEST(Runner, InterleavesRoundsAndResumesFromTheJournal) {
     for (std::string l; std::getline(j, l);) ++journalled;
   }
   EXPECT_EQ(journalled, 3u) << "both cells' first round and one cell's second";
+  // An append torn by the interruption: cut off, the finished rounds kept.
+  { std::ofstream(root / "err" / "rounds.jsonl", std::ios::app) << "{\"schema\": \"hybridprof.ro"; }
   const RunSummary resumed = run_matrix(em, o);
   EXPECT_EQ(resumed.ran, 2u);
   const auto done = read_results(o.out_dir);
