@@ -4,9 +4,12 @@
 #include "runner.hpp"
 #include "scenario_keys.hpp"
 
+#include <atomic>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
+#include <signal.h>
+#include <unistd.h>
 
 namespace hp::cli {
 
@@ -17,7 +20,7 @@ void add_run_command(CLI::App& app) {
     std::vector<std::string> filters;
     std::uint32_t rounds = 0;
     size_t live_frames = 8;
-    bool reuse_stale = false;
+    bool reuse_stale = false, quiet = false;
   };
   auto a = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand("run", "run every cell of a scenario matrix; resumable, shardable");
@@ -48,6 +51,7 @@ void add_run_command(CLI::App& app) {
   cmd->add_flag("--reuse-stale", a->reuse_stale,
                 "keep finished cells measured by another build or driver, marked stale (the report compares no "
                 "time with them), instead of running them again");
+  cmd->add_flag("--quiet", a->quiet, "no progress lines on stderr");
   cmd->callback([a] {
     Matrix m = load_matrix(a->file);
     if (a->rounds != 0) set_rounds(m, a->rounds, "run --rounds");
@@ -70,7 +74,29 @@ void add_run_command(CLI::App& app) {
     o.filters = a->filters;
     o.live_frames = a->live_frames;
     o.reuse_stale = a->reuse_stale;
+    o.progress = !a->quiet;
+    // Ctrl-C (or a SIGTERM from a job scheduler) stops between two visits: the visit under way finishes and is
+    // journalled, then the run says what it kept and exits 130; running it again resumes.
+    static std::atomic<bool> stop{false};
+    o.stop = &stop;
+    struct sigaction sa {};
+    sa.sa_handler = [](int) {
+      stop.store(true);
+      const char msg[] = "\nhybridprof run: stopping after the visit under way (again to stop at once)\n";
+      [[maybe_unused]] const ssize_t n = ::write(2, msg, sizeof(msg) - 1);
+    };
+    sa.sa_flags = SA_RESETHAND;  // a second signal takes the default action
+    sigemptyset(&sa.sa_mask);
+    ::sigaction(SIGINT, &sa, nullptr);
+    ::sigaction(SIGTERM, &sa, nullptr);
     const RunSummary s = run_matrix(m, o);
+    if (s.interrupted) {
+      std::fprintf(stderr,
+                   "hybridprof run: interrupted: %zu cell(s) finished this run, %zu finished round(s) of unfinished "
+                   "cells kept in %s/rounds.jsonl; run the same command again to resume\n",
+                   s.ran, s.rounds_journalled, a->out.c_str());
+      std::exit(130);
+    }
     std::printf("%s: %zu cells, %zu in shard %u/%u%s, %zu already done, %zu run%s -> %s/results.jsonl\n",
                 a->file.c_str(), s.cells, s.in_shard, shard.index, shard.count,
                 a->filters.empty() ? "" : " selected by --filter", s.already_done, s.ran,

@@ -650,6 +650,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
   if (!unsupported.empty()) write_json_atomically(out / kUnsupportedFile, unsupported);
   RunContext run{ctx, env, out, {}};
   const bool tty = o.progress && ::isatty(::fileno(stderr));
+  const bool log_lines = o.progress && !tty;  // a CI log or a pipe: one plain line per visit
   const auto t_start = std::chrono::steady_clock::now();
   // Interleaved rounds: every round visits the cells still to run in a fresh shuffled order (seeded by the
   // matrix's name and the round) and times frames/rounds of each cell's frames, so a drift of the machine
@@ -682,7 +683,7 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
     finished.insert(i);
     ++sum.ran;
   };
-  for (std::uint32_t r = 0; r < m.rounds; ++r) {
+  for (std::uint32_t r = 0; r < m.rounds && !(o.stop && o.stop->load()); ++r) {
     std::vector<size_t> order;
     for (size_t i : todo)
       if (!finished.count(i) && !rounds[cell_ids[i]].count(r)) order.push_back(i);
@@ -692,12 +693,14 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       const size_t i = order[k];
       const std::string& id = cell_ids[i];
       const Scenario& s = m.cells[i];
-      if (tty) {
+      if (o.stop && o.stop->load()) break;
+      if (tty || log_lines) {
         const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
         const size_t ran = visits_done - visits_resumed;
         const std::string left = ran == 0 ? "?" : eta(el / double(ran) * double(visits_total - visits_done));
-        std::fprintf(stderr, "\r[round %u/%u, cell %zu/%zu] %s %s  ETA %s   ", r + 1, m.rounds, k + 1, order.size(),
-                     id.c_str(), m.cell_axis_values[i].dump().c_str(), left.c_str());
+        std::fprintf(stderr, "%s[round %u/%u, cell %zu/%zu] %s %s  ETA %s%s", tty ? "\r" : "hybridprof run: ", r + 1,
+                     m.rounds, k + 1, order.size(), id.c_str(), m.cell_axis_values[i].dump().c_str(), left.c_str(),
+                     tty ? "   " : "\n");
         std::fflush(stderr);
       }
       auto it = live.find(i);
@@ -723,6 +726,13 @@ RunSummary run_matrix(const Matrix& m, const RunOptions& o) {
       finish(i, it->second);
       live.erase(it);
     }
+  }
+  if (o.stop && o.stop->load()) {
+    // Interrupted between two visits: every finished round is in the journal, no cell folder is half written.
+    sum.interrupted = true;
+    for (const auto& [id, done_rounds] : rounds) sum.rounds_journalled += done_rounds.size();
+    if (tty) std::fprintf(stderr, "\n");
+    return sum;
   }
   // Cells whose every round was already in the journal (interrupted before their record was written).
   for (size_t i : todo) {

@@ -15,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -25,7 +26,12 @@ struct RunOptions {
   Shard shard;
   std::string device;     ///< as `render --device`
   bool validate = false;  ///< Khronos validation layer; any message fails the cell
-  bool progress = true;   ///< a progress line with ETA on stderr when it is a terminal
+  /// Progress on stderr: one line updated in place with an ETA on a terminal, else one line per visit (a CI
+  /// log); `run --quiet` turns it off.
+  bool progress = true;
+  /// Set (by a SIGINT handler) to stop: the visit under way finishes and is journalled, no further visit
+  /// starts, and run_matrix returns with RunSummary::interrupted. Null: never.
+  const std::atomic<bool>* stop = nullptr;
   /// Only the cells every filter selects (`run --filter`): a cell id, or AXIS=VALUE with AXIS an axis key
   /// path or its last component and VALUE as the axis value reads ("soup", "2", "128x72" or JSON).
   std::vector<std::string> filters;
@@ -48,6 +54,8 @@ struct RunSummary {
   /// Cells this device cannot run (a driver traversal it lacks): "<id> (<name>): <reason>", also listed in
   /// OUT/unsupported.json for the report. Not failures: the rest of the matrix runs.
   std::vector<std::string> unsupported;
+  bool interrupted = false;      ///< stopped by RunOptions::stop before every cell had its record
+  size_t rounds_journalled = 0;  ///< then: finished rounds of unfinished cells kept in OUT/rounds.jsonl
 };
 
 /// Why `ctx` cannot run cell `s` (its traversal needs ray queries or ray-tracing pipelines the device lacks),

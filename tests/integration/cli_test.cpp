@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -13,6 +14,7 @@
 #include <string>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 namespace {
 
@@ -94,6 +96,69 @@ TEST(Cli, MissingOutputFoldersAndOtherSceneFormatsAreNamed) {
   expect_bad_input(run("render --scene " + (dir / "box.obj").string() + " --out " + (dir / "y.png").string()),
                    "unsupported format '.obj'");
   fs::remove_all(dir);
+}
+
+// Ctrl-C during `run`: the visit under way finishes and is journalled, the run says what it kept and exits
+// 130, no cell folder is left without its results line, and the same command resumes and finishes.
+TEST(Cli, InterruptedRunSaysWhatItKeptAndResumes) {
+  HP_CLI_REQUIRE_VULKAN();
+  const fs::path d = temp_dir() / "interrupt";
+  fs::remove_all(d);
+  fs::create_directories(d);
+  const fs::path matrix = d / "m.json", out = d / "out", log = d / "log.txt";
+  std::ofstream(matrix) << R"({"name": "interrupt", "rounds": 6,
+      "base": {"scene": "builtin:cornell", "resolution": [64, 48], "frames": 6, "warmup": 0},
+      "axes": {"seed": [1, 2, 3]}})";
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    FILE* f = std::freopen(log.c_str(), "w", stderr);
+    (void)f;
+    ::execl(HP_CLI_PATH, HP_CLI_PATH, "run", matrix.c_str(), "--out", out.c_str(), "--quiet", nullptr);
+    std::_Exit(127);
+  }
+  // Once a round is journalled, interrupt.
+  const fs::path journal = out / "rounds.jsonl";
+  for (int i = 0; i < 600 && !(fs::exists(journal) && fs::file_size(journal) > 0); ++i) ::usleep(100000);
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status)) << "killed by a signal instead of stopping";
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  std::ifstream lf(log);
+  const std::string text((std::istreambuf_iterator<char>(lf)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("hybridprof run: interrupted: "), std::string::npos) << text;
+  EXPECT_NE(text.find("run the same command again to resume"), std::string::npos) << text;
+  // Every cell folder has its results line.
+  size_t lines = 0;
+  {
+    std::ifstream rf(out / "results.jsonl");
+    for (std::string l; std::getline(rf, l);) {
+      ++lines;
+      const std::string id = nlohmann::json::parse(l)["id"];
+      EXPECT_TRUE(fs::exists(out / "cells" / id));
+    }
+  }
+  size_t folders = 0;
+  if (fs::exists(out / "cells"))
+    for ([[maybe_unused]] const auto& e : fs::directory_iterator(out / "cells")) ++folders;
+  EXPECT_EQ(folders, lines);
+  EXPECT_LT(lines, 3u) << "interrupted before the last round";
+  EXPECT_TRUE(fs::exists(journal)) << "the finished rounds are kept";
+  const CmdResult again = run("run " + matrix.string() + " --out " + out.string() + " --quiet");
+  ASSERT_EQ(again.code, 0) << again.output;
+  EXPECT_NE(again.output.find(std::to_string(lines) + " already done, " + std::to_string(3 - lines) + " run"),
+            std::string::npos)
+      << again.output;
+  EXPECT_FALSE(fs::exists(journal));
+  // Off a terminal (a CI log) progress is one plain line per visit, and --quiet has none.
+  EXPECT_EQ(again.output.find("[round"), std::string::npos) << again.output;
+  const CmdResult logged = run("run " + matrix.string() + " --out " + (d / "out2").string());
+  ASSERT_EQ(logged.code, 0) << logged.output;
+  EXPECT_NE(logged.output.find("hybridprof run: [round 1/6, cell 1/3] "), std::string::npos) << logged.output;
+  EXPECT_NE(logged.output.find("hybridprof run: [round 6/6, cell 3/3] "), std::string::npos) << logged.output;
+  EXPECT_EQ(logged.output.find('\r'), std::string::npos);
+  fs::remove_all(d);
 }
 
 TEST(Cli, RenderWritesPngAndAov) {
