@@ -399,8 +399,14 @@ struct LiveFrame {
 };
 
 LiveFrame build_frame(RunContext& run, const Scenario& s) {
-  auto it = run.scenes.find(s.scene);
-  if (it == run.scenes.end()) it = run.scenes.emplace(s.scene, load_scene(s.scene)).first;
+  auto it = run.scenes.find(s.scene_path);
+  if (it == run.scenes.end()) {
+    try {
+      it = run.scenes.emplace(s.scene_path, load_scene(s.scene_path)).first;
+    } catch (const InputError& e) {
+      throw InputError(s.scene_where + ": " + e.what());
+    }
+  }
   LiveFrame live;
   live.scene = std::make_unique<CellScene>(prepare_cell_scene(s, it->second));
   live.frame = std::make_unique<Frame>(run.ctx, live.scene->scene, live.scene->camera, s.frame);

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -167,6 +168,14 @@ Scenario parse_scenario(const json& j, const std::string& file, const std::strin
     k.apply(s, v ? read_value(k, *v, file, join(path, k.path)) : k.default_value, c);
   }
   s.error = j.contains("error");  // the object, even empty, asks for the measurement
+  // A glTF path relative to the scenario file's folder (a file given on the command line keeps its own
+  // folder; documents parsed without a file resolve against the working directory).
+  s.scene_path = s.scene;
+  if (s.scene.rfind("builtin:", 0) != 0 && std::filesystem::path(s.scene).is_relative() && !file.empty()) {
+    const std::filesystem::path dir = std::filesystem::path(file).parent_path();
+    if (!dir.empty()) s.scene_path = (dir / s.scene).lexically_normal().string();
+  }
+  s.scene_where = file + ": " + join(path, "scene");
   for (const std::string& p : s.trace_passes) {
     if ((p == "shadows" && !s.frame.rt.shadows) || (p == "reflections" && !s.frame.rt.reflections)) {
       fail(file, join(path, "trace.passes"), "traces the " + p + " pass, which is off");

@@ -20,8 +20,12 @@
 namespace hp {
 
 struct Scenario {
-  std::string name;  ///< label for reports (not part of the id)
-  std::string scene = "builtin:pica";
+  std::string name;                    ///< label for reports (not part of the id)
+  std::string scene = "builtin:pica";  ///< as the file writes it (part of the id)
+  /// The scene to load: `scene` itself for a built-in or an absolute path, else `scene` relative to the folder
+  /// of the scenario file it came from (so a matrix runs the same from any working directory).
+  std::string scene_path = "builtin:pica";
+  std::string scene_where;  ///< "FILE: scene" for the error of a scene that does not load
   std::optional<glm::vec3> camera_position, camera_target;
   std::optional<float> camera_fov_deg;
   std::optional<glm::vec3> light_direction;

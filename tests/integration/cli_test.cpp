@@ -161,6 +161,22 @@ TEST(Cli, InterruptedRunSaysWhatItKeptAndResumes) {
   fs::remove_all(d);
 }
 
+// A scene path in a scenario resolves against the scenario file's folder, and a scene that does not load is
+// one line naming the scenario file and the key.
+TEST(Cli, ScenarioScenePathsAreRelativeToTheFile) {
+  HP_CLI_REQUIRE_VULKAN();
+  const fs::path d = temp_dir() / "scene_paths";
+  fs::remove_all(d);
+  fs::create_directories(d / "scenarios");
+  std::ofstream(d / "scenarios" / "m.json") << R"({"scene": "../scenes/missing.gltf", "resolution": [32, 24]})";
+  const CmdResult r =
+      run("run " + (d / "scenarios" / "m.json").string() + " --out " + (d / "out").string() + " --quiet");
+  expect_bad_input(r, (d / "scenarios" / "m.json").string() + ": scene: ");
+  EXPECT_NE(r.output.find((d / "scenes" / "missing.gltf").string()), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(d / "out" / "results.jsonl"));
+  fs::remove_all(d);
+}
+
 TEST(Cli, RenderWritesPngAndAov) {
   HP_CLI_REQUIRE_VULKAN();
   const fs::path d = temp_dir();

@@ -17,7 +17,8 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-// The suite with "../shared/" resolved to this build's shared folder and cases without their scene dropped.
+// The suite with its scenes ("../../shared/", relative to scenarios/) in this build's shared folder, and cases
+// without their scene dropped.
 Matrix load_suite(std::vector<std::string>& skipped) {
   Matrix m = load_matrix(std::string(HP_SOURCE_DIR) + "/scenarios/hard_cases.json");
   Matrix kept = m;
@@ -25,9 +26,9 @@ Matrix load_suite(std::vector<std::string>& skipped) {
   kept.cell_axis_values.clear();
   for (size_t i = 0; i < m.cells.size(); ++i) {
     Scenario s = m.cells[i];
-    if (s.scene.rfind("../shared/", 0) == 0) {
-      s.scene = std::string(HP_SHARED_DIR) + "/" + s.scene.substr(10);
-      if (!fs::exists(s.scene)) {
+    if (s.scene.rfind("../../shared/", 0) == 0) {
+      s.scene_path = std::string(HP_SHARED_DIR) + "/" + s.scene.substr(13);
+      if (!fs::exists(s.scene_path)) {
         skipped.push_back(s.name);
         continue;
       }
@@ -85,7 +86,7 @@ TEST(HardCases, GpuRaysGetTheCpuReferenceAnswers) {
   const Matrix m = load_suite(skipped);
   for (const Scenario& s : m.cells) {
     if (!m.expect[s.name].value("gpu_equals_cpu", false)) continue;
-    const CellScene cs = prepare_cell_scene(s, load_scene(s.scene));
+    const CellScene cs = prepare_cell_scene(s, load_scene(s.scene_path));
     FrameSettings fs = s.frame;
     fs.rt.dump_rays = true;
     // Every visible pixel reflects, so each case also casts closest-hit rays (several cases' materials are

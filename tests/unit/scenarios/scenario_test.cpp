@@ -115,6 +115,21 @@ TEST(Scenario, MatrixRounds) {
   EXPECT_EQ(m.rounds, 2u);
 }
 
+// A glTF path in a scenario is relative to the scenario file's folder; built-ins and absolute paths are
+// taken as they are, and the id hashes the path as written.
+TEST(Scenario, ScenePathsAreRelativeToTheScenarioFile) {
+  const json doc = json::parse(R"({"base": {"frames": 2}, "axes": {"scene": ["../scenes/a.gltf", "builtin:cornell",
+      "/abs/b.gltf"]}})");
+  const Matrix m = parse_matrix(doc, "suite/scenarios/m.json");
+  ASSERT_EQ(m.cells.size(), 3u);
+  EXPECT_EQ(m.cells[0].scene, "../scenes/a.gltf");
+  EXPECT_EQ(m.cells[0].scene_path, "suite/scenes/a.gltf");
+  EXPECT_EQ(m.cells[1].scene_path, "builtin:cornell");
+  EXPECT_EQ(m.cells[2].scene_path, "/abs/b.gltf");
+  EXPECT_EQ(m.cells[0].id(), parse_matrix(doc, "elsewhere/m.json").cells[0].id()) << "the id does not move";
+  EXPECT_EQ(m.cells[0].scene_where.rfind("suite/scenarios/m.json: ", 0), 0u) << m.cells[0].scene_where;
+}
+
 TEST(Scenario, TraversalKeys) {
   const Scenario d = parse_scenario(json::object(), "d.json");
   EXPECT_EQ(d.frame.rt.traversal, Traversal::compute);
