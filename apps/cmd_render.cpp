@@ -11,6 +11,8 @@
 #include "timing/timeline.hpp"
 #include "vk/context.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -218,10 +220,35 @@ void add_render_command(CLI::App& app) {
 
 void add_devices_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("devices", "list the Vulkan devices and the facts hybridprof records");
-  cmd->callback([] {
+  auto json_out = std::make_shared<bool>(false);
+  cmd->add_flag("--json", *json_out, "one JSON array of the devices on stdout, for scripts");
+  cmd->callback([json_out] {
     const auto devices = vk::list_devices();
     if (devices.empty())
       throw DeviceError("no Vulkan device found; install lavapipe (apt-get install mesa-vulkan-drivers)");
+    if (*json_out) {
+      nlohmann::json list = nlohmann::json::array();
+      for (size_t i = 0; i < devices.size(); ++i) {
+        const auto& d = devices[i];
+        std::vector<std::string> traversals = {"compute"};
+        if (d.ray_query) traversals.push_back("ray-query");
+        if (d.ray_tracing_pipeline) traversals.push_back("pipeline");
+        list.push_back({{"index", i},
+                        {"name", d.name},
+                        {"type", d.type},
+                        {"driver_name", d.driver_name},
+                        {"driver_version", d.driver_version},
+                        {"driver_info", d.driver_info},
+                        {"api_version", d.api_version},
+                        {"subgroup_size", d.subgroup_size},
+                        {"timestamp_period_ns", d.timestamp_period_ns},
+                        {"timestamp_valid_bits", d.timestamp_valid_bits},
+                        {"max_storage_buffer_range", d.max_storage_buffer_range},
+                        {"traversals", traversals}});
+      }
+      std::printf("%s\n", list.dump(1).c_str());
+      return;
+    }
     for (size_t i = 0; i < devices.size(); ++i) {
       const auto& d = devices[i];
       std::printf(

@@ -177,6 +177,20 @@ TEST(Cli, ScenarioScenePathsAreRelativeToTheFile) {
   fs::remove_all(d);
 }
 
+// `devices --json`: the same facts as the text, one JSON array on stdout.
+TEST(Cli, DevicesAsJson) {
+  HP_CLI_REQUIRE_VULKAN();
+  const CmdResult r = run("devices --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const nlohmann::json list = nlohmann::json::parse(r.output);
+  ASSERT_TRUE(list.is_array());
+  ASSERT_FALSE(list.empty());
+  EXPECT_EQ(list[0]["index"], 0);
+  EXPECT_EQ(list[0]["traversals"][0], "compute");
+  EXPECT_GT(list[0]["subgroup_size"].get<int>(), 0);
+  EXPECT_NE(run("devices").output.find(list[0]["name"].get<std::string>()), std::string::npos);
+}
+
 TEST(Cli, RenderWritesPngAndAov) {
   HP_CLI_REQUIRE_VULKAN();
   const fs::path d = temp_dir();
