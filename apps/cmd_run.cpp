@@ -26,7 +26,10 @@ void add_run_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("run", "run every cell of a scenario matrix; resumable, shardable");
   cmd->add_option("file", a->file, "scenario or matrix JSON file")->required();
   cmd->add_option("--out", a->out, "output folder (results.jsonl, cells/<id>/ images)");
-  cmd->add_option("--shard", a->shard, "run only shard K of N (cells with index % N == K-1)")->capture_default_str();
+  cmd->add_option("--shard", a->shard,
+                  "run only shard K of N (cells with index % N == K-1); auto: from HP_SHARD_INDEX/HP_SHARD_COUNT "
+                  "or a Slurm job array")
+      ->capture_default_str();
   cmd->add_option("--device", a->device, "Vulkan device: index or name substring");
   cmd->add_flag("--validate", a->validate, "Khronos validation layer; any message fails");
   cmd->add_flag("--list", a->list, "print the expanded cells (id and axis values) and exit");

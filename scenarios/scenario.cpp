@@ -8,8 +8,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -447,13 +449,48 @@ Matrix load_matrix(const std::string& path) {
   return parse_matrix(doc, path, axis_order);
 }
 
+namespace {
+// An environment variable as a count >= `min`, or nullopt when unset; InputError naming it when malformed.
+std::optional<unsigned> env_count(const char* name, unsigned min) {
+  const char* v = std::getenv(name);
+  if (!v || !*v) return std::nullopt;
+  unsigned n = 0;
+  std::istringstream in(v);
+  if (!(in >> n) || !in.eof() || n < min)
+    throw InputError("--shard auto: " + std::string(name) + "='" + v + "' is not a number >= " + std::to_string(min));
+  return n;
+}
+}  // namespace
+
 Shard parse_shard(const std::string& text) {
+  if (text == "auto") {
+    // HP_SHARD_INDEX (1-based) and HP_SHARD_COUNT, as a CI matrix job sets them; else a Slurm job array's
+    // SLURM_ARRAY_TASK_ID (from SLURM_ARRAY_TASK_MIN) and SLURM_ARRAY_TASK_COUNT.
+    std::optional<unsigned> k = env_count("HP_SHARD_INDEX", 1), n = env_count("HP_SHARD_COUNT", 1);
+    std::string from = "HP_SHARD_INDEX/HP_SHARD_COUNT";
+    if (!k && !n) {
+      const std::optional<unsigned> id = env_count("SLURM_ARRAY_TASK_ID", 0);
+      const std::optional<unsigned> min = env_count("SLURM_ARRAY_TASK_MIN", 0);
+      n = env_count("SLURM_ARRAY_TASK_COUNT", 1);
+      if (id) k = *id - min.value_or(0) + 1;
+      if (id && min && *id < *min) k.reset();
+      from = "SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT";
+    }
+    if (!k || !n)
+      throw InputError(
+          "--shard auto: set HP_SHARD_INDEX (1-based) and HP_SHARD_COUNT, or run as a Slurm job array "
+          "(SLURM_ARRAY_TASK_ID, SLURM_ARRAY_TASK_COUNT)");
+    if (*k > *n)
+      throw InputError("--shard auto: shard " + std::to_string(*k) + " of " + std::to_string(*n) + " (from " + from +
+                       ") is outside 1.." + std::to_string(*n));
+    return Shard{*k, *n};
+  }
   Shard s;
   unsigned k = 0, n = 0;
   char slash = 0;
   std::istringstream in(text);
   if (!(in >> k >> slash >> n) || slash != '/' || !in.eof() || n == 0 || k == 0 || k > n) {
-    throw InputError("--shard '" + text + "': expected K/N with 1 <= K <= N");
+    throw InputError("--shard '" + text + "': expected K/N with 1 <= K <= N, or auto");
   }
   s.index = k;
   s.count = n;

@@ -383,6 +383,41 @@ TEST(Shard, ParsesAndPartitions) {
   for (const char* bad : {"0/3", "4/3", "1/0", "x", "1/2/3", "1-2"}) EXPECT_THROW(parse_shard(bad), InputError) << bad;
 }
 
+// `--shard auto`: the shard from HP_SHARD_INDEX/HP_SHARD_COUNT (a CI matrix), else from a Slurm job array;
+// neither set, or malformed, is an error naming the variables.
+TEST(Shard, AutoReadsTheEnvironment) {
+  const char* vars[] = {"HP_SHARD_INDEX", "HP_SHARD_COUNT", "SLURM_ARRAY_TASK_ID", "SLURM_ARRAY_TASK_MIN",
+                        "SLURM_ARRAY_TASK_COUNT"};
+  for (const char* v : vars) ::unsetenv(v);
+  const auto error = [] {
+    try {
+      parse_shard("auto");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(error().find("set HP_SHARD_INDEX (1-based) and HP_SHARD_COUNT, or run as a Slurm job array"),
+            std::string::npos);
+  ::setenv("HP_SHARD_INDEX", "2", 1);
+  ::setenv("HP_SHARD_COUNT", "4", 1);
+  EXPECT_EQ(parse_shard("auto").index, 2u);
+  EXPECT_EQ(parse_shard("auto").count, 4u);
+  ::setenv("HP_SHARD_INDEX", "5", 1);
+  EXPECT_NE(error().find("shard 5 of 4 (from HP_SHARD_INDEX/HP_SHARD_COUNT) is outside 1..4"), std::string::npos);
+  ::setenv("HP_SHARD_INDEX", "two", 1);
+  EXPECT_NE(error().find("HP_SHARD_INDEX='two' is not a number"), std::string::npos);
+  ::unsetenv("HP_SHARD_INDEX");
+  ::unsetenv("HP_SHARD_COUNT");
+  // sbatch --array=0-2: task ids 0, 1, 2 are shards 1, 2, 3 of 3.
+  ::setenv("SLURM_ARRAY_TASK_ID", "2", 1);
+  ::setenv("SLURM_ARRAY_TASK_MIN", "0", 1);
+  ::setenv("SLURM_ARRAY_TASK_COUNT", "3", 1);
+  EXPECT_EQ(parse_shard("auto").index, 3u);
+  EXPECT_EQ(parse_shard("auto").count, 3u);
+  for (const char* v : vars) ::unsetenv(v);
+}
+
 }  // namespace
 }  // namespace hp
 
