@@ -21,6 +21,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <map>
 #include <memory>
@@ -40,6 +41,7 @@ struct BvhArgs {
   int threads = 0;
   std::string export_triangles;
   std::string rays;
+  uint32_t make_rays = 0;  ///< write this many camera rays into --rays first
   std::string hits;
   bool any_hit = false;
   bool gpu = false;
@@ -48,6 +50,27 @@ struct BvhArgs {
   std::string device;
   bool validate = false;
 };
+
+// `n` primary rays of a pinhole camera, on a grid of ceil(sqrt(n)) columns over a square image (row-major,
+// pixel centres), cut at n: coherent rays a reader can reproduce.
+std::vector<bvh::Ray> camera_rays(const Camera& cam, uint32_t n) {
+  const uint32_t side = uint32_t(std::ceil(std::sqrt(double(n))));
+  const glm::vec3 fwd = glm::normalize(cam.target - cam.position);
+  const glm::vec3 right = glm::normalize(glm::cross(fwd, cam.up));
+  const glm::vec3 up = glm::cross(right, fwd);
+  const float h = std::tan(glm::radians(cam.vfov_deg) * 0.5f);
+  std::vector<bvh::Ray> rays;
+  rays.reserve(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    const float sx = (2.0f * (float(i % side) + 0.5f) / float(side) - 1.0f) * h;
+    const float sy = (1.0f - 2.0f * (float(i / side) + 0.5f) / float(side)) * h;
+    bvh::Ray r;
+    r.origin = cam.position;
+    r.dir = glm::normalize(fwd + sx * right + sy * up);
+    rays.push_back(r);
+  }
+  return rays;
+}
 
 double ms_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -183,6 +206,7 @@ void run_bvh(const BvhArgs& a) {
   // Outputs and the device are checked before any work: a failure leaves no file of this run behind.
   if (!a.export_triangles.empty()) check_output_path(a.export_triangles, "--export-triangles");
   if (!a.hits.empty()) check_output_path(a.hits, "--hits");
+  if (a.make_rays > 0) check_output_path(a.rays, "--rays");
   std::optional<vk::Context> ctx;
   if (a.gpu) ctx.emplace(vk::ContextOptions{a.device, a.validate, true});
 
@@ -196,6 +220,12 @@ void run_bvh(const BvhArgs& a) {
   if (!a.export_triangles.empty()) {
     bvh::write_triangles(a.export_triangles, tris);
     std::printf("exported %zu triangles (scene order) to %s\n", tris.size(), a.export_triangles.c_str());
+  }
+  if (a.make_rays > 0) {
+    const Camera cam = scene.has_camera ? scene.camera : auto_frame(scene, 1.0f);
+    bvh::write_rays(a.rays, camera_rays(cam, a.make_rays));
+    std::printf("wrote %u camera rays (a %u-wide grid over a square view of the scene's camera) to %s\n", a.make_rays,
+                uint32_t(std::ceil(std::sqrt(double(a.make_rays)))), a.rays.c_str());
   }
 
   bvh::BuildOptions o;
@@ -258,6 +288,10 @@ void add_bvh_command(CLI::App& app) {
                                "write one hit per ray (int32 prim or -1, float32 t u v) in scene triangle order");
   rays->needs(hits);
   hits->needs(rays);
+  cmd->add_option("--make-rays", args->make_rays,
+                  "write this many primary rays of the scene's camera into the --rays file first, then cast them")
+      ->check(CLI::Range(1u, 1u << 26))
+      ->needs(rays);
   cmd->add_flag("--any-hit", args->any_hit, "occlusion query: any hit in [tmin, tmax], not the closest")->needs(rays);
   auto* gpu = cmd->add_flag("--gpu", args->gpu,
                             "also cast the rays on the Vulkan device through the passes' traversal, time it and check "

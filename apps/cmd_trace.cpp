@@ -152,7 +152,7 @@ void add_trace_command(CLI::App& app) {
   auto a = std::make_shared<TraceArgs>();
   CLI::App* cmd = app.add_subcommand("trace", "record every memory access of the ray-tracing passes to a trace file");
   a->frame.add_to(cmd);
-  cmd->add_option("--out", a->out, "trace file to write (binary, documented in README)");
+  cmd->add_option("--out", a->out, "trace file to write (binary; the format is in profiler/trace/trace_file.hpp)");
   cmd->add_option("--passes", a->passes, "passes to trace: shadows, reflections (comma-separated)")
       ->capture_default_str();
   cmd->add_option("--sample-every", a->sample_every, "record every k-th workgroup burst (in dispatch order)")

@@ -191,6 +191,22 @@ TEST(Cli, DevicesAsJson) {
   EXPECT_NE(run("devices").output.find(list[0]["name"].get<std::string>()), std::string::npos);
 }
 
+// `bvh --make-rays N` writes N camera rays into the --rays file and casts them, so the tour's ray commands
+// need no file from elsewhere.
+TEST(Cli, BvhMakesItsOwnRays) {
+  const fs::path d = temp_dir() / "make_rays";
+  fs::remove_all(d);
+  fs::create_directories(d);
+  const CmdResult r = run("bvh --scene builtin:cornell --make-rays 1000 --rays " + (d / "r.bin").string() + " --hits " +
+                          (d / "h.bin").string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(fs::file_size(d / "r.bin"), 1000u * 32u);
+  EXPECT_EQ(fs::file_size(d / "h.bin"), 1000u * 16u);
+  EXPECT_NE(r.output.find("wrote 1000 camera rays"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("rays: 1000 (closest hit)"), std::string::npos) << r.output;
+  fs::remove_all(d);
+}
+
 TEST(Cli, RenderWritesPngAndAov) {
   HP_CLI_REQUIRE_VULKAN();
   const fs::path d = temp_dir();
