@@ -8,8 +8,30 @@
 #include <cstdlib>
 #include <filesystem>
 #include <sstream>
+#include <unistd.h>
 
 namespace hp::cli {
+
+Progress::Progress(std::string what, bool quiet)
+    : what_(std::move(what)),
+      quiet_(quiet),
+      tty_(::isatty(::fileno(stderr)) != 0),
+      start_(std::chrono::steady_clock::now()),
+      last_(start_) {}
+
+void Progress::update(uint64_t done, uint64_t total) {
+  if (quiet_ || total == 0) return;
+  const auto now = std::chrono::steady_clock::now();
+  const double el = std::chrono::duration<double>(now - start_).count();
+  const bool last = done >= total;
+  if (!tty_ && !last && std::chrono::duration<double>(now - last_).count() < 5.0) return;
+  last_ = now;
+  char eta[32] = "?";
+  if (done > 0) std::snprintf(eta, sizeof(eta), "%.0fs", el / double(done) * double(total - done));
+  std::fprintf(stderr, "%s%s: %llu/%llu, %.1f s, ETA %s%s", tty_ ? "\r" : "", what_.c_str(), (unsigned long long)done,
+               (unsigned long long)total, el, eta, tty_ && !last ? "   " : "\n");
+  std::fflush(stderr);
+}
 
 CLI::Validator finite_range(double lo, double hi) {
   CLI::Validator finite(

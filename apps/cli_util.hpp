@@ -6,6 +6,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include <chrono>
+#include <cstdint>
 #include <fstream>
 #include <optional>
 #include <string>
@@ -13,6 +15,19 @@
 #include <vector>
 
 namespace hp::cli {
+
+/// Progress of a long command on stderr: one line updated in place with an ETA on a terminal, else a plain
+/// line at most every few seconds and at the end (a CI log); nothing when quiet.
+class Progress {
+ public:
+  Progress(std::string what, bool quiet);
+  void update(uint64_t done, uint64_t total);  ///< call as work completes; done == total ends the line
+
+ private:
+  std::string what_;
+  bool quiet_, tty_;
+  std::chrono::steady_clock::time_point start_, last_;
+};
 
 /// A closed range for a floating-point option that also rejects NaN (which CLI::Range lets through: every
 /// comparison with NaN is false).

@@ -31,6 +31,7 @@ struct RenderArgs {
   bool counters = false;
   bool overlap = false;
   uint32_t cpu_reference = 0;  ///< > 0: render the CPU reference with this many reflection samples instead
+  bool quiet = false;
   FrameOptions frame;
 };
 
@@ -116,6 +117,8 @@ void run_render(const RenderArgs& a) {
   po.measure_query_overhead = !a.timings_path.empty();
   // So is the frame as the application records it (serialized passes would otherwise hide any overlap).
   po.measure_overlap = a.overlap || !a.timings_path.empty() || !a.timeline_path.empty();
+  Progress progress("hybridprof render: frames", a.quiet);
+  po.on_frame = [&](uint32_t done, uint32_t total) { progress.update(done, total); };
   const FrameTimings timings = profile_frames(frame, po);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   write_image(a.out, frame.read_aov(aov));
@@ -195,6 +198,7 @@ void add_render_command(CLI::App& app) {
                   "sample and leave the accumulation unchanged)")
       ->check(CLI::Range(1u, 100000u))
       ->capture_default_str();
+  cmd->add_flag("--quiet", args->quiet, "no progress lines on stderr");
   cmd->add_option("--warmup", args->warmup, "frames rendered and discarded before the measured ones")
       ->check(CLI::Range(0u, 100000u))
       ->capture_default_str();

@@ -62,6 +62,10 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o, QueryOverhead
   };
   if (o.warmup == 0 && (gpu || statistics)) frame.render(FrameQueries::none);
   bool counted = false;
+  uint32_t done = 0;
+  const auto progress = [&] {
+    if (o.on_frame) o.on_frame(++done, o.warmup + o.frames);
+  };
   for (uint32_t i = 0; i < o.warmup; ++i) {
     const bool count = statistics && i > 0 && i + 1 == o.warmup;
     counted = counted || count;
@@ -69,6 +73,7 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o, QueryOverhead
                                 : count ? count_invocations()
                                         : frame.render(),
                                 nullptr));
+    progress();
   }
   if (statistics && !counted) count_invocations();
   std::vector<double> with_queries, without_queries;
@@ -91,6 +96,7 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o, QueryOverhead
     if (o.measure_overlap && i % 2 == 1) overlapped(true);
     timings.add(to_frame_sample(t, counters ? &c : nullptr));
     if (overhead && i % 2 == 0) without_queries.push_back(double(frame.render(FrameQueries::none).cpu_wall_ns));
+    progress();
   }
   // Frame i with queries pairs with the frame without that ran next to it (after it for even i, before
   // it for odd i): both vectors hold one entry per i.

@@ -8,6 +8,8 @@
 #include "timing/frame_timings.hpp"
 #include "vk/context.hpp"
 
+#include <functional>
+
 namespace hp {
 
 struct ProfileOptions {
@@ -23,6 +25,8 @@ struct ProfileOptions {
   /// Count compute invocations (pipeline statistics) in a frame outside the timed ones. A later round of
   /// an interleaved cell has them from its first round already.
   bool count_invocations = true;
+  /// Called after each warm-up and measured frame with (frames done, frames in all): progress for a command.
+  std::function<void(uint32_t done, uint32_t total)> on_frame;
 };
 
 /// The one-line note for a run whose passes are timed on the host (Frame::timestamps_supported() false):

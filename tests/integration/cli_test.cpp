@@ -207,6 +207,21 @@ TEST(Cli, BvhMakesItsOwnRays) {
   fs::remove_all(d);
 }
 
+// A long render says how far it is (off a terminal: a plain line at the end and at most every 5 s); --quiet
+// says nothing.
+TEST(Cli, RenderShowsProgressUnlessQuiet) {
+  HP_CLI_REQUIRE_VULKAN();
+  const fs::path d = temp_dir();
+  const std::string cmd =
+      "render --scene builtin:cornell --width 32 --height 24 --warmup 1 --frames 3 --out " + (d / "p.png").string();
+  const CmdResult r = run(cmd);
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("hybridprof render: frames: 4/4, "), std::string::npos) << r.output;
+  const CmdResult q = run(cmd + " --quiet");
+  ASSERT_EQ(q.code, 0) << q.output;
+  EXPECT_EQ(q.output.find("hybridprof render: frames"), std::string::npos) << q.output;
+}
+
 TEST(Cli, RenderWritesPngAndAov) {
   HP_CLI_REQUIRE_VULKAN();
   const fs::path d = temp_dir();
