@@ -19,7 +19,7 @@ Progress::Progress(std::string what, bool quiet)
       start_(std::chrono::steady_clock::now()),
       last_(start_) {}
 
-void Progress::update(uint64_t done, uint64_t total) {
+void Progress::update(uint64_t done, uint64_t total, const std::string& detail) {
   if (quiet_ || total == 0) return;
   const auto now = std::chrono::steady_clock::now();
   const double el = std::chrono::duration<double>(now - start_).count();
@@ -28,8 +28,9 @@ void Progress::update(uint64_t done, uint64_t total) {
   last_ = now;
   char eta[32] = "?";
   if (done > 0) std::snprintf(eta, sizeof(eta), "%.0fs", el / double(done) * double(total - done));
-  std::fprintf(stderr, "%s%s: %llu/%llu, %.1f s, ETA %s%s", tty_ ? "\r" : "", what_.c_str(), (unsigned long long)done,
-               (unsigned long long)total, el, eta, tty_ && !last ? "   " : "\n");
+  std::fprintf(stderr, "%s%s: %llu/%llu%s%s, %.1f s, ETA %s%s", tty_ ? "\r" : "", what_.c_str(),
+               (unsigned long long)done, (unsigned long long)total, detail.empty() ? "" : ", ", detail.c_str(), el, eta,
+               tty_ && !last ? "   " : "\n");
   std::fflush(stderr);
 }
 

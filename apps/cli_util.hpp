@@ -21,7 +21,8 @@ namespace hp::cli {
 class Progress {
  public:
   Progress(std::string what, bool quiet);
-  void update(uint64_t done, uint64_t total);  ///< call as work completes; done == total ends the line
+  /// Call as work completes; done == total ends the line. `detail` follows the count ("3.1 M records").
+  void update(uint64_t done, uint64_t total, const std::string& detail = "");
 
  private:
   std::string what_;

@@ -37,6 +37,7 @@ struct TraceArgs {
   std::string image_out;
   std::string din_out, din_pass, preset = "vega56";
   uint32_t din_cu = 0;
+  bool quiet = false;
 };
 
 void run_trace(const TraceArgs& a) {
@@ -106,6 +107,19 @@ void run_trace(const TraceArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<CapturedPass> captured;
   {
+    // Progress per pass: its workgroup rows done, and the records (16 bytes each) written so far.
+    std::optional<Progress> progress;
+    std::string current;
+    co.on_slice = [&](const std::string& pass, uint64_t records, uint64_t done, uint64_t total) {
+      if (pass != current) {
+        current = pass;
+        progress.emplace("hybridprof trace: " + pass + " rows", a.quiet);
+      }
+      char detail[64];
+      std::snprintf(detail, sizeof(detail), "%.1f M records (%.0f MB)", double(records) / 1e6,
+                    double(records) * sizeof(gpu::TraceRecord) / 1e6);
+      progress->update(done, total, detail);
+    };
     trace::TraceWriter writer(a.out, header);
     captured = frame.render_captured(co, writer);
     writer.finish();
@@ -153,6 +167,7 @@ void add_trace_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("trace", "record every memory access of the ray-tracing passes to a trace file");
   a->frame.add_to(cmd);
   cmd->add_option("--out", a->out, "trace file to write (binary; the format is in profiler/trace/trace_file.hpp)");
+  cmd->add_flag("--quiet", a->quiet, "no progress lines on stderr");
   cmd->add_option("--passes", a->passes, "passes to trace: shadows, reflections (comma-separated)")
       ->capture_default_str();
   cmd->add_option("--sample-every", a->sample_every, "record every k-th workgroup burst (in dispatch order)")

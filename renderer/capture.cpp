@@ -101,6 +101,7 @@ struct Slicer {
       cp.records += count;
       ++cp.slices;
       unit += n;
+      if (options.on_slice) options.on_slice(step.name, cp.records, unit, units);
     }
     if (step.finish) step.finish();
     return cp;

@@ -301,6 +301,9 @@ TEST(Cli, CachesimExportsOneComputeUnitOrNamesTheLimitAndWritesNothing) {
   const fs::path trace = d / "t.hptrace", din = d / "cu.din";
   CmdResult r = run("trace --scene builtin:cornell --width 64 --height 48 --out " + trace.string());
   ASSERT_EQ(r.code, 0) << r.output;
+  // Progress per pass: rows done and what the file holds so far.
+  EXPECT_NE(r.output.find("hybridprof trace: shadows rows: 6/6, "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(" M records ("), std::string::npos) << r.output;
   r = run("cachesim " + trace.string() + " --preset vega56 --export-din " + din.string() + " --export-cu 56");
   expect_bad_input(r, "compute unit 56 does not exist (preset 'vega56' has 56)");
   EXPECT_FALSE(fs::exists(din));
