@@ -1,5 +1,7 @@
 #include "cache_analysis.hpp"
 
+#include "colormap.hpp"
+
 #include "cachesim/preset.hpp"
 #include "cachesim/simulator.hpp"
 #include "image/image.hpp"
@@ -23,15 +25,16 @@ json level_json(const cachesim::LevelStats& l) {
           {"sector_misses", l.sector_misses}};
 }
 
-// A perceptual-ish ramp (black -> purple -> orange -> yellow) for miss counts, log-scaled to the maximum.
+// The heatmaps' ramp (core/colormap.hpp) for miss counts, log-scaled to the maximum, in linear light.
 void ramp(float t, float* rgb) {
-  t = std::clamp(t, 0.0f, 1.0f);
-  const float r = std::clamp(1.6f * t, 0.0f, 1.0f);
-  const float g = std::clamp(1.6f * t - 0.6f, 0.0f, 1.0f);
-  const float b = std::clamp(t < 0.4f ? 1.5f * t : 1.2f - 1.5f * (t - 0.4f) * 2.0f, 0.0f, 1.0f);
-  rgb[0] = srgb_to_linear(r);
-  rgb[1] = srgb_to_linear(g);
-  rgb[2] = srgb_to_linear(b);
+  const std::array<float, 3> c = miss_ramp_srgb(t);
+  for (int i = 0; i < 3; ++i) rgb[i] = srgb_to_linear(c[size_t(i)]);
+}
+
+uint32_t max_count(const std::vector<uint32_t>& counts) {
+  uint32_t m = 0;
+  for (uint32_t c : counts) m = std::max(m, c);
+  return m;
 }
 
 // Per-invocation counts back to pixels: 8x8 workgroups in row-major dispatch order.
@@ -39,8 +42,7 @@ std::string write_heatmap(const std::vector<uint32_t>& counts, const trace::Pass
                           uint32_t height, const std::string& path) {
   const uint32_t wx = pass.dispatch.workgroup_count[0];
   const uint32_t lx = pass.dispatch.workgroup_size[0], ly = pass.dispatch.workgroup_size[1];
-  uint32_t maxc = 0;
-  for (uint32_t c : counts) maxc = std::max(maxc, c);
+  const uint32_t maxc = max_count(counts);
   Image4f img(width, height);
   for (size_t inv = 0; inv < counts.size(); ++inv) {
     const uint64_t wg = inv / (uint64_t(lx) * ly), local = inv % (uint64_t(lx) * ly);
@@ -173,6 +175,8 @@ void CacheAnalysis::end_pass() {
                                                   (dir / (o.heatmap_prefix + info.name + "_l1_misses.png")).string())},
                       {"l2_misses", write_heatmap(r.l2_misses, info, w, h,
                                                   (dir / (o.heatmap_prefix + info.name + "_l2_misses.png")).string())}};
+    // The count at the top of each heatmap's log scale (its colour bar in the report).
+    pj["heatmap_max"] = {{"l1_misses", max_count(r.l1_misses)}, {"l2_misses", max_count(r.l2_misses)}};
   }
   out_["passes"].push_back(pj);
   seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -192,7 +192,16 @@ std::string traversal_of(const CellResult& c) {
 }
 bool driver_traversal(const CellResult& c) { return traversal_of(c) != "compute"; }
 
-std::string cache_tables(const CellResult& c) {
+// "l1_misses" -> "L1 misses".
+std::string kind_text(const std::string& kind) {
+  std::string t = kind;
+  std::replace(t.begin(), t.end(), '_', ' ');
+  if (t.size() >= 2 && t[0] == 'l') t[0] = 'L';
+  return t;
+}
+
+// The cell's cache tables; the colour bars of its heatmaps go to `bars` (none when null).
+std::string cache_tables(const CellResult& c, std::vector<ReportFile>* bars) {
   const std::vector<CachePass> passes = cache_passes(c);
   if (passes.empty()) return "";
   std::string s =
@@ -223,9 +232,17 @@ std::string cache_tables(const CellResult& c) {
     }
     if (p.j->contains("heatmaps") && (*p.j)["heatmaps"].is_object()) {
       for (const auto& [kind, path] : (*p.j)["heatmaps"].items()) {
-        if (path.is_string())
-          heatmaps +=
-              "[![" + p.pass + " " + kind + "](" + path.get<std::string>() + ")](" + path.get<std::string>() + ") ";
+        if (!path.is_string()) continue;
+        heatmaps +=
+            "[![" + p.pass + " " + kind + "](" + path.get<std::string>() + ")](" + path.get<std::string>() + ")\n";
+        // Its colour bar, where the tables say what the top of its scale is (tables from before they did: none).
+        const json top = p.j->value("heatmap_max", json::object()).value(kind, json());
+        if (top.is_number_integer() && top.get<std::int64_t>() >= 0 && bars) {
+          const std::string file = "charts/heatmap_" + c.id + "_" + p.pass + "_" + kind + ".svg";
+          bars->push_back({file, svg::render_colour_bar(p.pass + " " + kind_text(kind) + " per pixel (log scale)",
+                                                        top.get<std::uint64_t>())});
+          heatmaps += "![colour bar](" + file + ")\n\n";
+        }
       }
     }
   }
@@ -235,7 +252,9 @@ std::string cache_tables(const CellResult& c) {
         "|---|---|---|---|---|---|---|---|\n" +
         buffers;
   }
-  if (!heatmaps.empty()) s += "\nMiss heatmaps (per pixel, log scale: black none, yellow most):\n\n" + heatmaps + "\n";
+  if (!heatmaps.empty())
+    s += "\nMiss heatmaps (misses per pixel on a log scale, black none; each with its colour bar):\n\n" + heatmaps +
+         "\n";
   return s;
 }
 
@@ -287,7 +306,7 @@ std::string overlap_text(const TimingSummary& t) {
 // A cell kept by `run --reuse-stale`: measured by another build or driver than the rest of the run.
 bool stale(const CellResult& c) { return c.line.contains("stale") && c.line["stale"].is_object(); }
 
-std::string cell_section(const CellResult& c) {
+std::string cell_section(const CellResult& c, std::vector<ReportFile>& charts) {
   std::string s = "### " + md::escape(cell_label(c)) + "\n\n";
   if (stale(c))
     s += "> **Stale:** measured by " + md::escape(c.line["stale"].value("measured_by", std::string("?"))) +
@@ -326,7 +345,7 @@ std::string cell_section(const CellResult& c) {
   } else if (c.triangles) {
     s += "\nScene: " + md::count(double(*c.triangles)) + " triangles (no BVH: no rays traced).\n";
   }
-  s += cache_tables(c);
+  s += cache_tables(c, &charts);
   s += error_table(c);
   if (c.images.is_object() && !c.images.empty()) {
     s += "\n";
@@ -1118,7 +1137,7 @@ Report build_report(const std::vector<CellResult>& cells, const json& unsupporte
   s += traversal_section(cells);
   s += unsupported_section(unsupported);
   s += "## Cells\n\n";
-  for (const CellResult& c : cells) s += cell_section(c);
+  for (const CellResult& c : cells) s += cell_section(c, r.charts);
   r.findings = findings(family).dump(1) + "\n";
   comparisons_section(cells, family, s);
   s += "## Cache simulation\n\n";

@@ -1,5 +1,7 @@
 #include "svg_chart.hpp"
 
+#include "colormap.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -407,6 +409,48 @@ std::string render(const ScatterChart& c) {
   std::vector<std::string> names = {"cells"};
   if (!front.empty()) names.push_back("Pareto front (lower is better on both axes)");
   return s + legend(f, names) + "</svg>\n";
+}
+
+std::string render_colour_bar(const std::string& title, std::uint64_t max_count) {
+  constexpr double kW = 420, kH = 64, kX0 = 16, kX1 = 404, kY = 24, kBar = 16;
+  std::string s = "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" + tick_label(kW) + "\" height=\"" +
+                  tick_label(kH) + "\" viewBox=\"0 0 " + tick_label(kW) + " " + tick_label(kH) +
+                  "\" font-family=\"DejaVu Sans, sans-serif\" font-size=\"11\">\n"
+                  "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n<defs><linearGradient id=\"ramp\">";
+  for (int i = 0; i <= 20; ++i) {
+    const float t = float(i) / 20.0f;
+    const std::array<float, 3> c = miss_ramp_srgb(t);
+    char stop[96];
+    std::snprintf(stop, sizeof(stop), "<stop offset=\"%.2f\" stop-color=\"rgb(%d,%d,%d)\"/>", double(t),
+                  int(c[0] * 255.0f + 0.5f), int(c[1] * 255.0f + 0.5f), int(c[2] * 255.0f + 0.5f));
+    s += stop;
+  }
+  s += "</linearGradient></defs>\n<text x=\"" + tick_label(kX0) + "\" y=\"14\">" + escape(title) + "</text>\n";
+  s += "<rect x=\"" + tick_label(kX0) + "\" y=\"" + tick_label(kY) + "\" width=\"" + tick_label(kX1 - kX0) +
+       "\" height=\"" + tick_label(kBar) + "\" fill=\"url(#ramp)\" stroke=\"#444\" stroke-width=\"0.5\"/>\n";
+  // Ticks at 0, 1, 10, 100, ... below the maximum, and the maximum itself, where the heatmap puts them.
+  std::vector<std::uint64_t> ticks = {0};
+  for (std::uint64_t v = 1; v < max_count; v *= 10) ticks.push_back(v);
+  if (max_count > 0) ticks.push_back(max_count);
+  const double top = std::log1p(double(std::max<std::uint64_t>(max_count, 1)));
+  const auto x_of = [&](std::uint64_t v) { return kX0 + (kX1 - kX0) * std::log1p(double(v)) / top; };
+  double last_x = -1e9;
+  for (size_t i = 0; i < ticks.size(); ++i) {
+    const double x = x_of(ticks[i]);
+    const bool end = i + 1 == ticks.size();
+    // No label over its neighbour: a power of ten too close to the previous label or to the maximum goes.
+    if (!end && (x - last_x < 28 || x_of(ticks.back()) - x < 28)) continue;
+    s += "<line x1=\"" + tick_label(x) + "\" x2=\"" + tick_label(x) + "\" y1=\"" + tick_label(kY + kBar) + "\" y2=\"" +
+         tick_label(kY + kBar + 4) + "\" stroke=\"#444\"/>\n";
+    s += "<text x=\"" + tick_label(x) + "\" y=\"" + tick_label(kY + kBar + 16) + "\" text-anchor=\"" +
+         (end && ticks.size() > 1 ? "end"
+          : i == 0                ? "start"
+                                  : "middle") +
+         "\">" + std::to_string(ticks[i]) + "</text>\n";
+    last_x = x;
+  }
+  s += "</svg>\n";
+  return s;
 }
 
 }  // namespace hp::svg

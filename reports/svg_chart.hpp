@@ -6,6 +6,7 @@
 // "point-label", "tick", "legend") so tests and stylesheets can find it.
 #pragma once
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -74,5 +75,10 @@ std::string escape(const std::string& text);
 std::string render(const BarChart& chart);
 std::string render(const LineChart& chart);
 std::string render(const ScatterChart& chart);
+
+/// The colour bar of a miss heatmap: the heatmaps' ramp (core/colormap.hpp) from 0 to `max_count` on the
+/// heatmaps' log scale (position log(1 + c) / log(1 + max)), with ticks at 0, 1, 10, 100, ... and the maximum,
+/// and `title` above it.
+std::string render_colour_bar(const std::string& title, std::uint64_t max_count);
 
 }  // namespace hp::svg

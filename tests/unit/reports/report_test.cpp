@@ -449,7 +449,8 @@ TEST(Report, RendersCacheTablesWhenPresent) {
                    {{"bvh_nodes",
                      {{"l1_requests", 4100000}, {"l1_misses", 100000}, {"l2_requests", 100000}, {"l2_misses", 7}}}}},
                   {"mrc", {{"l1", {{"points", {{1024, 0.5}, {2048, 0.3}, {4096, 0.1}}}}}}},
-                  {"heatmaps", {{"l1_misses", "cells/x/reflections_l1_misses.png"}}}}}}};
+                  {"heatmaps", {{"l1_misses", "cells/x/reflections_l1_misses.png"}}},
+                  {"heatmap_max", {{"l1_misses", 95}}}}}}};
     return test::cell(c);
   };
   const Report r = build_report({with_cache("indexed", 4873530, 1), with_cache("soup", 6251450, 2)});
@@ -460,6 +461,14 @@ TEST(Report, RendersCacheTablesWhenPresent) {
   EXPECT_NE(md.find("| reflections | bvh_nodes | 4,100,000 | 100,000 | 97.6% |"), std::string::npos);
   EXPECT_NE(md.find("reflections L1 hits +28.3% (4,873,530 → 6,251,450)"), std::string::npos);
   EXPECT_NE(md.find("(cells/x/reflections_l1_misses.png)"), std::string::npos);
+  // Each heatmap with its colour bar, up to the count the tables give as the top of its scale.
+  const auto bar = std::find_if(r.charts.begin(), r.charts.end(), [](const ReportFile& f) {
+    return f.path.starts_with("charts/heatmap_") && f.path.ends_with("_reflections_l1_misses.svg");
+  });
+  ASSERT_NE(bar, r.charts.end());
+  EXPECT_NE(bar->content.find("reflections L1 misses per pixel (log scale)"), std::string::npos);
+  EXPECT_NE(bar->content.find(">95</text>"), std::string::npos);
+  EXPECT_NE(md.find("![colour bar](" + bar->path + ")"), std::string::npos) << md;
   EXPECT_NE(md.find("2 of 2 cells carry cache tables"), std::string::npos);
   EXPECT_NE(md.find("Our L1-hit changes for the same comparison"), std::string::npos);
   EXPECT_EQ(std::count_if(r.charts.begin(), r.charts.end(),

@@ -68,6 +68,23 @@ size_t count(const std::vector<Element>& els, const std::string& name, const std
   return n;
 }
 
+// A heatmap's colour bar: the heatmaps' own ramp (black at 0, yellow at the maximum) and ticks where the
+// heatmap's log scale puts 0, 1, 10, ... and the maximum; a power of ten too close to the maximum loses its
+// label rather than overlapping it.
+TEST(SvgChart, ColourBarFollowsTheHeatmapScale) {
+  const std::string bar = svg::render_colour_bar("shadows L1 misses per pixel", 95);
+  EXPECT_NE(bar.find("<stop offset=\"0.00\" stop-color=\"rgb(0,0,0)\"/>"), std::string::npos) << bar;
+  EXPECT_NE(bar.find("<stop offset=\"1.00\" stop-color=\"rgb(255,255,0)\"/>"), std::string::npos);
+  for (const char* label : {">0</text>", ">1</text>", ">10</text>", ">95</text>"})
+    EXPECT_NE(bar.find(label), std::string::npos) << label;
+  // log(1 + 10) / log(1 + 95) of the 388-pixel bar from x = 16.
+  EXPECT_NE(bar.find("x=\"219.837\""), std::string::npos) << bar;
+  const std::string close = svg::render_colour_bar("t", 120);  // 100 sits 11 px from 120
+  EXPECT_EQ(close.find(">100</text>"), std::string::npos) << close;
+  EXPECT_NE(close.find(">120</text>"), std::string::npos);
+  EXPECT_NE(svg::render_colour_bar("t", 0).find(">0</text>"), std::string::npos);
+}
+
 TEST(SvgChart, BarChartHasBarsErrorBarsAndLegend) {
   BarChart c;
   c.title = "times <ms> & more";
