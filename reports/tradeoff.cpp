@@ -257,6 +257,43 @@ std::string tradeoff_table(const TradeoffSpec& t, const std::vector<TradeoffRow>
   return s + "\n";
 }
 
+// The cells' scene as a front compares it: the scene file and the world transform of its config.
+std::string scene_key(const CellResult& c) {
+  return json{{"scene", c.config.value("scene", json())}, {"transform", c.config.value("transform", json())}}.dump();
+}
+std::string scene_text(const CellResult& c) {
+  std::string s = "scene " + c.config.value("scene", std::string("?"));
+  const json tr = c.config.value("transform", json());
+  if (tr.is_object())
+    for (const auto& [k, v] : tr.items()) s += ", transform." + k + " " + v.dump();
+  return s;
+}
+
+// One scene's rows: the front, the chart at `path`, the sentence, the table and their notes.
+std::string front_part(const TradeoffSpec& t, std::vector<TradeoffRow>& rows, const std::string& path,
+                       std::vector<ReportFile>& charts) {
+  std::sort(rows.begin(), rows.end(), [](const TradeoffRow& a, const TradeoffRow& b) {
+    return a.x.value != b.x.value ? a.x.value < b.x.value : a.y.value < b.y.value;
+  });
+  std::vector<std::pair<double, double>> pts;
+  for (const TradeoffRow& r : rows) pts.push_back({r.x.value, r.y.value});
+  const std::vector<bool> front = pareto_front(pts);
+  for (size_t i = 0; i < rows.size(); ++i) rows[i].front = front[i];
+  std::vector<const CellResult*> among;
+  for (const TradeoffRow& r : rows) among.push_back(r.cell);
+  std::vector<std::string> notes;
+  charts.push_back({path, svg::render(tradeoff_chart(t, rows, among, notes))});
+  std::string s = "![" + md::escape(t.title) + "](" + path + ")\n\n";
+  s += front_sentence(t, rows, among);
+  s += tradeoff_table(t, rows);
+  if (std::any_of(rows.begin(), rows.end(), [](const TradeoffRow& r) {
+        return std::any_of(r.extra.begin(), r.extra.end(), [](const auto& e) { return !e.has_value(); });
+      }))
+    notes.push_back("— in a column: not available for that cell.");
+  for (const std::string& note : notes) s += "*Note:* " + md::escape(note) + "\n\n";
+  return s;
+}
+
 std::string tradeoff_section(const std::vector<CellResult>& cells, const json& spec, size_t n,
                              std::vector<ReportFile>& charts) {
   const TradeoffSpec t = parse_tradeoff(cells, spec, n);
@@ -282,28 +319,25 @@ std::string tradeoff_section(const std::vector<CellResult>& cells, const json& s
     if (!skipped.empty()) s += " Not available: " + md::escape(md::list(skipped)) + ".";
     return s + "\n\n";
   }
-  std::sort(rows.begin(), rows.end(), [](const TradeoffRow& a, const TradeoffRow& b) {
-    return a.x.value != b.x.value ? a.x.value < b.x.value : a.y.value < b.y.value;
-  });
-  std::vector<std::pair<double, double>> pts;
-  for (const TradeoffRow& r : rows) pts.push_back({r.x.value, r.y.value});
-  const std::vector<bool> front = pareto_front(pts);
-  for (size_t i = 0; i < rows.size(); ++i) rows[i].front = front[i];
-  std::vector<const CellResult*> among;
-  for (const TradeoffRow& r : rows) among.push_back(r.cell);
-
-  std::vector<std::string> notes;
-  const std::string path = "charts/tradeoff_" + std::to_string(n) + ".svg";
-  charts.push_back({path, svg::render(tradeoff_chart(t, rows, among, notes))});
-  s += "![" + md::escape(t.title) + "](" + path + ")\n\n";
-  s += front_sentence(t, rows, among);
-  s += tradeoff_table(t, rows);
-  if (!skipped.empty()) notes.push_back("Not available, left out: " + md::list(skipped) + ".");
-  if (std::any_of(rows.begin(), rows.end(), [](const TradeoffRow& r) {
-        return std::any_of(r.extra.begin(), r.extra.end(), [](const auto& e) { return !e.has_value(); });
-      }))
-    notes.push_back("— in a column: not available for that cell.");
-  for (const std::string& note : notes) s += "*Note:* " + md::escape(note) + "\n\n";
+  // A Pareto front compares ways of rendering one scene: cells of different scenes (another scene file, or
+  // the same one moved or scaled by `transform`) get a front, a chart and a table each.
+  std::map<std::string, std::vector<TradeoffRow>> by_scene;
+  std::vector<std::string> scene_order;
+  for (const TradeoffRow& r : rows) {
+    const std::string key = scene_key(*r.cell);
+    if (!by_scene.count(key)) scene_order.push_back(key);
+    by_scene[key].push_back(r);
+  }
+  if (by_scene.size() > 1)
+    s += "The cells render " + std::to_string(by_scene.size()) +
+         " different scenes (scene or transform); each has its own Pareto front.\n\n";
+  for (size_t g = 0; g < scene_order.size(); ++g) {
+    std::vector<TradeoffRow>& group = by_scene[scene_order[g]];
+    if (by_scene.size() > 1) s += "#### " + md::escape(scene_text(*group.front().cell)) + "\n\n";
+    const std::string suffix = by_scene.size() > 1 ? "_" + std::to_string(g + 1) : "";
+    s += front_part(t, group, "charts/tradeoff_" + std::to_string(n) + suffix + ".svg", charts);
+  }
+  if (!skipped.empty()) s += "*Note:* " + md::escape("Not available, left out: " + md::list(skipped) + ".") + "\n\n";
   return s;
 }
 

@@ -207,6 +207,35 @@ TEST(TradeoffSection, TableSortedByXWithFrontMarks) {
   EXPECT_NE(svg->content.find(">0.001<"), std::string::npos);
 }
 
+// Cells of different scenes (here the same scene scaled by `transform`) are not one front: each scene gets
+// its own heading, chart and front, so a cell of one scene never dominates a cell of another.
+TEST(TradeoffSection, OneFrontPerScene) {
+  std::vector<CellResult> cells;
+  const double scale[] = {1.0, 0.8, 0.9, 0.6};
+  const double relmse[] = {0.001, 0.002, 0.003, 0.01};
+  for (int i = 0; i < 4; ++i) {
+    test::SynthCell s = base_cell({{"spp", i % 2 + 1}, {"transform", {{"scale", i < 2 ? 1.0 : 1000.0}}}},
+                                  std::uint64_t(i + 1), scale[i]);
+    s.config_patch = {{"transform", {{"scale", i < 2 ? 1.0 : 1000.0}}}};
+    s.report = tradeoff_spec();
+    s.error = test::error_json(relmse[i], 40.0 - i);
+    cells.push_back(test::cell(s));
+  }
+  const Report r = build_report(cells);
+  const std::string& md = r.markdown;
+  EXPECT_NE(md.find("The cells render 2 different scenes (scene or transform); each has its own Pareto front."),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("#### scene builtin:pica, transform.scale 1.0"), std::string::npos) << md;
+  EXPECT_NE(md.find("#### scene builtin:pica, transform.scale 1000.0"), std::string::npos) << md;
+  ASSERT_NE(chart(r, "charts/tradeoff_1_1.svg"), nullptr);
+  ASSERT_NE(chart(r, "charts/tradeoff_1_2.svg"), nullptr);
+  EXPECT_EQ(chart(r, "charts/tradeoff_1.svg"), nullptr);
+  // Within each scene both cells trade speed for error: 2 of 2 on each front (one front over all four would
+  // put the scaled scene's 0.6x cell against the first scene's).
+  EXPECT_EQ(occurrences(md, "Every cell is on the Pareto front"), 2u) << md;
+}
+
 TEST(TradeoffSection, ErrorMetricsParagraphAndCellTable) {
   const std::string md = build_report(tradeoff_matrix()).markdown;
   ASSERT_NE(md.find("## Error metrics"), std::string::npos);
