@@ -51,13 +51,9 @@ std::vector<CellResult> load_cells(const std::string& out_dir) {
   return cells;
 }
 
-namespace {
-// Per pass, one sample per frame that `keep` selects (a pass recorded several times in it: the sum).
-template <class Keep>
-PassSamples frame_pass_samples(const TimingResult& timing, Keep keep) {
+PassSamples pass_samples(const TimingResult& timing) {
   PassSamples out;
   for (const FrameSample& f : timing.timings.measured()) {
-    if (!keep(f)) continue;
     std::vector<std::pair<std::string, double>> frame;  // this frame's sum per pass, in order
     for (const PassSample& p : f.passes) {
       auto it = std::find_if(frame.begin(), frame.end(), [&](auto& e) { return e.first == p.pass; });
@@ -75,17 +71,6 @@ PassSamples frame_pass_samples(const TimingResult& timing, Keep keep) {
     }
   }
   return out;
-}
-}  // namespace
-
-PassSamples pass_samples(const TimingResult& timing) {
-  return frame_pass_samples(timing, [](const FrameSample&) { return true; });
-}
-
-std::uint32_t round_count(const TimingResult& timing) {
-  std::uint32_t n = 0;
-  for (const FrameSample& f : timing.timings.measured()) n = std::max(n, f.round + 1);
-  return n;
 }
 
 TimeSeries summed_pass_series(const TimingResult& timing, const std::function<bool(const std::string&)>& in) {
@@ -107,20 +92,21 @@ TimeSeries summed_pass_series(const TimingResult& timing, const std::function<bo
   return out;
 }
 
-PassSamples pass_round_medians(const TimingResult& timing) {
-  PassSamples out;
-  const std::uint32_t rounds = round_count(timing);
-  for (std::uint32_t r = 0; r < rounds; ++r) {
-    for (auto& [pass, samples] : frame_pass_samples(timing, [r](const FrameSample& f) { return f.round == r; })) {
-      const double med = quantile(samples, 0.5);
-      auto it = std::find_if(out.begin(), out.end(), [&](auto& e) { return e.first == pass; });
-      if (it == out.end())
-        out.push_back({pass, {med}});
-      else
-        it->second.push_back(med);
+std::optional<std::pair<double, double>> recorded_load(const CellResult& c) {
+  double lo = 1e300, hi = -1e300;
+  const auto take = [&](const json& load) {
+    for (const char* k : {"start", "end"}) {
+      const json x = load.is_object() ? load.value(k, json()) : json();
+      if (!x.is_number()) continue;
+      lo = std::min(lo, x.get<double>());
+      hi = std::max(hi, x.get<double>());
     }
-  }
-  return out;
+  };
+  take(c.line.value("load_1min", json()));
+  for (const json& v : c.line.value("rounds", json::object()).value("visits", json::array()))
+    take(v.value("load_1min", json()));
+  if (hi < lo) return std::nullopt;
+  return std::pair{lo, hi};
 }
 
 namespace {

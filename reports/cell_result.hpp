@@ -51,18 +51,16 @@ std::vector<CellResult> load_cells(const std::string& out_dir);
 /// times in a frame contributes the sum, as the timing summary does.
 using PassSamples = std::vector<std::pair<std::string, std::vector<double>>>;
 PassSamples pass_samples(const TimingResult& timing);
-/// The rounds an interleaved run measured the cell in (1 + the largest FrameSample::round; 1 for results
-/// written before runs had rounds).
-std::uint32_t round_count(const TimingResult& timing);
-/// Per pass, the median of its frames in each round, in round order (rounds where it ran): the samples at
-/// the level where the variance between rounds is (Kalibera & Jones 2013).
-PassSamples pass_round_medians(const TimingResult& timing);
 /// One series of a cell's times: per frame, the sum of the passes `in` selects (frames with none of them
 /// left out), and per round the median of those sums (round_medians[r] for the r-th round that has any).
 struct TimeSeries {
   std::vector<double> frames, round_medians;
 };
 TimeSeries summed_pass_series(const TimingResult& timing, const std::function<bool(const std::string&)>& in);
+
+/// The lowest and highest 1-minute load the cell recorded, at its start and end ("load_1min") and around
+/// each visit of its rounds (unreadable values left out); nullopt when it recorded none.
+std::optional<std::pair<double, double>> recorded_load(const CellResult& c);
 
 /// The metrics that must not change between runs of one configuration on one driver, flattened to
 /// names: "<pass>/<counter>" (sums over the measured frames), "bvh.nodes", "bvh.leaves",

@@ -154,18 +154,9 @@ std::optional<std::pair<double, double>> load_range(const std::vector<CellResult
     const json l = c.line.value("load_1min", json());
     if (!l.is_object() || !l.value("start", json()).is_number() || !l.value("end", json()).is_number())
       return std::nullopt;
-    for (const char* k : {"start", "end"}) {
-      lo = std::min(lo, l[k].get<double>());
-      hi = std::max(hi, l[k].get<double>());
-    }
-    for (const json& v : c.line.value("rounds", json::object()).value("visits", json::array()))
-      for (const char* k : {"start", "end"}) {
-        const json x = v.value("load_1min", json::object()).value(k, json());
-        if (x.is_number()) {
-          lo = std::min(lo, x.get<double>());
-          hi = std::max(hi, x.get<double>());
-        }
-      }
+    const auto r = recorded_load(c);  // start and end at least
+    lo = std::min(lo, r->first);
+    hi = std::max(hi, r->second);
   }
   if (cells.empty()) return std::nullopt;
   return std::pair{lo, hi};

@@ -68,13 +68,10 @@ std::string design_text(const std::vector<CellResult>& cells) {
     for (const json& v : r.value("visits", json::array())) {
       ++visits;
       rebuilt += v.value("rebuilt", false) ? 1 : 0;
-      for (const char* k : {"start", "end"}) {
-        const json l = v.value("load_1min", json::object()).value(k, json());
-        if (l.is_number()) {
-          load_lo = std::min(load_lo, l.get<double>());
-          load_hi = std::max(load_hi, l.get<double>());
-        }
-      }
+    }
+    if (const auto load = recorded_load(c)) {
+      load_lo = std::min(load_lo, load->first);
+      load_hi = std::max(load_hi, load->second);
     }
   }
   std::string s;
@@ -590,9 +587,9 @@ bool identical_work(const CellResult& a, const CellResult& b, const std::string&
 
 // A pass that did the same work in both cells did not change speed: whatever its times did is the
 // machine's. Where even the smallest p the samples allow exceeds alpha the comparison cannot tell.
-// Otherwise the U test, Holm-adjusted over the family, decides in the direction the samples moved, and
-// only for a change larger than the noise floor: what the pass moves between rounds of one cell is never
-// an effect.
+// Otherwise the test (signed-rank over paired rounds, else U), Holm-adjusted over the family, decides in
+// the direction the samples moved, and only for a change larger than the noise floor: what the pass moves
+// between rounds of one cell is never an effect.
 std::string time_verdict(const TimeComparison& t) {
   if (t.identical_work) return "no change";
   if (stale(*t.a) || stale(*t.b)) return "inconclusive";  // another build's times
@@ -638,6 +635,7 @@ TimeComparison compare_series(const CellPair& cp, const std::string& pass, const
   const std::vector<double>& yb = t.by_rounds ? b.round_medians : b.frames;
   t.na = ya.size();
   t.nb = yb.size();
+  ShiftCi hl;  // of the log round medians (a shift of logarithms is the ratio's logarithm)
   if (t.paired) {
     std::vector<double> d;
     for (size_t r = 0; r < ya.size(); ++r) d.push_back(std::log(yb[r]) - std::log(ya[r]));
@@ -645,25 +643,22 @@ TimeComparison compare_series(const CellPair& cp, const std::string& pass, const
     t.p_raw = w.p_value;
     t.exact = w.exact;
     t.b_slower = w.v > 0.25 * double(w.n) * double(w.n + 1);
-    const ShiftCi hl = hodges_lehmann_paired_ci(d);
-    t.change = std::exp(hl.shift) - 1.0;
-    if (hl.ci.valid) t.ci = std::pair{std::exp(hl.ci.low) - 1.0, std::exp(hl.ci.high) - 1.0};
+    hl = hodges_lehmann_paired_ci(d);
   } else {
     const MannWhitneyResult mw = mann_whitney_u(yb, ya);
     t.p_raw = mw.p_value;
     t.exact = mw.exact;
     t.b_slower = mw.u > 0.5 * double(t.na) * double(t.nb);
-  }
-  if (t.by_rounds && !t.paired) {
-    // The shift of the log round medians is the ratio's logarithm: its interval is the ratio's.
-    std::vector<double> la, lb;
-    for (double v : ya) la.push_back(std::log(v));
-    for (double v : yb) lb.push_back(std::log(v));
-    const ShiftCi hl = hodges_lehmann_ci(lb, la);
-    t.change = std::exp(hl.shift) - 1.0;
-    if (hl.ci.valid) t.ci = std::pair{std::exp(hl.ci.low) - 1.0, std::exp(hl.ci.high) - 1.0};
+    if (t.by_rounds) {
+      std::vector<double> la, lb;
+      for (double v : ya) la.push_back(std::log(v));
+      for (double v : yb) lb.push_back(std::log(v));
+      hl = hodges_lehmann_ci(lb, la);
+    }
   }
   if (t.by_rounds) {
+    t.change = std::exp(hl.shift) - 1.0;
+    if (hl.ci.valid) t.ci = std::pair{std::exp(hl.ci.low) - 1.0, std::exp(hl.ci.high) - 1.0};
     t.noise_floor = std::max(odd_even_change(ya), odd_even_change(yb));
     t.ma = quantile(ya, 0.5);
     t.mb = quantile(yb, 0.5);
@@ -687,13 +682,11 @@ std::vector<TimeComparison> time_comparisons(const std::vector<CellResult>& cell
   for (const std::string& axis : axes_of(cells))
     for (const CellPair& cp : axis_pairs(cells, axis)) {
       const PassSamples fa = pass_samples(cp.a->timing), fb = pass_samples(cp.b->timing);
-      const PassSamples ra = pass_round_medians(cp.a->timing), rb = pass_round_medians(cp.b->timing);
       for (const auto& [pass, frames_a] : fa) {
-        const std::vector<double>* frames_b = find_pass(fb, pass);
-        if (!frames_b) continue;
-        const std::vector<double>*xa = find_pass(ra, pass), *xb = find_pass(rb, pass);
-        TimeComparison t = compare_series(cp, pass, TimeSeries{frames_a, xa ? *xa : std::vector<double>{}},
-                                          TimeSeries{*frames_b, xb ? *xb : std::vector<double>{}});
+        if (!find_pass(fb, pass)) continue;
+        const auto only = [&pass](const std::string& p) { return p == pass; };
+        TimeComparison t =
+            compare_series(cp, pass, summed_pass_series(cp.a->timing, only), summed_pass_series(cp.b->timing, only));
         t.identical_work = identical_work(*cp.a, *cp.b, pass);
         out.push_back(t);
       }

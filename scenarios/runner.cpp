@@ -292,23 +292,28 @@ FinishedCells read_finished(const RunOptions& o, const std::vector<std::string>&
   return done;
 }
 
-// Removes the stale cells' lines (rewriting the file with the others' lines as they were) and folders.
+// Rewrites OUT/results.jsonl with the finished lines as `done` holds them now, in file order, leaving out
+// the cells in `drop`.
+void rewrite_results(const RunOptions& o, FinishedCells& done, const std::vector<std::string>& drop = {}) {
+  std::string kept;
+  for (const std::string& id : done.file_order)
+    if (std::find(drop.begin(), drop.end(), id) == drop.end()) kept += done.lines[id].dump() + "\n";
+  write_file_atomically(fs::path(o.out_dir) / kResults, kept);
+}
+
+// Removes the stale cells' lines (the others kept as they were) and folders.
 void remove_stale(const RunOptions& o, FinishedCells& done, const std::vector<std::string>& stale,
                   const std::string& now) {
   std::fprintf(stderr, "hybridprof run: %zu cell(s) in %s were measured by %s, not %s: running them again\n",
                stale.size(), o.out_dir.c_str(), measured_by(done.lines[stale.front()]).c_str(), now.c_str());
-  std::string kept;
-  for (const std::string& id : done.file_order)
-    if (std::find(stale.begin(), stale.end(), id) == stale.end()) kept += done.lines[id].dump() + "\n";
-  const fs::path out(o.out_dir);
-  write_file_atomically(out / kResults, kept);
+  rewrite_results(o, done, stale);
   for (const std::string& id : stale) {
     std::error_code ignore;
-    fs::remove_all(out / "cells" / id, ignore);
+    fs::remove_all(fs::path(o.out_dir) / "cells" / id, ignore);
   }
 }
 
-// Marks the reused stale cells' lines (the file rewritten with every other line as it was).
+// Marks the reused stale cells' lines (every other line kept as it was).
 void mark_stale(const RunOptions& o, FinishedCells& done, const std::vector<std::string>& reused,
                 const std::string& now) {
   std::fprintf(stderr,
@@ -317,9 +322,7 @@ void mark_stale(const RunOptions& o, FinishedCells& done, const std::vector<std:
                reused.size(), o.out_dir.c_str(), measured_by(done.lines[reused.front()]).c_str(), now.c_str());
   for (const std::string& id : reused)
     done.lines[id]["stale"] = {{"measured_by", measured_by(done.lines[id])}, {"reused_by", now}};
-  std::string all;
-  for (const std::string& id : done.file_order) all += done.lines[id].dump() + "\n";
-  write_file_atomically(fs::path(o.out_dir) / kResults, all);
+  rewrite_results(o, done);
 }
 
 // One more frame, traced (the timed frames ran uninstrumented), then the cache simulator: the cell's
