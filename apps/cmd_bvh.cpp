@@ -51,27 +51,6 @@ struct BvhArgs {
   bool validate = false;
 };
 
-// `n` primary rays of a pinhole camera, on a grid of ceil(sqrt(n)) columns over a square image (row-major,
-// pixel centres), cut at n: coherent rays a reader can reproduce.
-std::vector<bvh::Ray> camera_rays(const Camera& cam, uint32_t n) {
-  const uint32_t side = uint32_t(std::ceil(std::sqrt(double(n))));
-  const glm::vec3 fwd = glm::normalize(cam.target - cam.position);
-  const glm::vec3 right = glm::normalize(glm::cross(fwd, cam.up));
-  const glm::vec3 up = glm::cross(right, fwd);
-  const float h = std::tan(glm::radians(cam.vfov_deg) * 0.5f);
-  std::vector<bvh::Ray> rays;
-  rays.reserve(n);
-  for (uint32_t i = 0; i < n; ++i) {
-    const float sx = (2.0f * (float(i % side) + 0.5f) / float(side) - 1.0f) * h;
-    const float sy = (1.0f - 2.0f * (float(i / side) + 0.5f) / float(side)) * h;
-    bvh::Ray r;
-    r.origin = cam.position;
-    r.dir = glm::normalize(fwd + sx * right + sy * up);
-    rays.push_back(r);
-  }
-  return rays;
-}
-
 double ms_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
@@ -223,7 +202,7 @@ void run_bvh(const BvhArgs& a) {
   }
   if (a.make_rays > 0) {
     const Camera cam = scene.has_camera ? scene.camera : auto_frame(scene, 1.0f);
-    bvh::write_rays(a.rays, camera_rays(cam, a.make_rays));
+    bvh::write_rays(a.rays, bvh::pinhole_rays(cam.position, cam.target, cam.up, cam.vfov_deg, a.make_rays));
     std::printf("wrote %u camera rays (a %u-wide grid over a square view of the scene's camera) to %s\n", a.make_rays,
                 uint32_t(std::ceil(std::sqrt(double(a.make_rays)))), a.rays.c_str());
   }

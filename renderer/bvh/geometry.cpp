@@ -37,4 +37,23 @@ bool is_degenerate(const Triangle& tri) {
   return n.x == 0.0 && n.y == 0.0 && n.z == 0.0;
 }
 
+std::vector<Ray> pinhole_rays(glm::vec3 eye, glm::vec3 target, glm::vec3 up_hint, float vfov_deg, uint32_t n) {
+  const uint32_t side = uint32_t(std::ceil(std::sqrt(double(n))));
+  const glm::vec3 fwd = glm::normalize(target - eye);
+  const glm::vec3 right = glm::normalize(glm::cross(fwd, up_hint));
+  const glm::vec3 up = glm::cross(right, fwd);
+  const float h = std::tan(glm::radians(vfov_deg) * 0.5f);
+  std::vector<Ray> rays;
+  rays.reserve(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    const float sx = (2.0f * (float(i % side) + 0.5f) / float(side) - 1.0f) * h;
+    const float sy = (1.0f - 2.0f * (float(i / side) + 0.5f) / float(side)) * h;
+    Ray r;
+    r.origin = eye;
+    r.dir = glm::normalize(fwd + sx * right + sy * up);
+    rays.push_back(r);
+  }
+  return rays;
+}
+
 }  // namespace hp::bvh

@@ -48,4 +48,9 @@ std::vector<Triangle> make_triangles(std::span<const glm::vec3> positions, std::
 /// (see LeafOrderTriangles), where the watertight test rejects them exactly.
 bool is_degenerate(const Triangle& tri);
 
+/// `n` coherent primary rays of a pinhole camera at `eye` looking at `target` (vertical field of view
+/// `vfov_deg`) over a square image of ceil(sqrt(n)) x ceil(sqrt(n)) pixels: one ray through each pixel
+/// centre, row-major from the top left, cut at n. Used by `bvh --make-rays` and the BVH benchmark.
+std::vector<Ray> pinhole_rays(glm::vec3 eye, glm::vec3 target, glm::vec3 up, float vfov_deg, uint32_t n);
+
 }  // namespace hp::bvh

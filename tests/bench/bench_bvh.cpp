@@ -80,26 +80,7 @@ glm::vec3 bounds_hi(const std::vector<Triangle>& tris) {
 }
 
 /// Coherent primary rays: one per pixel of a 512 x 512 pinhole image.
-std::vector<Ray> primary_rays(const View& v) {
-  constexpr int kSize = 512;
-  const glm::vec3 fwd = glm::normalize(v.target - v.eye);
-  const glm::vec3 right = glm::normalize(glm::cross(fwd, v.up));
-  const glm::vec3 up = glm::cross(right, fwd);
-  const float h = std::tan(glm::radians(v.vfov_deg) * 0.5f);
-  std::vector<Ray> rays;
-  rays.reserve(kSize * kSize);
-  for (int y = 0; y < kSize; ++y) {
-    for (int x = 0; x < kSize; ++x) {
-      const float sx = (2.0f * (static_cast<float>(x) + 0.5f) / kSize - 1.0f) * h;
-      const float sy = (1.0f - 2.0f * (static_cast<float>(y) + 0.5f) / kSize) * h;
-      Ray r;
-      r.origin = v.eye;
-      r.dir = glm::normalize(fwd + sx * right + sy * up);
-      rays.push_back(r);
-    }
-  }
-  return rays;
-}
+std::vector<Ray> primary_rays(const View& v) { return pinhole_rays(v.eye, v.target, v.up, v.vfov_deg, 512 * 512); }
 
 /// Incoherent rays: origins uniform in the scene's box, directions uniform on the sphere.
 std::vector<Ray> random_rays(const std::vector<Triangle>& tris) {
