@@ -472,8 +472,7 @@ Shard parse_shard(const std::string& text) {
       const std::optional<unsigned> id = env_count("SLURM_ARRAY_TASK_ID", 0);
       const std::optional<unsigned> min = env_count("SLURM_ARRAY_TASK_MIN", 0);
       n = env_count("SLURM_ARRAY_TASK_COUNT", 1);
-      if (id) k = *id - min.value_or(0) + 1;
-      if (id && min && *id < *min) k.reset();
+      if (id && *id >= min.value_or(0)) k = *id - min.value_or(0) + 1;
       from = "SLURM_ARRAY_TASK_ID/SLURM_ARRAY_TASK_COUNT";
     }
     if (!k || !n)
