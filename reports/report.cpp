@@ -1151,6 +1151,21 @@ Report build_report(const std::vector<CellResult>& cells, const json& unsupporte
   return r;
 }
 
+// Charts of an earlier report that this one no longer draws (another matrix, fewer axes, a scene gone)
+// would otherwise lie beside report.md as if current. Only the report's own kind of file goes: `.svg` files
+// directly in charts/; anything else there (PNGs rendered from them, notes) is left alone.
+namespace {
+void remove_stale_charts(const fs::path& charts_dir, const std::vector<ReportFile>& charts) {
+  std::set<std::string> current;
+  for (const ReportFile& f : charts) current.insert(fs::path(f.path).filename().string());
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(charts_dir, ec)) {
+    if (!e.is_regular_file() || e.path().extension() != ".svg") continue;
+    if (!current.contains(e.path().filename().string())) fs::remove(e.path(), ec);
+  }
+}
+}  // namespace
+
 std::string write_report(const std::string& out_dir) {
   json unsupported = json::array();
   const fs::path unsupported_file = fs::path(out_dir) / "unsupported.json";
@@ -1169,6 +1184,7 @@ std::string write_report(const std::string& out_dir) {
   write_file_atomically(fs::path(out_dir) / "findings.json", r.findings);
   const std::string path = (fs::path(out_dir) / "report.md").string();
   write_file_atomically(path, r.markdown);
+  remove_stale_charts(fs::path(out_dir) / "charts", r.charts);
   return path;
 }
 

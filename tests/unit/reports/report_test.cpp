@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <regex>
 
@@ -509,6 +510,18 @@ TEST(Report, WritesFilesAtomically) {
   EXPECT_TRUE(fs::exists(dir + "/charts/pass_times.svg"));
   for (const auto& e : fs::recursive_directory_iterator(dir))
     EXPECT_EQ(e.path().string().find(".tmp."), std::string::npos) << e.path();
+  // Charts of an earlier report that this one does not draw are removed; other files in charts/ stay.
+  std::ofstream(dir + "/charts/vs_width_7.svg") << "<svg/>";
+  std::ofstream(dir + "/charts/pass_times.png") << "png";
+  write_report(dir);
+  EXPECT_FALSE(fs::exists(dir + "/charts/vs_width_7.svg"));
+  EXPECT_TRUE(fs::exists(dir + "/charts/pass_times.png"));
+  EXPECT_TRUE(fs::exists(dir + "/charts/pass_times.svg"));
+  std::ifstream report_in(dir + "/report.md");
+  const std::string md{std::istreambuf_iterator<char>(report_in), {}};
+  for (const auto& e : fs::directory_iterator(dir + "/charts"))
+    if (e.path().extension() == ".svg")
+      EXPECT_NE(md.find("charts/" + e.path().filename().string()), std::string::npos) << e.path();
   EXPECT_THROW(write_report(dir + "/nothing"), InputError);
   std::ofstream(dir + "/results.jsonl", std::ios::app) << "{not json\n";
   EXPECT_THROW(write_report(dir), InputError);
