@@ -43,6 +43,7 @@ struct CachesimArgs {
   uint32_t export_cu = 0;
   uint32_t scale_model = 1;
   bool per_invocation = false;
+  bool quiet = false;
 };
 
 std::string pct(uint64_t part, uint64_t whole) {
@@ -201,8 +202,18 @@ void run_trace(const CachesimArgs& a) {
       sim.set_observer(din_observer(din->stream(), preset, a.export_cu, false, din_lines));
     }
     // Slice by slice as captured: memory bounded by the largest slice, whatever the frame's size.
+    // Progress: the pass's records replayed so far, out of the count in the file.
     sim.begin_pass(pass);
-    feed_slices(sim, reader, p);
+    Progress progress("hybridprof cachesim: " + pass.name + " records", a.quiet);
+    const uint64_t total = reader.record_count(p);
+    uint64_t done = 0;
+    reader.read_slices(p, [&](std::span<const trace::TraceRecord> records, uint64_t first, uint64_t end) {
+      sim.feed(records, first, end);
+      done += records.size();
+      char detail[48];
+      std::snprintf(detail, sizeof(detail), "%.0f MB read", double(done) * sizeof(trace::TraceRecord) / 1e6);
+      progress.update(done, total, detail);
+    });
     const PassResult r = sim.end_pass();
     if (export_here) {
       sim.set_observer(nullptr);
@@ -268,6 +279,7 @@ void add_cachesim_command(CLI::App& app) {
   cmd->add_option("--mrc", args->mrc_path, "Write L1/L2 miss-ratio curves (CSV)");
   auto* shards = cmd->add_option("--shards", args->shards, "Sample miss-ratio curves at this rate (SHARDS), 1 = exact")
                      ->check(finite_range(1e-6, 1.0));
+  cmd->add_flag("--quiet", args->quiet, "no progress lines on stderr (trace replay)");
   auto* per_inv =
       cmd->add_flag("--per-invocation", args->per_invocation, "Include per-invocation L1/L2 miss counts in --out")
           ->needs(out);

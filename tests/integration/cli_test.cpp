@@ -11,6 +11,7 @@
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <regex>
 #include <string>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -220,6 +221,27 @@ TEST(Cli, RenderShowsProgressUnlessQuiet) {
   const CmdResult q = run(cmd + " --quiet");
   ASSERT_EQ(q.code, 0) << q.output;
   EXPECT_EQ(q.output.find("hybridprof render: frames"), std::string::npos) << q.output;
+}
+
+// A trace replay says how far each pass is, in records out of the file's count; --quiet says nothing.
+TEST(Cli, CachesimShowsReplayProgressUnlessQuiet) {
+  HP_CLI_REQUIRE_VULKAN();
+  const fs::path d = temp_dir();
+  const fs::path trace = d / "t.hptrace";
+  CmdResult r =
+      run("trace --scene builtin:cornell --width 32 --height 24 --passes shadows --quiet --out " + trace.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run("cachesim " + trace.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.output, m, std::regex("hybridprof cachesim: shadows records: ([0-9]+)/([0-9]+), ")))
+      << r.output;
+  EXPECT_EQ(m[1].str(), m[2].str());
+  EXPECT_GT(std::stoull(m[1].str()), 0u);
+  const CmdResult q = run("cachesim " + trace.string() + " --quiet");
+  ASSERT_EQ(q.code, 0) << q.output;
+  EXPECT_EQ(q.output.find("hybridprof cachesim:"), std::string::npos) << q.output;
+  EXPECT_NE(q.output.find("pass 'shadows'"), std::string::npos) << q.output;
 }
 
 TEST(Cli, RenderWritesPngAndAov) {
