@@ -3,17 +3,19 @@
 #include "image/image.hpp"
 #include "output_path.hpp"
 
-#include <OpenImageIO/imageio.h>
+#include "image/image_backend.hpp"
+
+#include <dlfcn.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 
 namespace hp {
-
-namespace OIIO = OIIO_NAMESPACE;
 
 float linear_to_srgb(float x) {
   x = std::clamp(x, 0.0f, 1.0f);
@@ -39,53 +41,72 @@ void check_image_output(const std::string& path, const std::string& what, bool p
   check_output_path(path, what, parent_must_exist);
 }
 
+namespace {
+// OpenImageIO is loaded with the first image read or written (see oiio_backend.cpp for why). The module's
+// path is the one the build wrote (HP_IMAGE_MODULE, absolute); HP_IMAGE_MODULE in the environment overrides it.
+const ImageBackend& backend() {
+  static const ImageBackend* loaded = nullptr;
+  static std::string failure;
+  static std::once_flag once;
+  std::call_once(once, [] {
+    const char* env = std::getenv("HP_IMAGE_MODULE");
+    const std::string path = env && *env ? env : HP_IMAGE_MODULE;
+    void* lib = ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+      const char* e = ::dlerror();
+      failure = "cannot load the image module " + path + ": " + (e ? e : "unknown error");
+      return;
+    }
+    using Entry = const ImageBackend* (*)();
+    auto entry = reinterpret_cast<Entry>(::dlsym(lib, "hp_image_backend"));
+    const ImageBackend* b = entry ? entry() : nullptr;
+    if (!b || b->version != kImageBackendVersion) {
+      failure = "the image module " + path + " is not this build's (rebuild hybridprof)";
+      return;
+    }
+    loaded = b;
+  });
+  if (!loaded) throw InputError(failure);
+  return *loaded;
+}
+}  // namespace
+
 void write_image(const std::string& path, const Image4f& image) {
   check_image_output(path, "", /*parent_must_exist=*/false);  // it makes its folders (the commands check first)
-  const std::string ext = lower_extension(path);
+  const bool exr = lower_extension(path) == ".exr";
+  const ImageBackend& io = backend();
   // The temporary keeps the extension, so OpenImageIO picks the right format.
   AtomicFile file(path, "", /*create_folders=*/true);
-  const std::string tmp = file.temp_path().string();
-  auto out = OIIO::ImageOutput::create(tmp);
-  if (!out) throw InputError(path + ": cannot create an image writer: " + OIIO::geterror());
+  std::string error;
   bool ok = false;
-  if (ext == ".exr") {
-    OIIO::ImageSpec spec(int(image.width), int(image.height), 4, OIIO::TypeDesc::FLOAT);
-    spec.attribute("compression", "zip");
-    ok = out->open(tmp, spec) && out->write_image(OIIO::TypeDesc::FLOAT, image.rgba.data());
+  if (exr) {
+    ok = io.write(file.temp_path().string(), true, image.width, image.height, image.rgba.data(), error);
   } else {
-    OIIO::ImageSpec spec(int(image.width), int(image.height), 4, OIIO::TypeDesc::UINT8);
     std::vector<uint8_t> px(image.rgba.size());
     for (size_t i = 0; i < image.rgba.size(); ++i) {
       const float v = (i % 4 == 3) ? std::clamp(image.rgba[i], 0.0f, 1.0f) : linear_to_srgb(image.rgba[i]);
       px[i] = static_cast<uint8_t>(std::lround(v * 255.0f));
     }
-    ok = out->open(tmp, spec) && out->write_image(OIIO::TypeDesc::UINT8, px.data());
+    ok = io.write(file.temp_path().string(), false, image.width, image.height, px.data(), error);
   }
-  std::string err = out->geterror();
-  ok = out->close() && ok;
-  if (!ok) throw InputError(path + ": cannot write image: " + (err.empty() ? std::string("unknown error") : err));
+  if (!ok) throw InputError(path + ": " + error);
   file.commit();
 }
 
 Image4f read_image(const std::string& path) {
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) throw InputError(path + ": cannot read image: " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = in->spec();
-  Image4f img(uint32_t(spec.width), uint32_t(spec.height));
-  std::vector<float> px(size_t(spec.width) * spec.height * spec.nchannels);
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, px.data())) {
-    throw InputError(path + ": cannot read image: " + in->geterror());
-  }
-  const bool srgb = spec.format == OIIO::TypeDesc::UINT8 || spec.format == OIIO::TypeDesc::UINT16;
-  for (size_t i = 0; i < size_t(spec.width) * spec.height; ++i) {
+  DecodedImage d;
+  std::string error;
+  if (!backend().read(path, d, error)) throw InputError(path + ": " + error);
+  Image4f img(d.width, d.height);
+  const int nc = d.channels;
+  for (size_t i = 0; i < size_t(d.width) * d.height; ++i) {
     for (int c = 0; c < 4; ++c) {
-      float v = c < spec.nchannels ? px[i * spec.nchannels + c] : (c == 3 ? 1.0f : 0.0f);
-      if (c < 3 && spec.nchannels < 3) v = px[i * spec.nchannels];  // grey
-      if (srgb && c < 3) v = srgb_to_linear(v);
+      float v = c < nc ? d.pixels[i * nc + c] : (c == 3 ? 1.0f : 0.0f);
+      if (c < 3 && nc < 3) v = d.pixels[i * nc];  // grey
+      if (d.srgb && c < 3) v = srgb_to_linear(v);
       img.rgba[i * 4 + c] = v;
     }
   }
-  in->close();
   return img;
 }
 

@@ -244,6 +244,24 @@ TEST(Cli, CachesimShowsReplayProgressUnlessQuiet) {
   EXPECT_NE(q.output.find("pass 'shadows'"), std::string::npos) << q.output;
 }
 
+// OpenImageIO is loaded only when an image is written: a command that writes none does not need it, and
+// one that does names the module it could not load, exits non-zero and leaves no image behind.
+TEST(Cli, ImagesLoadTheImageModuleOnlyWhenWritten) {
+  HP_CLI_REQUIRE_VULKAN();
+  const fs::path d = temp_dir();
+  const std::string env = "HP_IMAGE_MODULE=" + (d / "missing.so").string();
+  CmdResult r = run("trace --scene builtin:cornell --width 32 --height 24 --passes shadows --quiet --out " +
+                        (d / "t.hptrace").string(),
+                    env);
+  EXPECT_EQ(r.code, 0) << r.output;
+  r = run("render --scene builtin:cornell --width 32 --height 24 --quiet --out " + (d / "c.png").string(), env);
+  EXPECT_NE(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("cannot load the image module " + (d / "missing.so").string()), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(fs::exists(d / "c.png"));
+  for (const auto& e : fs::directory_iterator(d)) EXPECT_EQ(e.path().string().find(".tmp"), std::string::npos);
+}
+
 TEST(Cli, RenderWritesPngAndAov) {
   HP_CLI_REQUIRE_VULKAN();
   const fs::path d = temp_dir();
