@@ -206,10 +206,7 @@ void run_trace(const CachesimArgs& a) {
     sim.begin_pass(pass);
     Progress progress("hybridprof cachesim: " + pass.name + " records", a.quiet);
     const uint64_t total = reader.record_count(p);
-    uint64_t done = 0;
-    reader.read_slices(p, [&](std::span<const trace::TraceRecord> records, uint64_t first, uint64_t end) {
-      sim.feed(records, first, end);
-      done += records.size();
+    feed_slices(sim, reader, p, [&](uint64_t done) {
       char detail[48];
       std::snprintf(detail, sizeof(detail), "%.0f MB read", double(done) * sizeof(trace::TraceRecord) / 1e6);
       progress.update(done, total, detail);

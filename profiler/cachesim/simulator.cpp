@@ -856,9 +856,13 @@ void Simulator::schedule() {
   }
 }
 
-void feed_slices(Simulator& sim, const trace::TraceReader& reader, uint32_t pass) {
+void feed_slices(Simulator& sim, const trace::TraceReader& reader, uint32_t pass,
+                 const std::function<void(uint64_t records_done)>& on_slice) {
+  uint64_t done = 0;
   reader.read_slices(pass, [&](std::span<const trace::TraceRecord> records, uint64_t first, uint64_t end) {
     sim.feed(records, first, end);
+    done += records.size();
+    if (on_slice) on_slice(done);
   });
 }
 

@@ -126,8 +126,10 @@ class Simulator {
 };
 
 // Feeds pass `pass` of a trace file to `sim` (between its begin_pass and end_pass), one validated slice at
-// a time in workgroup order (TraceReader::read_slices).
-void feed_slices(Simulator& sim, const trace::TraceReader& reader, uint32_t pass);
+// a time in workgroup order (TraceReader::read_slices). `on_slice`, if set, gets the pass's records fed so far
+// after each slice (a progress line).
+void feed_slices(Simulator& sim, const trace::TraceReader& reader, uint32_t pass,
+                 const std::function<void(uint64_t records_done)>& on_slice = {});
 
 // Writes the coalesced request stream that compute unit `cu` sends to its L1 during one pass, in
 // Dinero IV text ("r ADDR SIZE", one line per contiguous run of sectors), loads only unless
