@@ -14,7 +14,7 @@ void add_gate_command(CLI::App& app) {
   struct Args {
     std::string baseline, candidate, policy, baseline_cmd, candidate_cmd, scenario, work_dir;
     double threshold = 0.10, warn = 0.05, alpha = 0.05;
-    int trials = 11;  // 7 caught a +15-20% slowdown in 15 of 20 trials on a quiet VM, 11 in 19 (README)
+    int trials = 11;  // 7 caught a +15-20% slowdown in 15 of 20 trials on a quiet VM, 11 in 19 (docs/gate.md)
     bool ab = false, keep = false, deterministic_only = false, verbose = false;
   };
   auto a = std::make_shared<Args>();

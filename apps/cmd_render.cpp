@@ -150,7 +150,7 @@ void run_render(const RenderArgs& a) {
   if (summary.query_overhead) {
     const QueryOverhead& q = *summary.query_overhead;
     // The paired estimate, with its CI, first: the ratio of the two sides' medians has no interval and
-    // mostly follows the machine's drift (README, "Query overhead").
+    // mostly follows the machine's drift (docs/timing.md, "Query overhead").
     std::printf("  timestamp query overhead:");
     if (q.paired_fraction) {
       std::printf(" %.3f%% [%.3f%%, %.3f%%]%s of the CPU wall time per frame, paired over %u frame pairs;",

@@ -18,7 +18,7 @@ struct BuildOptions {
   int buckets = 12;
   /// Bin all three axes and take the cheapest split (default). false: bin only the axis of largest centroid
   /// extent, as the study and pbrt do; measured here that rule lands 4-5% above the full sweep's SAH cost
-  /// on spheres and terrains even with 32 buckets, all three axes within 1% (README, BVH figures).
+  /// on spheres and terrains even with 32 buckets, all three axes within 1% (docs/bvh.md).
   bool all_axes = true;
   /// Exact top-down SAH: every split position between primitives sorted by centroid, on all three axes.
   /// Slower (O(N log N) with three presorted lists); the reference the binned build is measured against.

@@ -58,8 +58,8 @@ class CacheAnalysis final : public trace::TraceSink {
 /// "hit_rate"}}, misses the same in all three (hits = lookups - misses).
 nlohmann::json l1_by_counting_json(const cachesim::L1Lookups& lookups, uint64_t misses);
 
-/// Replays every pass of `trace_path`, slice by slice and returns {"preset", "passes": [...]} (schema in README, "Cache
-/// tables"). Throws hp::InputError for a bad trace or preset.
+/// Replays every pass of `trace_path`, slice by slice and returns {"preset", "passes": [...]} (schema: finish() above;
+/// docs/memory-traces.md, "Cache tables"). Throws hp::InputError for a bad trace or preset.
 nlohmann::json analyse_trace(const std::string& trace_path, const CacheAnalysisOptions& options);
 
 }  // namespace hp

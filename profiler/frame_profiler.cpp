@@ -48,7 +48,7 @@ FrameTimings profile_frames(Frame& frame, const ProfileOptions& o, QueryOverhead
   // The first frame records no query. On lavapipe (Mesa 22.3) timestamps or pipeline statistics in a
   // Frame's very first frame leave its G-buffer pass slower in every later frame, timed or not (19-24 ms
   // instead of 13-18 ms at 640x360; a 320x180 G-buffer + composite frame 20 ms instead of 10-13 ms:
-  // README, "Query overhead"). One frame without queries first avoids it: the first warm-up frame, or an
+  // docs/timing.md, "The first frame"). One frame without queries first avoids it: the first warm-up frame, or an
   // extra frame without warm-up. Invocation counts come from a frame of their own too, so that the timed
   // frames carry timestamps only: the last warm-up frame when there are two or more (its times are
   // discarded anyway), else one extra frame after the first.

@@ -97,8 +97,8 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   check_range("index", indices.size() * 4);
   check_range("triangle soup", soup.size() * 4);
   // The geometry as R32G32B32_UINT texels: a triangle's fetch is one texel per vertex (and one for its
-  // indices) instead of llvmpipe's loops over the lanes for storage loads (README, "Speed of the GPU
-  // passes"). UINT keeps the float bits exactly. The storage path stays for devices without the format.
+  // indices) instead of llvmpipe's loops over the lanes for storage loads (docs/gpu-passes.md,
+  // "Geometry as texels"). UINT keeps the float bits exactly. The storage path stays for devices without the format.
   VkFormatProperties triple{};
   vkGetPhysicalDeviceFormatProperties(ctx.physical_device(), kTriple, &triple);
   // Every buffer seen as texels stays within maxTexelBufferElements (R32_UINT: the slot map is 1 per slot).

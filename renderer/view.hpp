@@ -9,8 +9,8 @@
 namespace hp {
 
 /// Camera-relative: the matrices project a position taken relative to the eye (the view has no translation;
-/// built in double), so a world far from the origin keeps its precision near the camera (README "Speed
-/// against error"). The GPU passes get exactly these.
+/// built in double), so a world far from the origin keeps its precision near the camera (docs/speed-vs-error.md,
+/// "Shadows"). The GPU passes get exactly these.
 struct View {
   glm::vec3 eye{0.0f};
   glm::mat4 view_proj_rel{1.0f};      ///< (world - eye) -> clip

@@ -1,6 +1,6 @@
 // Scenario files: what one matrix cell renders and measures, and matrices of them.
 //
-// A scenario is a JSON object (schema in README "Scenario files"); every key is optional and has a default,
+// A scenario is a JSON object (schema in docs/scenarios.md); every key is optional and has a default,
 // an unknown key, a wrong type or an impossible value is an hp::InputError naming the file and the key path.
 // A matrix file is {"base": {scenario}, "axes": {"key.path": [values...]}, "exclude": [{"key.path": value}]},
 // expanded as the cartesian product of the axes (the first axis varies slowest), minus the excluded
@@ -82,7 +82,7 @@ struct Matrix {
   std::vector<std::string> axes;                 ///< axis key paths, in file order
   std::vector<Scenario> cells;                   ///< expanded, excludes removed, in deterministic order
   std::vector<nlohmann::json> cell_axis_values;  ///< per cell: {"axis": value} of its coordinates
-  /// The matrix's "report" object (trade-off sections of the report; README "Speed against error"), copied
+  /// The matrix's "report" object (trade-off sections of the report; docs/speed-vs-error.md), copied
   /// into every result line. Null when absent.
   nlohmann::json report;
   /// The matrix's "expect" object: per cell name of "cells", the results a test holds it to (hard cases).

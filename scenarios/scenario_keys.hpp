@@ -1,7 +1,7 @@
 // The keys of a scenario object, as one table: key path, type, range or choices, default and a line of
 // description per key. The table drives parse_scenario (which keys exist where, their types and ranges,
 // what an absent key means), Scenario::canonical (which keys enter it, and when), `hybridprof run
-// --list-keys` and the key reference in README "Scenario files" (generated: a test holds the README to it).
+// --list-keys` and the key reference in docs/scenarios.md, "Scenario keys" (generated: a test holds it to the code).
 #pragma once
 
 #include <nlohmann/json.hpp>

@@ -82,8 +82,8 @@ float hp_depth_uncertainty(ivec2 p, float depth, vec3 pos) {
 // acne pixels; 2^-23, 15; 2^-22, 25; 2^-20, 85 (a larger offset pushes origins into touching objects). Wächter & Binder's offset (ray_offset.glsl)
 // is meant for hit points computed by a ray cast; applied here it was measured to fail both ways: its
 // 256-ULP steps per axis are 2 world units at 1e5 from the origin and move the point sideways (3,480 acne
-// pixels of 163,708), and its absolute 2^-16 near the origin is 1.5% of a world scaled by 1e-3 (README
-// "Speed against error").
+// pixels of 163,708), and its absolute 2^-16 near the origin is 1.5% of a world scaled by 1e-3 (docs/speed-vs-error.md,
+// "Shadows").
 vec3 hp_offset_gbuffer(ivec2 p, float depth, vec3 pos, vec3 n) {
   vec3 a = abs(pos);
   precise float grid = (max(a.x, max(a.y, a.z)) + distance(pos, frame.camera_pos.xyz)) * (1.0 / 8388608.0);

@@ -51,7 +51,7 @@ size_t line_count(const std::string& s) {
   return n;
 }
 
-// A bad-input failure as the README promises: exit 2 and one line that names `what` (a file, field,
+// A bad-input failure as docs/cli.md promises: exit 2 and one line that names `what` (a file, field,
 // option or limit).
 void expect_bad_input(const CmdResult& r, const std::string& what) {
   EXPECT_EQ(r.code, 2) << r.output;
