@@ -1,4 +1,4 @@
-// The scenario key table: the README's key reference is the generated table (so the docs cannot drift
+// The scenario key table: docs/scenarios.md's key reference is the generated table (so the docs cannot drift
 // from the parser), and the table covers every key the parser reads and the canonical form holds.
 #include "error.hpp"
 #include "scenario.hpp"
@@ -21,19 +21,19 @@ namespace fs = std::filesystem;
 constexpr const char* kBegin = "<!-- scenario-keys:begin";
 constexpr const char* kEnd = "<!-- scenario-keys:end -->";
 
-TEST(ScenarioKeys, ReadmeHoldsTheGeneratedTable) {
-  std::ifstream in(fs::path(HP_SOURCE_DIR) / "README.md");
+TEST(ScenarioKeys, DocsHoldTheGeneratedTable) {
+  std::ifstream in(fs::path(HP_SOURCE_DIR) / "docs" / "scenarios.md");
   ASSERT_TRUE(in);
   std::stringstream ss;
   ss << in.rdbuf();
   const std::string readme = ss.str();
   const size_t begin = readme.find(kBegin), end = readme.find(kEnd);
-  ASSERT_NE(begin, std::string::npos) << "README.md: no " << kBegin;
-  ASSERT_NE(end, std::string::npos) << "README.md: no " << kEnd;
+  ASSERT_NE(begin, std::string::npos) << "docs/scenarios.md: no " << kBegin;
+  ASSERT_NE(end, std::string::npos) << "docs/scenarios.md: no " << kEnd;
   const size_t table = readme.find('\n', begin) + 1;
   ASSERT_LT(table, end);
   EXPECT_EQ(readme.substr(table, end - table), scenario_keys_markdown())
-      << "README \"Scenario files\": the key table differs from the code's; replace it with the output of "
+      << "docs/scenarios.md: the key table differs from the code's; replace it with the output of "
          "`hybridprof run --list-keys`";
 }
 
