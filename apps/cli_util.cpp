@@ -34,6 +34,19 @@ void Progress::update(uint64_t done, uint64_t total, const std::string& detail) 
   std::fflush(stderr);
 }
 
+std::string format_bytes(uint64_t bytes) {
+  char buf[32];
+  if (bytes < 1000) {
+    std::snprintf(buf, sizeof buf, "%llu B", (unsigned long long)bytes);
+  } else if (bytes < 1000ull * 1000 * 1000) {
+    std::snprintf(buf, sizeof buf, "%.1f %s", double(bytes) / (bytes < 1000ull * 1000 ? 1e3 : 1e6),
+                  bytes < 1000ull * 1000 ? "kB" : "MB");
+  } else {
+    std::snprintf(buf, sizeof buf, "%.2f GB", double(bytes) / 1e9);
+  }
+  return buf;
+}
+
 CLI::Validator finite_range(double lo, double hi) {
   CLI::Validator finite(
       [](std::string& text) -> std::string {

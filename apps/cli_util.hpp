@@ -30,6 +30,9 @@ class Progress {
   std::chrono::steady_clock::time_point start_, last_;
 };
 
+/// A byte count for people: "812 B", "3.4 MB", "1.25 GB" (decimal units, as disk tools print them).
+std::string format_bytes(uint64_t bytes);
+
 /// A closed range for a floating-point option that also rejects NaN (which CLI::Range lets through: every
 /// comparison with NaN is false).
 CLI::Validator finite_range(double lo, double hi);

@@ -1,5 +1,6 @@
 // `hybridprof gate`: compare a candidate run with a baseline run; exit 0 pass, 1 regression, 4 inconclusive, 2 cannot
 // compare. Either two run folders, or --ab: both binaries run alternately in fresh processes here.
+#include "apps/cli_util.hpp"
 #include "apps/commands.hpp"
 #include "error.hpp"
 #include "gate.hpp"
@@ -15,7 +16,7 @@ void add_gate_command(CLI::App& app) {
     std::string baseline, candidate, policy, baseline_cmd, candidate_cmd, scenario, work_dir;
     double threshold = 0.10, warn = 0.05, alpha = 0.05;
     int trials = 11;  // 7 caught a +15-20% slowdown in 15 of 20 trials on a quiet VM, 11 in 19 (docs/gate.md)
-    bool ab = false, keep = false, deterministic_only = false, verbose = false;
+    bool ab = false, keep = false, deterministic_only = false, verbose = false, quiet = false;
   };
   auto a = std::make_shared<Args>();
   CLI::App* cmd = app.add_subcommand(
@@ -41,6 +42,7 @@ void add_gate_command(CLI::App& app) {
   cmd->add_option("--work-dir", a->work_dir, "--ab: folder for the runs (default: a temporary folder, removed after)")
       ->needs(ab);
   cmd->add_flag("--keep", a->keep, "--ab: keep the run folders")->needs(ab);
+  cmd->add_flag("--quiet", a->quiet, "--ab: no progress lines on stderr")->needs(ab);
   cmd->callback([a, cmd] {
     GateOptions o;
     // Precedence: defaults < policy file < options given on the command line.
@@ -62,6 +64,11 @@ void add_gate_command(CLI::App& app) {
       ab.trials = a->trials;
       ab.work_dir = a->work_dir;
       ab.keep = a->keep;
+      // Progress per finished process, with an ETA: in place on a terminal, a plain line every 5 s in a log.
+      Progress progress("gate --ab: processes", a->quiet);
+      ab.on_process = [&](int done, int total, const std::string& process) {
+        progress.update(uint64_t(done), uint64_t(total), process + " done");
+      };
       std::tie(base, cand) = run_ab(ab);
     } else {
       if (a->baseline.empty() || a->candidate.empty())

@@ -15,15 +15,36 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
 
 namespace hp::cli {
 
+namespace fs = std::filesystem;
+
 namespace {
+
+// Whether the rest of a pass whose first `done` of `total` rows took `pass_bytes` fits in `available` bytes,
+// projected linearly from those rows, with a reserve so that a capture never fills the disk to its last byte.
+struct TraceSpaceCheck {
+  uint64_t projected_pass_bytes = 0, needed_bytes = 0, available_bytes = 0;
+  bool fits = true;
+};
+
+TraceSpaceCheck check_trace_space(uint64_t pass_bytes, uint64_t done, uint64_t total, uint64_t available) {
+  constexpr uint64_t kReserveBytes = 4ull << 20;
+  TraceSpaceCheck c;
+  c.available_bytes = available;
+  c.projected_pass_bytes = done == 0 ? pass_bytes : uint64_t(double(pass_bytes) * double(total) / double(done) + 0.5);
+  c.needed_bytes = c.projected_pass_bytes > pass_bytes ? c.projected_pass_bytes - pass_bytes : 0;
+  c.fits = done >= total || c.needed_bytes + kReserveBytes <= available;
+  return c;
+}
 
 struct TraceArgs {
   FrameOptions frame;
@@ -107,20 +128,41 @@ void run_trace(const TraceArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<CapturedPass> captured;
   {
-    // Progress per pass: its workgroup rows done, and the records (16 bytes each) written so far.
+    trace::TraceWriter writer(a.out, header);
+    // Progress per pass: its workgroup rows done, and the records and bytes written so far. A trace's size is known only as
+    // it is captured, so after every slice the pass's size is projected from its rows done, said on the
+    // pass's first slice, and checked against the free space of --out's folder: a capture that cannot fit
+    // stops there, with the projection, instead of filling the disk (the writer then removes its file).
     std::optional<Progress> progress;
     std::string current;
+    uint64_t pass_start_bytes = 0;
+    const fs::path folder = fs::absolute(fs::path(a.out)).parent_path();
     co.on_slice = [&](const std::string& pass, uint64_t records, uint64_t done, uint64_t total) {
-      if (pass != current) {
+      const uint64_t written = writer.bytes_written();
+      const bool first = pass != current;
+      if (first) {
         current = pass;
         progress.emplace("hybridprof trace: " + pass + " rows", a.quiet);
       }
-      char detail[64];
-      std::snprintf(detail, sizeof(detail), "%.1f M records (%.0f MB)", double(records) / 1e6,
-                    double(records) * sizeof(gpu::TraceRecord) / 1e6);
-      progress->update(done, total, detail);
+      const uint64_t pass_bytes = written - pass_start_bytes;
+      const TraceSpaceCheck c = check_trace_space(pass_bytes, done, total, fs::space(folder).available);
+      if (first && !a.quiet && done < total) {
+        std::fprintf(stderr, "hybridprof trace: %s: about %s projected from %llu of %llu rows, %s free in %s\n",
+                     pass.c_str(), format_bytes(c.projected_pass_bytes).c_str(), (unsigned long long)done,
+                     (unsigned long long)total, format_bytes(c.available_bytes).c_str(), folder.c_str());
+      }
+      if (!c.fits) {
+        throw InputError("--out " + a.out + ": the " + pass + " pass projects to about " +
+                         format_bytes(c.projected_pass_bytes) + " (from " + std::to_string(done) + " of " +
+                         std::to_string(total) + " rows) and needs " + format_bytes(c.needed_bytes) + " more, but " +
+                         folder.string() + " has " + format_bytes(c.available_bytes) +
+                         " free; sample workgroups (--sample-every), trace a smaller frame or write elsewhere");
+      }
+      if (done == total) pass_start_bytes = written;
+      char count[32];
+      std::snprintf(count, sizeof(count), "%.1f M records (", double(records) / 1e6);
+      progress->update(done, total, count + format_bytes(pass_bytes) + ")");
     };
-    trace::TraceWriter writer(a.out, header);
     captured = frame.render_captured(co, writer);
     writer.finish();
   }
@@ -166,7 +208,7 @@ void add_trace_command(CLI::App& app) {
   auto a = std::make_shared<TraceArgs>();
   CLI::App* cmd = app.add_subcommand("trace", "record every memory access of the ray-tracing passes to a trace file");
   a->frame.add_to(cmd);
-  cmd->add_option("--out", a->out, "trace file to write (binary; the format is in profiler/trace/trace_file.hpp)");
+  cmd->add_option("--out", a->out, "trace file to write (binary; the format is in docs/formats.md)");
   cmd->add_flag("--quiet", a->quiet, "no progress lines on stderr");
   cmd->add_option("--passes", a->passes, "passes to trace: shadows, reflections (comma-separated)")
       ->capture_default_str();

@@ -462,7 +462,6 @@ std::pair<GateSide, GateSide> run_ab(const AbOptions& o) {
       const std::string log = dir + ".log";
       const std::string cmd = *cmds[side] + " run " + shell_quote(o.scenario) + " --out " + shell_quote(dir) + " > " +
                               shell_quote(log) + " 2>&1";
-      if (o.progress) std::fprintf(stderr, "gate --ab: %s %d/%d\n", names[side], k + 1, o.trials);
       const int rc = std::system(cmd.c_str());
       if (rc != 0) {
         const int code = WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
@@ -470,6 +469,10 @@ std::pair<GateSide, GateSide> run_ab(const AbOptions& o) {
                          " (see " + log + ")");
       }
       dirs[side].push_back(dir);
+      if (o.on_process) {
+        o.on_process(int(dirs[0].size() + dirs[1].size()), 2 * o.trials,
+                     std::string(names[side]) + " " + std::to_string(k + 1) + "/" + std::to_string(o.trials));
+      }
     }
   }
   auto result = std::make_pair(

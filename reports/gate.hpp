@@ -28,6 +28,7 @@
 
 #include "cell_result.hpp"
 
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>
@@ -109,7 +110,9 @@ struct AbOptions {
   int trials = 5;        ///< fresh processes per side
   std::string work_dir;  ///< empty: a new folder under the system's temp folder
   bool keep = false;     ///< keep the run folders (else removed after success)
-  bool progress = true;  ///< a line per process on stderr
+  /// Called after each process: processes done, processes in all (both sides), and which one finished
+  /// ("baseline 3/11"). The command shows it as progress with an ETA; unset, nothing is said.
+  std::function<void(int done, int total, const std::string& process)> on_process;
 };
 
 /// Runs both commands alternately (A B B A A B ...: a drift in machine load hits both sides alike),

@@ -146,6 +146,7 @@ TraceWriter::~TraceWriter() {
 void TraceWriter::put(const void* data, size_t bytes) {
   if (bytes && std::fwrite(data, 1, bytes, file_) != bytes)
     throw InputError(out_.path().string() + ": write failed: " + std::strerror(errno));
+  bytes_written_ += bytes;
 }
 
 void TraceWriter::put_chunk_header(uint32_t t, uint64_t payload_bytes) {

@@ -60,6 +60,8 @@ class TraceWriter final : public TraceSink {
   void write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
                      uint64_t end_workgroup) override;
   void finish();
+  /// Bytes written to the file so far (headers and records): what the capture has cost on disk.
+  uint64_t bytes_written() const { return bytes_written_; }
 
  private:
   void put(const void* data, size_t bytes);
@@ -68,6 +70,7 @@ class TraceWriter final : public TraceSink {
   std::FILE* file_ = nullptr;
   uint32_t passes_ = 0;
   uint64_t total_records_ = 0;
+  uint64_t bytes_written_ = 0;
 };
 
 // Reads a trace file's directory (header, buffers, passes, where each pass's record chunks lie) at

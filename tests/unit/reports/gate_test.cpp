@@ -352,7 +352,7 @@ TEST(Gate, AbRunsBothCommandsInterleaved) {
   }
   const std::string scenario = root + "/s.json";
   std::ofstream(scenario) << "{}";
-  AbOptions ab{root + "/fake_a", root + "/fake_b", scenario, 6, root + "/work", false, false};
+  AbOptions ab{root + "/fake_a", root + "/fake_b", scenario, 6, root + "/work", false, {}};
   const auto [base, cand] = run_ab(ab);
   std::ifstream order_file(root + "/order");
   std::string order, w;
