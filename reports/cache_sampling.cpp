@@ -227,16 +227,24 @@ std::string time_against_error(const Groups& all, std::vector<ReportFile>& chart
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return sums[a].sim < sums[b].sim; });
   svg::ScatterChart sc;
   sc.title = "Cache simulation: simulator time against the error of the sampled hit rates";
-  sc.x_label = "simulator wall time, s";
+  // Sampling rates spread the simulator's time over decades: a log time axis keeps the fast cells apart.
+  sc.log_x = std::all_of(sums.begin(), sums.end(), [](const Summary& x) { return x.sim > 0; });
+  sc.x_label = sc.log_x ? "simulator wall time, s (log)" : "simulator wall time, s";
   sc.y_label = "mean |hit-rate error| over passes and levels, pp";
   std::string s =
       "Time against error: the simulator's wall time against the mean |hit-rate error| (L1 and L2 of every traced pass, "
       "percentage points); the Pareto front (both lower is better) is marked.\n\n"
-      "| sampling | simulation (s) | mean \\|error\\| (pp) | Pareto |\n|---|---|---|---|\n";
+      "| # | sampling | simulation (s) | mean \\|error\\| (pp) | Pareto |\n|---|---|---|---|---|\n";
+  // The chart labels each point by its row number: whole names beside the points overlap.
+  int number = 0;
   for (size_t i : order) {
-    s += "| " + md::escape(sums[i].label) + " | " + fmt("%.3f", sums[i].sim) + " | " + fmt("%.3f", sums[i].err) +
-         " | " + (front[i] ? "**yes**" : "no") + " |\n";
-    sc.points.push_back({sums[i].sim, sums[i].err, sums[i].label, "", bool(front[i])});
+    const std::string tag = std::to_string(++number);
+    s += "| " + tag + " | " + md::escape(sums[i].label) + " | " + fmt("%.3f", sums[i].sim) + " | " +
+         fmt("%.3f", sums[i].err) + " | " + (front[i] ? "**yes**" : "no") + " |\n";
+    sc.points.push_back(
+        {sums[i].sim, sums[i].err, tag,
+         tag + ": " + sums[i].label + ", " + fmt("%.3f", sums[i].sim) + " s, " + fmt("%.3f", sums[i].err) + " pp",
+         bool(front[i])});
   }
   charts.push_back({"charts/cache_sampling_tradeoff.svg", svg::render(sc)});
   s += "\n![simulator time against hit-rate error](charts/cache_sampling_tradeoff.svg)\n\n";

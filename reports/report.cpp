@@ -421,8 +421,31 @@ void charts_section(const std::vector<CellResult>& cells, Report& r, std::string
     }
     bars.groups.push_back(g);
   }
-  r.charts.push_back({"charts/pass_times.svg", svg::render(bars)});
-  s += "![median pass time per cell](charts/pass_times.svg)\n\n";
+  // At most kCellsPerChart cells a chart, so that a long sweep is several charts that stay legible at a
+  // page's width rather than one strip thousands of pixels wide; the charts share one y scale.
+  constexpr size_t kCellsPerChart = 12;
+  if (bars.groups.size() <= kCellsPerChart) {
+    r.charts.push_back({"charts/pass_times.svg", svg::render(bars)});
+    s += "![median pass time per cell](charts/pass_times.svg)\n\n";
+  } else {
+    double hi = 0;
+    for (const svg::BarGroup& g : bars.groups)
+      for (const std::vector<double>* v : {&g.values, &g.high})
+        for (double x : *v) hi = std::max(hi, x);
+    const size_t n = bars.groups.size(), parts = (n + kCellsPerChart - 1) / kCellsPerChart;
+    for (size_t k = 0; k < parts; ++k) {
+      svg::BarChart part = bars;
+      const size_t first = k * n / parts, end = (k + 1) * n / parts;  // parts of equal size, give or take one
+      part.groups.assign(bars.groups.begin() + long(first), bars.groups.begin() + long(end));
+      part.y_max = hi;
+      part.title = "Median pass time, cells " + std::to_string(first + 1) + "–" + std::to_string(end) + " of " +
+                   std::to_string(n) + " (error bars: 95% CI)";
+      const std::string path = "charts/pass_times_" + std::to_string(k + 1) + ".svg";
+      r.charts.push_back({path, svg::render(part)});
+      s += "![median pass time, cells " + std::to_string(first + 1) + " to " + std::to_string(end) + "](" + path +
+           ")\n\n";
+    }
+  }
   if (std::any_of(all.begin(), all.end(), [](auto& st) {
         return std::any_of(st.begin(), st.end(), [](const PassStat& p) { return !p.summary.median_ci.valid; });
       })) {

@@ -247,7 +247,7 @@ std::string escape(const std::string& text) {
 std::string render(const BarChart& c) {
   const size_t ns = c.series.size();
   if (ns == 0 || c.groups.empty()) throw std::invalid_argument("svg chart: a bar chart needs series and groups");
-  double hi = 0.0;
+  double hi = c.y_max > 0 && std::isfinite(c.y_max) ? c.y_max : 0.0;
   for (const BarGroup& g : c.groups) {
     check_bars(g.values, g.low, g.high, ns);
     for (double v : g.values) hi = std::max(hi, v);
@@ -366,9 +366,16 @@ std::string render(const ScatterChart& c) {
     ylo = std::min(ylo, p.y);
     yhi = std::max(yhi, p.y);
   }
-  Frame f{640, 420};
-  f.bottom = 70;
-  f.right = 120;  // room for the labels of the rightmost points
+  const bool numbered =
+      std::any_of(c.points.begin(), c.points.end(), [](const ScatterPoint& p) { return !p.label.empty(); });
+  std::vector<std::string> names = {numbered ? "cells (labels: as numbered in the table)" : "cells"};
+  if (std::any_of(c.points.begin(), c.points.end(), [](const ScatterPoint& p) { return p.front; }))
+    names.push_back("Pareto front (lower is better on both axes)");
+  // A legend of more than one row makes the chart taller, under the x axis' label.
+  const double extra = legend_extra_height(640, 70, names);
+  Frame f{640, 420 + extra};
+  f.bottom = 70 + extra;
+  f.right = 40;  // room for the number beside a rightmost point
   f.log_x = c.log_x;
   f.log_y = c.log_y;
   const std::vector<double> xt = axis_ticks(c.log_x, xlo, xhi, false), yt = axis_ticks(c.log_y, ylo, yhi, false);
@@ -391,8 +398,55 @@ std::string render(const ScatterChart& c) {
     s += "<polyline class=\"pareto\" fill=\"none\" stroke-width=\"2\" stroke-dasharray=\"6 3\" stroke=\"" +
          std::string(colour(1)) + "\" points=\"" + pts + "\"/>\n";
   }
-  s += "<g class=\"points\">\n";
+  // Labels go where they overlap nothing: of the places around their point, the first that is clear of
+  // every point and every label placed before it and lies inside the chart; where none is, the one that
+  // overlaps least. Widths are estimated (10 px DejaVu Sans: about 6.2 px a character).
+  struct Box {
+    double x0, y0, x1, y1;
+  };
+  const auto overlap = [](const Box& a, const Box& b) {
+    const double w = std::min(a.x1, b.x1) - std::max(a.x0, b.x0), h = std::min(a.y1, b.y1) - std::max(a.y0, b.y0);
+    return w > 0 && h > 0 ? w * h : 0.0;
+  };
+  std::vector<Box> taken;
   for (const ScatterPoint& p : c.points) {
+    const double r = p.front ? 5 : 4;
+    taken.push_back({f.px(p.x) - r, f.py(p.y) - r, f.px(p.x) + r, f.py(p.y) + r});
+  }
+  std::vector<std::pair<double, double>> label_at(c.points.size());  // text origin (start, baseline)
+  for (size_t i = 0; i < c.points.size(); ++i) {
+    const ScatterPoint& p = c.points[i];
+    if (p.label.empty()) continue;
+    const double x = f.px(p.x), y = f.py(p.y), w = 6.2 * double(p.label.size()), h = 10;
+    // The eight places beside the point first, then further up and down in steps of a line, for points
+    // that crowd together (a cluster's labels stack beside it).
+    std::vector<std::pair<double, double>> places = {{x + 7, y - 7},      {x + 7, y + 14},    {x - 7 - w, y - 7},
+                                                     {x - 7 - w, y + 14}, {x + 8, y + 3.5},   {x - 8 - w, y + 3.5},
+                                                     {x - w / 2, y - 9},  {x - w / 2, y + 18}};
+    for (int ring = 1; ring <= 4; ++ring) {
+      const double up = y - 7 - 12.0 * ring, down = y + 14 + 12.0 * ring;
+      for (const auto& place :
+           {std::pair{x + 7, up}, std::pair{x + 7, down}, std::pair{x - 7 - w, up}, std::pair{x - 7 - w, down}})
+        places.push_back(place);
+    }
+    double best = INFINITY;
+    for (const auto& [tx, ty] : places) {
+      const Box b{tx, ty - h + 1, tx + w, ty + 2};
+      double cost = 0;
+      for (size_t k = 0; k < taken.size(); ++k) cost += k == i ? 0 : overlap(b, taken[k]);
+      const bool inside = b.x0 >= 2 && b.x1 <= f.width - 2 && b.y0 >= f.top && b.y1 <= f.height - f.bottom;
+      if (!inside) cost += w * h;
+      if (cost < best) {
+        best = cost;
+        label_at[i] = {tx, ty};
+      }
+      if (cost == 0) break;
+    }
+    taken.push_back({label_at[i].first, label_at[i].second - h + 1, label_at[i].first + w, label_at[i].second + 2});
+  }
+  s += "<g class=\"points\">\n";
+  for (size_t i = 0; i < c.points.size(); ++i) {
+    const ScatterPoint& p = c.points[i];
     const double x = f.px(p.x), y = f.py(p.y);
     const std::string tip = p.tooltip.empty()
                                 ? (p.label.empty() ? "" : p.label + ": ") + tick_label(p.x) + ", " + tick_label(p.y)
@@ -401,13 +455,11 @@ std::string render(const ScatterChart& c) {
          num(y) + "\" r=\"" + (p.front ? "5" : "4") + "\" fill=\"" + (p.front ? colour(1) : colour(0)) +
          "\" stroke=\"black\"><title>" + escape(tip) + "</title></circle>\n";
     if (!p.label.empty()) {
-      s += "<text class=\"point-label\" x=\"" + num(x + 7) + "\" y=\"" + num(y - 7) + "\" font-size=\"10\">" +
-           escape(p.label) + "</text>\n";
+      s += "<text class=\"point-label\" x=\"" + num(label_at[i].first) + "\" y=\"" + num(label_at[i].second) +
+           "\" font-size=\"10\">" + escape(p.label) + "</text>\n";
     }
   }
   s += "</g>\n";
-  std::vector<std::string> names = {"cells"};
-  if (!front.empty()) names.push_back("Pareto front (lower is better on both axes)");
   return s + legend(f, names) + "</svg>\n";
 }
 

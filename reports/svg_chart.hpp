@@ -22,6 +22,7 @@ struct BarChart {
   std::string title, y_label;
   std::vector<std::string> series;  ///< legend entries, one colour each
   std::vector<BarGroup> groups;
+  double y_max = 0;  ///< the y axis covers at least [0, y_max]: charts split from one set share a scale
 };
 
 /// One line of a line chart: points (x[i], y[i]); low/high empty or as long as y (error bars).

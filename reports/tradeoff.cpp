@@ -147,7 +147,7 @@ bool bool_field(const json& o, const char* key, const std::string& context) {
 // A "tradeoffs" entry of the report spec, validated: its metrics exist and their passes ran.
 struct TradeoffSpec {
   std::string context, title, xn, yn, x_label, y_label;
-  bool log_x = false, log_y = false;
+  std::optional<bool> log_x, log_y;  ///< as the spec says; unset: log where the values span two decades
   std::vector<std::string> columns;
 };
 
@@ -165,8 +165,8 @@ TradeoffSpec parse_tradeoff(const std::vector<CellResult>& cells, const json& sp
   t.yn = spec["y"].get<std::string>();
   t.x_label = string_field(spec, "x_label", t.xn, context);
   t.y_label = string_field(spec, "y_label", t.yn, context);
-  t.log_x = bool_field(spec, "log_x", context);
-  t.log_y = bool_field(spec, "log_y", context);
+  if (spec.contains("log_x")) t.log_x = bool_field(spec, "log_x", context);
+  if (spec.contains("log_y")) t.log_y = bool_field(spec, "log_y", context);
   if (spec.contains("columns")) {
     if (!spec["columns"].is_array()) throw InputError(context + ": 'columns' is not a list of metric names");
     for (const json& c : spec["columns"]) {
@@ -185,32 +185,47 @@ struct TradeoffRow {
   MetricValue x, y;
   std::vector<std::optional<MetricValue>> extra;
   bool front = false;
+  int front_number = 0;  ///< 1, 2, ... along the front in x order: the chart's label, the table's and the text's
 };
+
+// Whether an axis is drawn log10: as the spec asks where every value allows it, else (unset) where every
+// value is positive and the largest is at least 100 times the smallest, so that a front from 170 to 140,000
+// is not a flat line at the bottom. `asked` is set to whether the spec asked for a log axis it cannot have.
+bool log_axis(const std::optional<bool>& spec, const std::vector<double>& values, bool& asked) {
+  const bool positive = std::all_of(values.begin(), values.end(), [](double v) { return v > 0; });
+  asked = spec.value_or(false) && !positive;
+  if (spec) return *spec && positive;
+  if (!positive || values.empty()) return false;
+  const auto [lo, hi] = std::minmax_element(values.begin(), values.end());
+  return *hi >= 100.0 * *lo;
+}
+
+std::string front_tag(const TradeoffRow& r) { return "(" + std::to_string(r.front_number) + ")"; }
 
 // The scatter chart, with the log axes asked for where every value allows one (a note says where not).
 svg::ScatterChart tradeoff_chart(const TradeoffSpec& t, const std::vector<TradeoffRow>& rows,
-                                 const std::vector<const CellResult*>& among, std::vector<std::string>& notes) {
+                                 std::vector<std::string>& notes) {
   svg::ScatterChart chart;
   chart.title = t.title;
-  chart.x_label = t.x_label + (t.log_x ? " (log)" : "");
-  chart.y_label = t.y_label + (t.log_y ? " (log)" : "");
-  chart.log_x = t.log_x && std::all_of(rows.begin(), rows.end(), [](const TradeoffRow& r) { return r.x.value > 0; });
-  chart.log_y = t.log_y && std::all_of(rows.begin(), rows.end(), [](const TradeoffRow& r) { return r.y.value > 0; });
-  if (t.log_x && !chart.log_x) {
-    chart.x_label = t.x_label;
-    notes.push_back("The x axis is linear: a value is <= 0, which a log axis cannot show.");
+  std::vector<double> xs, ys;
+  for (const TradeoffRow& r : rows) {
+    xs.push_back(r.x.value);
+    ys.push_back(r.y.value);
   }
-  if (t.log_y && !chart.log_y) {
-    chart.y_label = t.y_label;
-    notes.push_back("The y axis is linear: a value is <= 0, which a log axis cannot show.");
-  }
+  bool x_refused = false, y_refused = false;
+  chart.log_x = log_axis(t.log_x, xs, x_refused);
+  chart.log_y = log_axis(t.log_y, ys, y_refused);
+  chart.x_label = t.x_label + (chart.log_x ? " (log)" : "");
+  chart.y_label = t.y_label + (chart.log_y ? " (log)" : "");
+  if (x_refused) notes.push_back("The x axis is linear: a value is <= 0, which a log axis cannot show.");
+  if (y_refused) notes.push_back("The y axis is linear: a value is <= 0, which a log axis cannot show.");
   for (const TradeoffRow& r : rows) {
     svg::ScatterPoint p;
     p.x = r.x.value;
     p.y = r.y.value;
-    // Only the front is labelled (every point has its tooltip): labels on every point of a 24-cell sweep
-    // overlap into an unreadable band.
-    if (r.front) p.label = varying_label(*r.cell, among);
+    // Only the front is labelled, by its number in the table and the text (every point has its tooltip):
+    // whole cell names beside every front point overlap and run off the chart.
+    if (r.front) p.label = std::to_string(r.front_number);
     p.tooltip = cell_label(*r.cell) + ": " + t.x_label + " " + value_text(r.x) + ", " + t.y_label + " " +
                 value_text(r.y) + (r.front ? " (on the Pareto front)" : "");
     p.front = r.front;
@@ -225,7 +240,8 @@ std::string front_sentence(const TradeoffSpec& t, const std::vector<TradeoffRow>
   std::vector<std::string> on;
   for (const TradeoffRow& r : rows)
     if (r.front)
-      on.push_back(varying_label(*r.cell, among) + " (" + value_text(r.x, false) + ", " + value_text(r.y, false) + ")");
+      on.push_back(front_tag(r) + " " + varying_label(*r.cell, among) + " (" + value_text(r.x, false) + ", " +
+                   value_text(r.y, false) + ")");
   const size_t n_front = on.size();
   if (rows.size() == 1) return "Only one cell has both values; it is trivially on the Pareto front.\n\n";
   if (n_front == rows.size()) {
@@ -252,7 +268,7 @@ std::string tradeoff_table(const TradeoffSpec& t, const std::vector<TradeoffRow>
       s += e ? value_text(*e) : std::string("—");
       s += " |";
     }
-    s += std::string(" ") + (r.front ? "**yes**" : "no") + " |\n";
+    s += " " + (r.front ? "**yes** " + front_tag(r) : std::string("no")) + " |\n";
   }
   return s + "\n";
 }
@@ -278,11 +294,15 @@ std::string front_part(const TradeoffSpec& t, std::vector<TradeoffRow>& rows, co
   std::vector<std::pair<double, double>> pts;
   for (const TradeoffRow& r : rows) pts.push_back({r.x.value, r.y.value});
   const std::vector<bool> front = pareto_front(pts);
-  for (size_t i = 0; i < rows.size(); ++i) rows[i].front = front[i];
+  int number = 0;
+  for (size_t i = 0; i < rows.size(); ++i) {
+    rows[i].front = front[i];
+    rows[i].front_number = front[i] ? ++number : 0;
+  }
   std::vector<const CellResult*> among;
   for (const TradeoffRow& r : rows) among.push_back(r.cell);
   std::vector<std::string> notes;
-  charts.push_back({path, svg::render(tradeoff_chart(t, rows, among, notes))});
+  charts.push_back({path, svg::render(tradeoff_chart(t, rows, notes))});
   std::string s = "![" + md::escape(t.title) + "](" + path + ")\n\n";
   s += front_sentence(t, rows, among);
   s += tradeoff_table(t, rows);

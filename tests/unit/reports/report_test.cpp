@@ -128,6 +128,44 @@ TEST(Report, ChartsAreBarAndLineCharts) {
   EXPECT_NE(r.markdown.find("![median pass time per cell](charts/pass_times.svg)"), std::string::npos);
 }
 
+// A matrix of more than 12 cells gets several pass-time charts of at most 12 cells each (parts of equal
+// size), on one shared y scale, instead of one strip thousands of pixels wide.
+TEST(Report, ManyCellsSplitThePassTimeChart) {
+  std::vector<CellResult> cells;
+  for (std::uint64_t i = 0; i < 26; ++i) {
+    // The last cell's shadows are 3x slower: every part's axis must still reach its height.
+    test::SynthCell c = cell(i % 2 ? "soup" : "indexed", json{64 + int(i), 36}, i + 1, i == 25 ? 3.0 : 1.0);
+    cells.push_back(test::cell(c));
+  }
+  const Report r = build_report(cells);
+  std::vector<const ReportFile*> parts;
+  for (const ReportFile& f : r.charts)
+    if (f.path.rfind("charts/pass_times", 0) == 0) parts.push_back(&f);
+  ASSERT_EQ(parts.size(), 3u);
+  std::string top_tick;
+  for (size_t k = 0; k < parts.size(); ++k) {
+    EXPECT_EQ(parts[k]->path, "charts/pass_times_" + std::to_string(k + 1) + ".svg");
+    const std::string& svg = parts[k]->content;
+    size_t groups = 0;
+    for (size_t at = svg.find("class=\"group\""); at != std::string::npos; at = svg.find("class=\"group\"", at + 1))
+      ++groups;
+    EXPECT_GE(groups, 8u);
+    EXPECT_LE(groups, 12u);
+    // The y axis' last tick label is the same in every part: one scale.
+    std::string last;
+    const std::regex y_tick(R"(class="tick"[^>]*text-anchor="end">([0-9.]+)<)");
+    for (auto it = std::sregex_iterator(svg.begin(), svg.end(), y_tick); it != std::sregex_iterator(); ++it)
+      last = (*it)[1];
+    ASSERT_FALSE(last.empty()) << svg.substr(0, 2000);
+    if (k == 0) top_tick = last;
+    EXPECT_EQ(last, top_tick) << "part " << k + 1;
+    EXPECT_NE(r.markdown.find("](" + parts[k]->path + ")"), std::string::npos);
+  }
+  EXPECT_NE(parts[0]->content.find("cells 1–8 of 26"), std::string::npos);
+  EXPECT_NE(parts[2]->content.find("cells 18–26 of 26"), std::string::npos);
+  EXPECT_EQ(r.markdown.find("charts/pass_times.svg"), std::string::npos);
+}
+
 TEST(Report, WarnsWhenEnvironmentsDiffer) {
   test::SynthCell a = cell("indexed", json{64, 36}, 1), b = cell("soup", json{64, 36}, 2);
   b.device = "NVIDIA H100";

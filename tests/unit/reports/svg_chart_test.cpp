@@ -194,6 +194,50 @@ TEST(SvgChart, ScatterChartHighlightsTheParetoFront) {
   EXPECT_EQ(count(parse_xml(render(c)), "polyline", "pareto"), 0u);
 }
 
+// Point labels never overlap each other or another point, and stay inside the chart, even where front
+// points crowd together (the shadow sweep's front: two points 2 ms apart on a 20-45 ms axis, two near the
+// right edge).
+TEST(SvgChart, ScatterLabelsNeitherCollideNorLeaveTheChart) {
+  ScatterChart c;
+  c.title = "crowded";
+  c.points = {{23.7, 140104, "1", "", true}, {24.6, 140273, "", "", false}, {25.9, 138220, "2", "", true},
+              {42.5, 23685, "3", "", true},  {44.0, 170, "4", "", true},    {44.1, 171, "5", "", true},
+              {44.2, 172, "6", "", true},    {44.3, 173, "7", "", true}};
+  const std::string svg = render(c);
+  const auto els = parse_xml(svg);
+  double width = 0, height = 0;
+  struct Box {
+    double x0, y0, x1, y1;
+  };
+  std::vector<Box> labels, points;
+  for (const Element& e : els) {
+    if (e.name == "svg") {
+      width = std::stod(e.attrs.at("width"));
+      height = std::stod(e.attrs.at("height"));
+    } else if (e.name == "text" && e.attrs.count("class") && e.attrs.at("class") == "point-label") {
+      const double x = std::stod(e.attrs.at("x")), y = std::stod(e.attrs.at("y"));
+      labels.push_back({x, y - 9, x + 6.2, y + 2});  // every label here is one character
+    } else if (e.name == "circle") {
+      const double x = std::stod(e.attrs.at("cx")), y = std::stod(e.attrs.at("cy")), r = std::stod(e.attrs.at("r"));
+      points.push_back({x - r, y - r, x + r, y + r});
+    }
+  }
+  ASSERT_EQ(labels.size(), 7u);
+  ASSERT_EQ(points.size(), 8u);
+  const auto hit = [](const Box& a, const Box& b) {
+    return std::min(a.x1, b.x1) > std::max(a.x0, b.x0) && std::min(a.y1, b.y1) > std::max(a.y0, b.y0);
+  };
+  for (size_t i = 0; i < labels.size(); ++i) {
+    EXPECT_GE(labels[i].x0, 0.0) << "label " << i;
+    EXPECT_LE(labels[i].x1, width) << "label " << i;
+    EXPECT_GE(labels[i].y0, 0.0) << "label " << i;
+    EXPECT_LE(labels[i].y1, height) << "label " << i;
+    for (size_t k = i + 1; k < labels.size(); ++k) EXPECT_FALSE(hit(labels[i], labels[k])) << i << " and " << k;
+    for (size_t k = 0; k < points.size(); ++k)
+      EXPECT_FALSE(hit(labels[i], points[k])) << "label " << i << ", point " << k;
+  }
+}
+
 TEST(SvgChart, ScatterChartLogAxes) {
   ScatterChart c;
   c.title = "log";

@@ -177,7 +177,7 @@ TEST(TradeoffSection, TableSortedByXWithFrontMarks) {
       << md;
   // Rows in x order with the CI, the extra columns and the front marks.
   const std::regex row(
-      R"(\| spp=(\d) \| (\d\.\d{3}) \[(\d\.\d{3}), (\d\.\d{3})\] \| ([0-9.]+) \| ([^|]+) \| 15 \| 12 \| (\*\*yes\*\*|no) \|)");
+      R"(\| spp=(\d) \| (\d\.\d{3}) \[(\d\.\d{3}), (\d\.\d{3})\] \| ([0-9.]+) \| ([^|]+) \| 15 \| 12 \| (\*\*yes\*\* \(\d\)|no) \|)");
   std::vector<std::string> order, marks;
   for (auto it = std::sregex_iterator(md.begin(), md.end(), row); it != std::sregex_iterator(); ++it) {
     const std::smatch& m = *it;
@@ -188,9 +188,10 @@ TEST(TradeoffSection, TableSortedByXWithFrontMarks) {
     EXPECT_EQ(m[6] == "—", m[1] == "1") << "spp 1 has an infinite PSNR: no number for the column";
   }
   EXPECT_EQ(order, (std::vector<std::string>{"4", "2", "3", "1"}));
-  EXPECT_EQ(marks, (std::vector<std::string>{"**yes**", "**yes**", "no", "**yes**"}));
+  // The front is numbered in x order; the chart labels its points with these numbers.
+  EXPECT_EQ(marks, (std::vector<std::string>{"**yes** (1)", "**yes** (2)", "no", "**yes** (3)"}));
   EXPECT_NE(md.find("3 of 4 cells are on the Pareto front"), std::string::npos);
-  EXPECT_NE(md.find(": spp=4 (1.8"), std::string::npos) << "the front listed in x order";
+  EXPECT_NE(md.find(": (1) spp=4 (1.8"), std::string::npos) << "the front listed in x order";
   EXPECT_NE(md.find("the other 1 are dominated"), std::string::npos);
   // The cell without error metrics is left out and named in a note.
   EXPECT_TRUE(std::regex_search(
@@ -205,6 +206,38 @@ TEST(TradeoffSection, TableSortedByXWithFrontMarks) {
   EXPECT_EQ(occurrences(svg->content, "class=\"point\""), 1u);
   EXPECT_NE(svg->content.find("relMSE (log)"), std::string::npos);
   EXPECT_NE(svg->content.find(">0.001<"), std::string::npos);
+  for (const char* label : {">1</text>", ">2</text>", ">3</text>"})
+    EXPECT_NE(svg->content.find(label), std::string::npos);
+  EXPECT_EQ(svg->content.find(">spp=4</text>"), std::string::npos) << "front points carry numbers, not names";
+}
+
+// Without log_x / log_y in the spec an axis is log10 where its values span two decades or more (every
+// value positive), so that a front from 170 to 140,000 wrong pixels is not flattened against the axis; the
+// spec's own choice wins either way.
+TEST(TradeoffSection, LogAxesWhereTheValuesSpanDecades) {
+  json spec = tradeoff_spec();
+  spec["tradeoffs"][0].erase("log_y");
+  spec["tradeoffs"][0]["y"] = "/error/shadow/leaks";
+  spec["tradeoffs"][0]["y_label"] = "leaks";
+  std::vector<CellResult> cells = tradeoff_matrix(spec);
+  const int leaks[] = {170, 1485, 23685, 140000};
+  for (int i = 0; i < 4; ++i) cells[size_t(i)].line["error"]["shadow"]["leaks"] = leaks[i];
+  const ReportFile* svg = chart(build_report(cells), "charts/tradeoff_1.svg");
+  ASSERT_NE(svg, nullptr);
+  EXPECT_NE(svg->content.find("leaks (log)"), std::string::npos) << "170 .. 140,000 spans three decades";
+  EXPECT_EQ(svg->content.find("shadow pass (log)"), std::string::npos) << "1.8 .. 3.0 ms is one linear axis";
+  // Less than a factor of 100: linear.
+  for (int i = 0; i < 4; ++i) cells[size_t(i)].line["error"]["shadow"]["leaks"] = 100 + 30 * i;
+  svg = chart(build_report(cells), "charts/tradeoff_1.svg");
+  ASSERT_NE(svg, nullptr);
+  EXPECT_EQ(svg->content.find("leaks (log)"), std::string::npos);
+  // The spec says linear: linear, whatever the span.
+  spec["tradeoffs"][0]["log_y"] = false;
+  std::vector<CellResult> linear = tradeoff_matrix(spec);
+  for (int i = 0; i < 4; ++i) linear[size_t(i)].line["error"]["shadow"]["leaks"] = leaks[i];
+  svg = chart(build_report(linear), "charts/tradeoff_1.svg");
+  ASSERT_NE(svg, nullptr);
+  EXPECT_EQ(svg->content.find("leaks (log)"), std::string::npos);
 }
 
 // Cells of different scenes (here the same scene scaled by `transform`) are not one front: each scene gets
