@@ -32,6 +32,7 @@ struct TraceArgs {
   uint32_t sample_every = 1;
   uint32_t sample_block = 1;
   uint32_t buffer_mib = 64;
+  uint32_t format_version = trace::kTraceVersion;
   uint32_t frames_before = 0;
   std::string image_layout = "tiled";
   std::string image_out;
@@ -107,7 +108,7 @@ void run_trace(const TraceArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<CapturedPass> captured;
   {
-    // Progress per pass: its workgroup rows done, and the records (16 bytes each) written so far.
+    // Progress per pass: its workgroup rows done, and the records (16 bytes each as captured) so far.
     std::optional<Progress> progress;
     std::string current;
     co.on_slice = [&](const std::string& pass, uint64_t records, uint64_t done, uint64_t total) {
@@ -120,7 +121,7 @@ void run_trace(const TraceArgs& a) {
                     double(records) * sizeof(gpu::TraceRecord) / 1e6);
       progress->update(done, total, detail);
     };
-    trace::TraceWriter writer(a.out, header);
+    trace::TraceWriter writer(a.out, header, a.format_version);
     captured = frame.render_captured(co, writer);
     writer.finish();
   }
@@ -178,6 +179,10 @@ void add_trace_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--trace-buffer-mib", a->buffer_mib, "GPU trace buffer per slice (bounded by maxStorageBufferRange)")
       ->check(CLI::Range(1u, 4096u))
+      ->capture_default_str();
+  cmd->add_option("--trace-format", a->format_version,
+                  "trace file format: 2 (compact records, about 3 bytes each) or 1 (16 bytes a record)")
+      ->check(CLI::IsMember({1u, 2u}))
       ->capture_default_str();
   cmd->add_option("--frames-before", a->frames_before, "untraced frames rendered first (accumulation state)")
       ->check(CLI::Range(0u, 100000u));

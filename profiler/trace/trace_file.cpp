@@ -31,6 +31,8 @@ constexpr uint32_t tag(char a, char b, char c, char d) {
 constexpr uint32_t kTagBuffers = tag('B', 'U', 'F', 'S');
 constexpr uint32_t kTagPass = tag('P', 'A', 'S', 'S');
 constexpr uint32_t kTagRecords = tag('R', 'E', 'C', 'S');
+constexpr uint32_t kTagCoded = tag('R', 'E', 'C', 'V');
+constexpr uint32_t kCodingDeltaVarint = 1;
 constexpr uint32_t kTagEnd = tag('E', 'N', 'D', ' ');
 
 struct FileHeader {
@@ -74,6 +76,12 @@ struct RecordsEntry {
 };
 static_assert(sizeof(RecordsEntry) == 32);
 
+struct CodedEntry {
+  uint32_t pass, coding;
+  uint64_t first_workgroup, end_workgroup, count, coded_bytes;
+};
+static_assert(sizeof(CodedEntry) == 40);
+
 struct EndEntry {
   uint64_t total_records;
   uint32_t passes, reserved;
@@ -113,13 +121,17 @@ struct CloseOnThrow {
 };
 }  // namespace
 
-TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header) : out_(std::move(path)) {
+TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header, uint32_t version)
+    : out_(std::move(path)), version_(version) {
+  if (version != kTraceVersion && version != kTraceVersionRaw)
+    throw InputError(out_.path().string() + ": trace format version " + std::to_string(version) +
+                     " cannot be written (1 or 2)");
   file_ = std::fopen(out_.temp_path().c_str(), "wb");
   if (!file_) throw InputError(out_.path().string() + ": cannot create trace file: " + std::strerror(errno));
   CloseOnThrow guard{file_};  // and out_'s destructor removes the temporary
   FileHeader fh{};
   std::memcpy(fh.magic, kTraceMagic, 8);
-  fh.version = kTraceVersion;
+  fh.version = version_;
   fh.image_width = header.image_width;
   fh.image_height = header.image_height;
   put(&fh, sizeof fh);
@@ -169,15 +181,28 @@ uint32_t TraceWriter::begin_pass(const PassInfo& pass) {
   put(pass.name.data(), pass.name.size());
   const uint64_t zero = 0;
   put(&zero, pad);
+  per_group_.push_back(pass.dispatch.invocations_per_workgroup());
   return passes_++;
 }
 
 void TraceWriter::write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
                                 uint64_t end_workgroup) {
-  RecordsEntry e{pass, 0, first_workgroup, end_workgroup, records.size()};
-  put_chunk_header(kTagRecords, sizeof e + records.size_bytes());
-  put(&e, sizeof e);
-  put(records.data(), records.size_bytes());
+  if (version_ == kTraceVersionRaw) {
+    RecordsEntry e{pass, 0, first_workgroup, end_workgroup, records.size()};
+    put_chunk_header(kTagRecords, sizeof e + records.size_bytes());
+    put(&e, sizeof e);
+    put(records.data(), records.size_bytes());
+  } else {
+    coded_.clear();
+    encoder_.encode(records, first_workgroup, end_workgroup, per_group_.at(pass), coded_);
+    CodedEntry e{pass, kCodingDeltaVarint, first_workgroup, end_workgroup, records.size(), coded_.size()};
+    const size_t pad = pad8(coded_.size());
+    put_chunk_header(kTagCoded, sizeof e + coded_.size() + pad);
+    put(&e, sizeof e);
+    put(coded_.data(), coded_.size());
+    const uint64_t zero = 0;
+    put(&zero, pad);
+  }
   total_records_ += records.size();
 }
 
@@ -294,9 +319,9 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
   FileHeader fh{};
   if (std::fread(&fh, sizeof fh, 1, file_) != 1) fail("truncated: shorter than the 32-byte header");
   if (std::memcmp(fh.magic, kTraceMagic, 8) != 0) fail("bad magic: not a hybridprof trace file");
-  if (fh.version != kTraceVersion)
-    fail("unsupported version " + std::to_string(fh.version) + " (this build reads version " +
-         std::to_string(kTraceVersion) + ")");
+  if (fh.version != kTraceVersion && fh.version != kTraceVersionRaw)
+    fail("unsupported version " + std::to_string(fh.version) + " (this build reads versions 1 and 2)");
+  version_ = fh.version;
   header_.image_width = fh.image_width;
   header_.image_height = fh.image_height;
 
@@ -325,6 +350,21 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
         fail("RECS" + at + ": workgroups [" + std::to_string(e.first_workgroup) + ", " +
              std::to_string(e.end_workgroup) + ") outside the dispatch of " + std::to_string(groups));
       chunks_.push_back({e.pass, pos + sizeof e, e.count, e.first_workgroup, e.end_workgroup});
+      total += e.count;
+    } else if (ch.tag == kTagCoded && version_ >= 2) {
+      CodedEntry e{};
+      if (ch.payload_bytes < sizeof e || std::fread(&e, sizeof e, 1, file_) != 1) fail("malformed RECV" + at);
+      if (e.pass >= passes_.size()) fail("RECV" + at + " names pass " + std::to_string(e.pass) + " before its PASS");
+      if (e.coding != kCodingDeltaVarint) fail("RECV" + at + ": unknown coding " + std::to_string(e.coding));
+      // A record takes at least one byte: a count beyond the bytes is corruption, not an allocation to make.
+      if (e.coded_bytes > ch.payload_bytes - sizeof e || e.count > e.coded_bytes ||
+          ch.payload_bytes - sizeof e - e.coded_bytes != pad8(e.coded_bytes))
+        fail("malformed RECV" + at + ": record count or coded size does not match the chunk size");
+      const uint64_t groups = passes_[e.pass].dispatch.workgroups();
+      if (e.first_workgroup > e.end_workgroup || e.end_workgroup > groups)
+        fail("RECV" + at + ": workgroups [" + std::to_string(e.first_workgroup) + ", " +
+             std::to_string(e.end_workgroup) + ") outside the dispatch of " + std::to_string(groups));
+      chunks_.push_back({e.pass, pos + sizeof e, e.count, e.first_workgroup, e.end_workgroup, e.coded_bytes});
       total += e.count;
     } else {
       std::vector<char> payload(ch.payload_bytes);
@@ -372,6 +412,22 @@ uint64_t TraceReader::record_count(uint32_t pass) const {
 
 void TraceReader::read_chunk(const Chunk& c, TraceRecord* out) const {
   std::fseek(file_, long(c.file_offset), SEEK_SET);
+  if (c.coded_bytes > 0) {
+    // The coded slice is small (about 3 bytes a record): read whole, decoded into `out`, each run of
+    // decoded records validated while it is in the host's caches.
+    if (coded_.size() < c.coded_bytes) coded_.resize(c.coded_bytes);
+    if (std::fread(coded_.data(), 1, c.coded_bytes, file_) != c.coded_bytes)
+      fail("truncated records of pass " + std::to_string(c.pass));
+    const std::string where = path_.string() + ": pass '" + passes_[c.pass].name + "'";
+    const PassInfo& pass = passes_[c.pass];
+    decode_slice(std::span<const uint8_t>(coded_.data(), c.coded_bytes), c.count, c.first_workgroup, c.end_workgroup,
+                 pass.dispatch.invocations_per_workgroup(), out, where,
+                 [&](const TraceRecord* r, uint64_t first, uint64_t n) {
+                   validate_records(where, header_, pass, std::span<const TraceRecord>(r, n), c.first_workgroup,
+                                    c.end_workgroup, first);
+                 });
+    return;
+  }
   // Block by block, each validated while it is still in the host's caches (one pass over memory, not two).
   constexpr uint64_t kBlock = 1 << 15;  // records (512 KiB)
   const std::string where = path_.string() + ": pass '" + passes_[c.pass].name + "'";
@@ -505,8 +561,8 @@ void validate_records(const std::string& where, const TraceHeader& header, const
   }
 }
 
-void write_trace(const std::filesystem::path& path, const Trace& trace) {
-  TraceWriter w(path, trace.header);
+void write_trace(const std::filesystem::path& path, const Trace& trace, uint32_t version) {
+  TraceWriter w(path, trace.header, version);
   for (size_t p = 0; p < trace.passes.size(); ++p) {
     uint32_t index = w.begin_pass(trace.passes[p]);
     if (p < trace.records.size()) w.write_records(index, trace.records[p], 0, trace.passes[p].dispatch.workgroups());
