@@ -207,8 +207,9 @@ void run_trace(const CachesimArgs& a) {
     Progress progress("hybridprof cachesim: " + pass.name + " records", a.quiet);
     const uint64_t total = reader.record_count(p);
     feed_slices(sim, reader, p, [&](uint64_t done) {
+      // Lane accesses, not file bytes: a version-2 file codes a record in about 2 bytes.
       char detail[48];
-      std::snprintf(detail, sizeof(detail), "%.0f MB read", double(done) * sizeof(trace::TraceRecord) / 1e6);
+      std::snprintf(detail, sizeof(detail), "%.1f M lane accesses", double(done) / 1e6);
       progress.update(done, total, detail);
     });
     const PassResult r = sim.end_pass();

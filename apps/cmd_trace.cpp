@@ -53,6 +53,7 @@ struct TraceArgs {
   uint32_t sample_every = 1;
   uint32_t sample_block = 1;
   uint32_t buffer_mib = 64;
+  uint32_t format_version = trace::kTraceVersion;
   uint32_t frames_before = 0;
   std::string image_layout = "tiled";
   std::string image_out;
@@ -128,7 +129,7 @@ void run_trace(const TraceArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<CapturedPass> captured;
   {
-    trace::TraceWriter writer(a.out, header);
+    trace::TraceWriter writer(a.out, header, a.format_version);
     // Progress per pass: its workgroup rows done, and the records and bytes written so far. A trace's size is known only as
     // it is captured, so after every slice the pass's size is projected from its rows done, said on the
     // pass's first slice, and checked against the free space of --out's folder: a capture that cannot fit
@@ -220,6 +221,10 @@ void add_trace_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--trace-buffer-mib", a->buffer_mib, "GPU trace buffer per slice (bounded by maxStorageBufferRange)")
       ->check(CLI::Range(1u, 4096u))
+      ->capture_default_str();
+  cmd->add_option("--trace-format", a->format_version,
+                  "trace file format: 2 (compact records, about 3 bytes each) or 1 (16 bytes a record)")
+      ->check(CLI::IsMember({1u, 2u}))
       ->capture_default_str();
   cmd->add_option("--frames-before", a->frames_before, "untraced frames rendered first (accumulation state)")
       ->check(CLI::Range(0u, 100000u));

@@ -136,6 +136,42 @@ struct GroupRequests {
   // the end of its entries.
   std::vector<std::pair<uint32_t, uint32_t>> lanes;
   std::vector<uint32_t> step_lanes_end;
+  void clear() {
+    records = 0;
+    requests.clear();
+    step_end.clear();
+    wave_steps_end.clear();
+    lanes.clear();
+    step_lanes_end.clear();
+  }
+};
+
+// Retired workgroups' GroupRequests, kept with their arrays' capacity for the next workgroups to be built:
+// allocating them afresh for each workgroup (and growing them step by step) cost a third of the builders'
+// time in malloc, reallocation copies and the page faults of memory the allocator had given back.
+// Bounded by the workgroups alive at once (resident and queued), as the GroupRequests themselves are.
+class GroupPool {
+ public:
+  std::unique_ptr<GroupRequests> take() {
+    {
+      std::lock_guard lk(m_);
+      if (!free_.empty()) {
+        std::unique_ptr<GroupRequests> g = std::move(free_.back());
+        free_.pop_back();
+        return g;
+      }
+    }
+    return std::make_unique<GroupRequests>();
+  }
+  void give(std::unique_ptr<GroupRequests> g) {
+    g->clear();
+    std::lock_guard lk(m_);
+    free_.push_back(std::move(g));
+  }
+
+ private:
+  std::mutex m_;
+  std::vector<std::unique_ptr<GroupRequests>> free_;
 };
 
 // Part of a fed slice, handed from the feeding thread to the scheduler: its workgroups become known.
@@ -219,6 +255,8 @@ class Buckets {
   }
   uint64_t first_group() const { return first_group_; }
   uint64_t per_group() const { return per_group_; }
+  // Group g's records when they lie in one run (null otherwise).
+  const trace::TraceRecord* single_run(uint64_t g) const { return mode_ == Mode::runs ? nullptr : data_ + begin_[g]; }
 
  private:
   struct Run {
@@ -238,8 +276,10 @@ class Buckets {
 // Turns bucketed workgroups into GroupRequests; one per building thread (its scratch and coalescer).
 class Builder {
  public:
-  Builder(const Preset& preset, const Cache& l1, const trace::BufferInfo* const* buffers, bool per_invocation)
-      : co_(preset.wave_width, l1.line_shift(), l1.sector_shift(), l1.full_mask(),
+  Builder(const Preset& preset, const Cache& l1, const trace::BufferInfo* const* buffers, bool per_invocation,
+          GroupPool& pool)
+      : pool_(pool),
+        co_(preset.wave_width, l1.line_shift(), l1.sector_shift(), l1.full_mask(),
             preset.coalescing == Coalescing::sector),
         buffers_(buffers),
         width_(preset.wave_width),
@@ -251,6 +291,8 @@ class Builder {
     if (n == 0) return nullptr;
     const uint64_t per_group = buckets.per_group();
     const uint64_t first_invocation = (buckets.first_group() + g) * per_group;
+    if (const trace::TraceRecord* in = buckets.single_run(g); in && in_issue_order(in, n))
+      return build_in_order(in, n, first_invocation, per_group);
     // This workgroup's records by invocation (stable: one invocation's keep their order), each
     // invocation's sorted by seq where needed (GPU atomics usually hand out indices in program order).
     at_.assign(per_group + 1, 0);
@@ -284,29 +326,12 @@ class Builder {
           break;
         }
     }
-    auto ga = std::make_unique<GroupRequests>();
+    std::unique_ptr<GroupRequests> ga = pool_.take();
     ga->records = n;
     ga->requests.reserve(n / 4 + 8);
     const uint32_t waves = uint32_t((per_group + width_ - 1) / width_);
     const LaneAccess* recs = recs_.data();
-    auto end_step = [&] {
-      const uint32_t base = uint32_t(ga->requests.size());
-      // The step's L1 lookups under every HitCounting: they do not depend on the caches' state.
-      for (size_t k = 0; k < co_.requests.size(); ++k) {
-        const Request& q = co_.requests[k];
-        if (q.kind != AccessKind::load) continue;  // stores and atomics do not look the L1 up
-        L1Lookups& l = lookups[q.buffer];
-        ++l.request;
-        l.quarter_wave += count_bits(uint32_t(co_.quarters[k]));
-        l.lane += co_.lanes[k];
-      }
-      ga->requests.insert(ga->requests.end(), co_.requests.begin(), co_.requests.end());
-      ga->step_end.push_back(uint32_t(ga->requests.size()));
-      if (per_inv_) {
-        for (const auto& [inv, req] : co_.lane_request) ga->lanes.emplace_back(inv, base + req);
-        ga->step_lanes_end.push_back(uint32_t(ga->lanes.size()));
-      }
-    };
+    auto end_step = [&] { this->end_step(*ga); };
     for (uint32_t w = 0; w < waves; ++w) {
       const uint32_t l0 = w * width_;
       const uint32_t lanes = uint32_t(std::min<uint64_t>(width_, per_group - l0));
@@ -384,6 +409,80 @@ class Builder {
   std::array<L1Lookups, 256> lookups{};
 
  private:
+  // Whether a workgroup's records come in issue order: by seq, then by invocation, no (invocation, seq)
+  // twice. A version-2 trace decodes to that order (trace_codec.hpp), and then every lane's seqs strictly
+  // increase, so a wavefront's steps are its lanes' records of each seq in turn, taken as they come:
+  // no per-lane gather and no sort.
+  static bool in_issue_order(const trace::TraceRecord* in, uint64_t n) {
+    uint64_t prev = 0;
+    for (uint64_t k = 0; k < n; ++k) {
+      const uint64_t key = uint64_t(in[k].seq) << 32 | in[k].invocation;
+      if (k && key <= prev) return false;
+      prev = key;
+    }
+    return true;
+  }
+
+  // The wave steps of a workgroup whose records are in issue order (in_issue_order): the same steps, in
+  // the same order, as the general path below makes of them.
+  std::unique_ptr<GroupRequests> build_in_order(const trace::TraceRecord* in, uint64_t n, uint64_t first_invocation,
+                                                uint64_t per_group) {
+    std::unique_ptr<GroupRequests> ga = pool_.take();
+    ga->records = n;
+    ga->requests.reserve(n / 4 + 8);
+    // Where each seq's records start (and, as `cursor_`, how far each wave has taken them).
+    seq_start_.clear();
+    for (uint64_t k = 0; k < n; ++k)
+      if (k == 0 || in[k].seq != in[k - 1].seq) seq_start_.push_back(uint32_t(k));
+    seq_start_.push_back(uint32_t(n));
+    const size_t seqs = seq_start_.size() - 1;
+    seq_cursor_.assign(seq_start_.begin(), seq_start_.end() - 1);
+    const uint32_t waves = uint32_t((per_group + width_ - 1) / width_);
+    for (uint32_t w = 0; w < waves; ++w) {
+      const uint32_t l0 = w * width_;
+      const uint64_t lane_end = first_invocation + std::min<uint64_t>(per_group, uint64_t(l0) + width_);
+      const uint32_t lane_base = uint32_t(first_invocation + l0);
+      for (size_t q = 0; q < seqs; ++q) {
+        uint32_t k = seq_cursor_[q];
+        const uint32_t end = seq_start_[q + 1];
+        if (k == end || in[k].invocation >= lane_end) continue;  // no lane of this wave has this seq
+        co_.begin();
+        for (; k < end && in[k].invocation < lane_end; ++k) {
+          const trace::TraceRecord& r = in[k];
+          const trace::BufferInfo& b = *buffers_[gpu::trace_buffer(r.info)];
+          const uint64_t address =
+              b.kind == trace::BufferKind::buffer ? b.base_address + r.offset : b.address(r.offset);
+          co_.add(address, r.info, r.invocation, r.invocation - lane_base, per_inv_);
+        }
+        seq_cursor_[q] = k;
+        end_step(*ga);
+      }
+      ga->wave_steps_end.push_back(uint32_t(ga->step_end.size()));
+    }
+    return ga;
+  }
+
+  // Closes the coalescer's current step: appends its requests (and lane entries) to `ga` and counts its
+  // L1 lookups under every HitCounting (they do not depend on the caches' state).
+  void end_step(GroupRequests& ga) {
+    const uint32_t base = uint32_t(ga.requests.size());
+    for (size_t k = 0; k < co_.requests.size(); ++k) {
+      const Request& q = co_.requests[k];
+      if (q.kind != AccessKind::load) continue;  // stores and atomics do not look the L1 up
+      L1Lookups& l = lookups[q.buffer];
+      ++l.request;
+      l.quarter_wave += count_bits(uint32_t(co_.quarters[k]));
+      l.lane += co_.lanes[k];
+    }
+    ga.requests.insert(ga.requests.end(), co_.requests.begin(), co_.requests.end());
+    ga.step_end.push_back(uint32_t(ga.requests.size()));
+    if (per_inv_) {
+      for (const auto& [inv, req] : co_.lane_request) ga.lanes.emplace_back(inv, base + req);
+      ga.step_lanes_end.push_back(uint32_t(ga.lanes.size()));
+    }
+  }
+
+  GroupPool& pool_;
   Coalescer co_;
   const trace::BufferInfo* const* buffers_;
   uint32_t width_;
@@ -393,7 +492,7 @@ class Builder {
     uint32_t seq, info;
   };
   std::vector<LaneAccess> recs_, step_recs_;
-  std::vector<uint32_t> at_, cursor32_, end_, seq_count_, seq_cursor_;
+  std::vector<uint32_t> at_, cursor32_, end_, seq_count_, seq_cursor_, seq_start_;
   std::vector<uint8_t> strict_;
 };
 
@@ -452,6 +551,7 @@ struct Simulator::PassState {
   uint64_t lane_accesses = 0;
   uint32_t slices = 0;
   Buckets buckets;
+  GroupPool pool;
   Builder builder, helper_builder;
   // The slice being built: pieces [g0, g1) of workgroups (relative to the slice), claimed in order.
   std::vector<std::pair<uint64_t, uint64_t>> jobs;
@@ -484,8 +584,8 @@ struct Simulator::PassState {
 
   PassState(const Preset& preset, const Cache& l1, const trace::BufferInfo* const* buffers, bool per_invocation)
       : buckets(buffers),
-        builder(preset, l1, buffers, per_invocation),
-        helper_builder(preset, l1, buffers, per_invocation) {}
+        builder(preset, l1, buffers, per_invocation, pool),
+        helper_builder(preset, l1, buffers, per_invocation, pool) {}
 
   // Hands a piece to the scheduler (under m).
   void publish_locked(std::unique_ptr<Piece> p) {
@@ -842,6 +942,7 @@ void Simulator::schedule() {
         for (size_t k = 0; k < c.groups.size(); ++k)
           if (c.groups[k].workgroup == g && --c.groups[k].waves_left == 0) {
             ps.resident_records -= c.groups[k].data->records;
+            ps.pool.give(std::move(c.groups[k].data));
             c.groups.erase(c.groups.begin() + int64_t(k));
             freed = true;
             break;

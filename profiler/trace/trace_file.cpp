@@ -4,9 +4,13 @@
 #include <bit>
 #include <cstring>
 #include <exception>
+#include <new>
 #include <stdexcept>
 #include <system_error>
 #include <thread>
+#include <utility>
+
+#include <sys/mman.h>
 
 #include "error.hpp"
 #include "output_path.hpp"
@@ -27,6 +31,8 @@ constexpr uint32_t tag(char a, char b, char c, char d) {
 constexpr uint32_t kTagBuffers = tag('B', 'U', 'F', 'S');
 constexpr uint32_t kTagPass = tag('P', 'A', 'S', 'S');
 constexpr uint32_t kTagRecords = tag('R', 'E', 'C', 'S');
+constexpr uint32_t kTagCoded = tag('R', 'E', 'C', 'V');
+constexpr uint32_t kCodingDeltaVarint = 1;
 constexpr uint32_t kTagEnd = tag('E', 'N', 'D', ' ');
 
 struct FileHeader {
@@ -70,6 +76,12 @@ struct RecordsEntry {
 };
 static_assert(sizeof(RecordsEntry) == 32);
 
+struct CodedEntry {
+  uint32_t pass, coding;
+  uint64_t first_workgroup, end_workgroup, count, coded_bytes;
+};
+static_assert(sizeof(CodedEntry) == 40);
+
 struct EndEntry {
   uint64_t total_records;
   uint32_t passes, reserved;
@@ -109,13 +121,17 @@ struct CloseOnThrow {
 };
 }  // namespace
 
-TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header) : out_(std::move(path)) {
+TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header, uint32_t version)
+    : out_(std::move(path)), version_(version) {
+  if (version != kTraceVersion && version != kTraceVersionRaw)
+    throw InputError(out_.path().string() + ": trace format version " + std::to_string(version) +
+                     " cannot be written (1 or 2)");
   file_ = std::fopen(out_.temp_path().c_str(), "wb");
   if (!file_) throw InputError(out_.path().string() + ": cannot create trace file: " + std::strerror(errno));
   CloseOnThrow guard{file_};  // and out_'s destructor removes the temporary
   FileHeader fh{};
   std::memcpy(fh.magic, kTraceMagic, 8);
-  fh.version = kTraceVersion;
+  fh.version = version_;
   fh.image_width = header.image_width;
   fh.image_height = header.image_height;
   put(&fh, sizeof fh);
@@ -166,15 +182,28 @@ uint32_t TraceWriter::begin_pass(const PassInfo& pass) {
   put(pass.name.data(), pass.name.size());
   const uint64_t zero = 0;
   put(&zero, pad);
+  per_group_.push_back(pass.dispatch.invocations_per_workgroup());
   return passes_++;
 }
 
 void TraceWriter::write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
                                 uint64_t end_workgroup) {
-  RecordsEntry e{pass, 0, first_workgroup, end_workgroup, records.size()};
-  put_chunk_header(kTagRecords, sizeof e + records.size_bytes());
-  put(&e, sizeof e);
-  put(records.data(), records.size_bytes());
+  if (version_ == kTraceVersionRaw) {
+    RecordsEntry e{pass, 0, first_workgroup, end_workgroup, records.size()};
+    put_chunk_header(kTagRecords, sizeof e + records.size_bytes());
+    put(&e, sizeof e);
+    put(records.data(), records.size_bytes());
+  } else {
+    coded_.clear();
+    encoder_.encode(records, first_workgroup, end_workgroup, per_group_.at(pass), coded_);
+    CodedEntry e{pass, kCodingDeltaVarint, first_workgroup, end_workgroup, records.size(), coded_.size()};
+    const size_t pad = pad8(coded_.size());
+    put_chunk_header(kTagCoded, sizeof e + coded_.size() + pad);
+    put(&e, sizeof e);
+    put(coded_.data(), coded_.size());
+    const uint64_t zero = 0;
+    put(&zero, pad);
+  }
   total_records_ += records.size();
 }
 
@@ -291,9 +320,9 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
   FileHeader fh{};
   if (std::fread(&fh, sizeof fh, 1, file_) != 1) fail("truncated: shorter than the 32-byte header");
   if (std::memcmp(fh.magic, kTraceMagic, 8) != 0) fail("bad magic: not a hybridprof trace file");
-  if (fh.version != kTraceVersion)
-    fail("unsupported version " + std::to_string(fh.version) + " (this build reads version " +
-         std::to_string(kTraceVersion) + ")");
+  if (fh.version != kTraceVersion && fh.version != kTraceVersionRaw)
+    fail("unsupported version " + std::to_string(fh.version) + " (this build reads versions 1 and 2)");
+  version_ = fh.version;
   header_.image_width = fh.image_width;
   header_.image_height = fh.image_height;
 
@@ -322,6 +351,21 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
         fail("RECS" + at + ": workgroups [" + std::to_string(e.first_workgroup) + ", " +
              std::to_string(e.end_workgroup) + ") outside the dispatch of " + std::to_string(groups));
       chunks_.push_back({e.pass, pos + sizeof e, e.count, e.first_workgroup, e.end_workgroup});
+      total += e.count;
+    } else if (ch.tag == kTagCoded && version_ >= 2) {
+      CodedEntry e{};
+      if (ch.payload_bytes < sizeof e || std::fread(&e, sizeof e, 1, file_) != 1) fail("malformed RECV" + at);
+      if (e.pass >= passes_.size()) fail("RECV" + at + " names pass " + std::to_string(e.pass) + " before its PASS");
+      if (e.coding != kCodingDeltaVarint) fail("RECV" + at + ": unknown coding " + std::to_string(e.coding));
+      // A record takes at least one byte: a count beyond the bytes is corruption, not an allocation to make.
+      if (e.coded_bytes > ch.payload_bytes - sizeof e || e.count > e.coded_bytes ||
+          ch.payload_bytes - sizeof e - e.coded_bytes != pad8(e.coded_bytes))
+        fail("malformed RECV" + at + ": record count or coded size does not match the chunk size");
+      const uint64_t groups = passes_[e.pass].dispatch.workgroups();
+      if (e.first_workgroup > e.end_workgroup || e.end_workgroup > groups)
+        fail("RECV" + at + ": workgroups [" + std::to_string(e.first_workgroup) + ", " +
+             std::to_string(e.end_workgroup) + ") outside the dispatch of " + std::to_string(groups));
+      chunks_.push_back({e.pass, pos + sizeof e, e.count, e.first_workgroup, e.end_workgroup, e.coded_bytes});
       total += e.count;
     } else {
       std::vector<char> payload(ch.payload_bytes);
@@ -369,6 +413,22 @@ uint64_t TraceReader::record_count(uint32_t pass) const {
 
 void TraceReader::read_chunk(const Chunk& c, TraceRecord* out) const {
   std::fseek(file_, long(c.file_offset), SEEK_SET);
+  if (c.coded_bytes > 0) {
+    // The coded slice is small (about 3 bytes a record): read whole, decoded into `out`, each run of
+    // decoded records validated while it is in the host's caches.
+    if (coded_.size() < c.coded_bytes) coded_.resize(c.coded_bytes);
+    if (std::fread(coded_.data(), 1, c.coded_bytes, file_) != c.coded_bytes)
+      fail("truncated records of pass " + std::to_string(c.pass));
+    const std::string where = path_.string() + ": pass '" + passes_[c.pass].name + "'";
+    const PassInfo& pass = passes_[c.pass];
+    decode_slice(std::span<const uint8_t>(coded_.data(), c.coded_bytes), c.count, c.first_workgroup, c.end_workgroup,
+                 pass.dispatch.invocations_per_workgroup(), out, where,
+                 [&](const TraceRecord* r, uint64_t first, uint64_t n) {
+                   validate_records(where, header_, pass, std::span<const TraceRecord>(r, n), c.first_workgroup,
+                                    c.end_workgroup, first);
+                 });
+    return;
+  }
   // Block by block, each validated while it is still in the host's caches (one pass over memory, not two).
   constexpr uint64_t kBlock = 1 << 15;  // records (512 KiB)
   const std::string where = path_.string() + ": pass '" + passes_[c.pass].name + "'";
@@ -393,6 +453,45 @@ std::vector<TraceRecord> TraceReader::read_pass(uint32_t pass) const {
   return out;
 }
 
+namespace {
+
+// A slice buffer in anonymous memory the kernel may back with 2 MiB pages. Filled from the file once per
+// slice and reused: with 4 KiB pages, the first touch of a 64 MiB buffer is 16 K page faults, which on
+// the VMs this runs on cost more than reading the slice (a page fault there is several microseconds).
+// Grows, never shrinks; not initialized (every record is read into it before use).
+class RecordBuffer {
+ public:
+  RecordBuffer() = default;
+  RecordBuffer(const RecordBuffer&) = delete;
+  RecordBuffer& operator=(const RecordBuffer&) = delete;
+  ~RecordBuffer() { release(); }
+  TraceRecord* reserve(uint64_t count) {
+    if (count > capacity_) {
+      release();
+      constexpr uint64_t kHuge = 2u << 20;
+      const uint64_t bytes = (count * sizeof(TraceRecord) + kHuge - 1) / kHuge * kHuge;
+      void* p = ::mmap(nullptr, size_t(bytes), PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+      if (p == MAP_FAILED) throw std::bad_alloc();
+      ::madvise(p, size_t(bytes), MADV_HUGEPAGE);  // advice only: 4 KiB pages where refused
+      data_ = static_cast<TraceRecord*>(p);
+      bytes_ = bytes;
+      capacity_ = bytes / sizeof(TraceRecord);
+    }
+    return data_;
+  }
+
+ private:
+  void release() {
+    if (data_) ::munmap(data_, size_t(bytes_));
+    data_ = nullptr;
+    bytes_ = capacity_ = 0;
+  }
+  TraceRecord* data_ = nullptr;
+  uint64_t bytes_ = 0, capacity_ = 0;
+};
+
+}  // namespace
+
 uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
   if (pass >= passes_.size()) fail("no pass " + std::to_string(pass));
   std::vector<const Chunk*> order;
@@ -404,13 +503,14 @@ uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
   uint64_t largest = 0;
   for (const Chunk* c : order) largest = std::max<uint64_t>(largest, c->count);
   // Two buffers, reused for every slice: a thread reads and validates the next slice while `consume`
-  // works on the current one.
-  std::vector<TraceRecord> buffers[2];
+  // works on the current one. (Mapping the slice from the page cache instead of reading it was measured
+  // 2-5x slower on the VM, whose page-table updates are expensive: reading 512 KiB blocks is the
+  // cheapest way in.)
+  RecordBuffer buffers[2];
   std::exception_ptr read_error;
-  auto read_into = [&](size_t k, std::vector<TraceRecord>& into) {
+  auto read_into = [&](size_t k, RecordBuffer& into) {
     try {
-      into.resize(order[k]->count);
-      read_chunk(*order[k], into.data());
+      read_chunk(*order[k], into.reserve(order[k]->count));
     } catch (...) {
       read_error = std::current_exception();
     }
@@ -421,7 +521,8 @@ uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
     std::thread next;
     if (k + 1 < order.size()) next = std::thread(read_into, k + 1, std::ref(buffers[(k + 1) % 2]));
     try {
-      consume(buffers[k % 2], order[k]->first_workgroup, order[k]->end_workgroup);
+      consume(std::span<const TraceRecord>(buffers[k % 2].reserve(0), order[k]->count), order[k]->first_workgroup,
+              order[k]->end_workgroup);
     } catch (...) {
       if (next.joinable()) next.join();
       throw;
@@ -461,8 +562,8 @@ void validate_records(const std::string& where, const TraceHeader& header, const
   }
 }
 
-void write_trace(const std::filesystem::path& path, const Trace& trace) {
-  TraceWriter w(path, trace.header);
+void write_trace(const std::filesystem::path& path, const Trace& trace, uint32_t version) {
+  TraceWriter w(path, trace.header, version);
   for (size_t p = 0; p < trace.passes.size(); ++p) {
     uint32_t index = w.begin_pass(trace.passes[p]);
     if (p < trace.records.size()) w.write_records(index, trace.records[p], 0, trace.passes[p].dispatch.workgroups());

@@ -1,8 +1,9 @@
 // Memory-trace files: what an instrumented frame wrote, for the cache simulator to replay.
 //
-// Binary format, version 1, little-endian, every field naturally aligned:
+// Binary format, little-endian, every field naturally aligned. Version 2 (written by default) differs
+// from version 1 only in how a slice's records are stored ('RECV' instead of 'RECS'); readers take both.
 //
-//   FileHeader   32 bytes: magic "HPTRACE\0", u32 version, u32 flags (0), u32 image_width,
+//   FileHeader   32 bytes: magic "HPTRACE\0", u32 version (1 or 2), u32 flags (0), u32 image_width,
 //                u32 image_height, u64 reserved (0)
 //   then chunks, each a 16-byte ChunkHeader {u32 tag, u32 reserved, u64 payload_bytes} and its payload:
 //   'BUFS'  exactly once, before any pass: u32 count, then per buffer
@@ -14,6 +15,9 @@
 //   'RECS'  u32 pass index, u32 reserved, u64 first_workgroup, u64 end_workgroup, u64 count,
 //           count * 16-byte hp::gpu::TraceRecord (any order). One chunk per streamed slice: the
 //           workgroup range says which workgroups the slice dispatched, records need not be sorted.
+//   'RECV'  (version 2 only) the same slice coded compactly: u32 pass index, u32 coding (1), u64
+//           first_workgroup, u64 end_workgroup, u64 count, u64 coded_bytes, then coded_bytes bytes of
+//           the coding in trace_codec.hpp (about 3 bytes a record instead of 16), padded to 8 bytes.
 //   'END '  u64 total records, u32 pass count, u32 reserved. A file without it is reported as
 //           truncated: the writer writes it last and renames the file into place only then.
 //
@@ -31,12 +35,14 @@
 #include <vector>
 
 #include "atomic_file.hpp"
+#include "trace/trace_codec.hpp"
 #include "trace_format.hpp"
 
 namespace hp::trace {
 
 inline constexpr char kTraceMagic[8] = {'H', 'P', 'T', 'R', 'A', 'C', 'E', '\0'};
-inline constexpr uint32_t kTraceVersion = 1;
+inline constexpr uint32_t kTraceVersion = 2;     // what TraceWriter writes by default (compact records)
+inline constexpr uint32_t kTraceVersionRaw = 1;  // 16 bytes a record; still written on request
 
 // A whole trace in memory: fine for tests, tools and moderate frames; streaming code uses the
 // writer's per-slice chunks and the reader's per-pass reads.
@@ -48,10 +54,11 @@ struct Trace {
 
 // Streams a trace file: header and buffer table at construction, then passes and record slices.
 // Writes through an AtomicFile, renamed to PATH in finish(), so a crashed capture never leaves a file that
-// looks complete; destroying an unfinished writer removes the temporary file.
+// looks complete; destroying an unfinished writer removes the temporary file. `version` 2 codes each slice
+// compactly (SliceEncoder: records reordered by workgroup, seq and invocation), 1 stores them as given.
 class TraceWriter final : public TraceSink {
  public:
-  TraceWriter(std::filesystem::path path, const TraceHeader& header);
+  TraceWriter(std::filesystem::path path, const TraceHeader& header, uint32_t version = kTraceVersion);
   ~TraceWriter() override;
   TraceWriter(const TraceWriter&) = delete;
   TraceWriter& operator=(const TraceWriter&) = delete;
@@ -71,6 +78,10 @@ class TraceWriter final : public TraceSink {
   uint32_t passes_ = 0;
   uint64_t total_records_ = 0;
   uint64_t bytes_written_ = 0;
+  uint32_t version_;
+  std::vector<uint64_t> per_group_;  // by pass: invocations per workgroup (the coding needs them)
+  SliceEncoder encoder_;
+  std::vector<uint8_t> coded_;
 };
 
 // Reads a trace file's directory (header, buffers, passes, where each pass's record chunks lie) at
@@ -84,6 +95,7 @@ class TraceReader {
 
   const TraceHeader& header() const { return header_; }
   const std::vector<PassInfo>& passes() const { return passes_; }
+  uint32_t version() const { return version_; }
   uint64_t record_count(uint32_t pass) const;
   // All records of a pass, validated: reserved bits zero, known buffer id, invocation inside its
   // slice's workgroups, offset + size inside the buffer.
@@ -98,9 +110,10 @@ class TraceReader {
  private:
   struct Chunk {
     uint32_t pass;
-    uint64_t file_offset;  // of the first record
+    uint64_t file_offset;  // of the first record, or of the coded bytes
     uint64_t count;
     uint64_t first_workgroup, end_workgroup;
+    uint64_t coded_bytes = 0;  // 'RECV' chunks: the coding's size (0: 16-byte records)
   };
   void read_chunk(const Chunk& c, TraceRecord* out) const;  // c.count records to `out`, validated
   [[noreturn]] void fail(const std::string& what) const;
@@ -113,9 +126,11 @@ class TraceReader {
   TraceHeader header_;
   std::vector<PassInfo> passes_;
   std::vector<Chunk> chunks_;
+  uint32_t version_ = 0;
+  mutable std::vector<uint8_t> coded_;  // read_chunk's scratch for a 'RECV' chunk's bytes
 };
 
-void write_trace(const std::filesystem::path& path, const Trace& trace);
+void write_trace(const std::filesystem::path& path, const Trace& trace, uint32_t version = kTraceVersion);
 Trace read_trace(const std::filesystem::path& path);
 
 // Checks one pass's records against the header and dispatch (and, when given, the slice of workgroups

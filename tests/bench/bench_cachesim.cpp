@@ -23,16 +23,18 @@
 //                    miss-ratio curves (what `hybridprof cachesim --mrc` and the run matrix compute).
 // End-to-end paths of the CLI, from files (wall time: they use several threads; items per second are
 // per wall second here):
-//   TraceFileRead    reading and validating a trace file slice by slice (TraceReader::read_slices),
-//                    nothing else: the floor of a replay from the page cache.
-//   TraceFileReplay  `cachesim TRACE`: the same file replayed (read_slices feeding the Simulator).
-//                    TraceFileReplay / TraceFileRead is the replay's cost relative to reading the file.
+//   TraceFileRead/V  reading (and, for format version 2, decoding) and validating a trace file slice by
+//                    slice (TraceReader::read_slices), nothing else: the floor of a replay from the page
+//                    cache. V: the file in format version 1 (16 bytes a record) or 2 (compact).
+//   TraceFileReplay/V  `cachesim TRACE`: the same file replayed (read_slices feeding the Simulator);
+//                    its counters read_ms (the fastest whole read of that file, timed beforehand) and
+//                    replay_over_read (TraceFileReplay's time / read_ms) put the ratio in the same row.
 //   DinFileRead      read(2) of a Dinero text file into a 1 MiB buffer: the memory-speed floor.
 //   DinFileReplay    `cachesim --din FILE`: the file streamed through the parser and a 16k:64:4 L1 +
 //                    4m:64:16 L2 (/0), or read whole into memory first and then replayed (/1: the
 //                    former path). items = Dinero records.
-// The files: HP_BENCH_TRACE as above (else the generated trace written, in 64-workgroup slices as a
-// capture writes them, to a temporary file) and HP_BENCH_DIN=FILE (else the generated trace's L1
+// The files: HP_BENCH_TRACE as above, plus a copy in the other format version (else the generated trace
+// written, in 64-workgroup slices as a capture writes them, to temporary files in both versions) and HP_BENCH_DIN=FILE (else the generated trace's L1
 // request stream, written as Dinero text to a temporary file). Temporary files are removed at exit.
 // Rates are per CPU second (Google Benchmark's default): on a shared VM they are less disturbed by
 // other processes than wall time, not undisturbed. Note the load average printed in the header.
@@ -42,6 +44,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -243,9 +246,34 @@ void EndToEnd(benchmark::State& state) {
 }
 BENCHMARK(EndToEnd)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 
+// Reads every slice of every pass of a trace file (TraceReader::read_slices: read, decode, validate);
+// returns the records read.
+uint64_t read_whole_trace(const std::string& path) {
+  hp::trace::TraceReader reader(path);
+  uint64_t records = 0;
+  for (uint32_t p = 0; p < reader.passes().size(); ++p)
+    reader.read_slices(p, [&](std::span<const hp::trace::TraceRecord> r, uint64_t, uint64_t) { records += r.size(); });
+  return records;
+}
+
+// Copies a trace file into the other format version, slice by slice.
+void convert_trace(const std::string& from, const std::string& to, uint32_t version) {
+  hp::trace::TraceReader reader(from);
+  hp::trace::TraceWriter w(to, reader.header(), version);
+  for (uint32_t p = 0; p < reader.passes().size(); ++p) {
+    const uint32_t index = w.begin_pass(reader.passes()[p]);
+    reader.read_slices(p, [&](std::span<const hp::trace::TraceRecord> r, uint64_t first, uint64_t end) {
+      w.write_records(index, r, first, end);
+    });
+  }
+  w.finish();
+}
+
 // The files the end-to-end benchmarks read, made once (see the header comment).
 struct Files {
-  std::string trace_path, din_path;
+  std::string trace_path[3];    // by format version (1: 16-byte records, 2: compact)
+  double read_seconds[3] = {};  // the fastest of three whole reads of each (TraceFileRead's work)
+  std::string din_path;
   std::vector<std::string> remove;
   uint64_t din_records = 0;
   Files() {
@@ -253,23 +281,39 @@ struct Files {
     const std::string tmp =
         std::filesystem::temp_directory_path().string() + "/hp_bench_cachesim_" + std::to_string(::getpid());
     if (const char* t = std::getenv("HP_BENCH_TRACE")) {
-      trace_path = t;
+      // The given file in its version, and a copy in the other made here.
+      const uint32_t v = hp::trace::TraceReader(t).version(), other = v == 1 ? 2 : 1;
+      trace_path[v] = t;
+      trace_path[other] = tmp + ".v" + std::to_string(other) + ".trace";
+      remove.push_back(trace_path[other]);
+      convert_trace(t, trace_path[other], other);
     } else {
-      trace_path = tmp + ".trace";
-      remove.push_back(trace_path);
-      hp::trace::TraceWriter w(trace_path, f.trace.header);
-      const hp::trace::PassInfo& pass = f.trace.passes[0];
-      const uint32_t p = w.begin_pass(pass);
-      const uint64_t per_group = pass.dispatch.invocations_per_workgroup(), groups = pass.dispatch.workgroups();
-      std::vector<hp::trace::TraceRecord> part;
-      for (uint64_t g0 = 0; g0 < groups; g0 += 64) {
-        const uint64_t g1 = std::min(groups, g0 + 64);
-        part.clear();
-        for (const auto& r : f.trace.records[0])
-          if (r.invocation >= g0 * per_group && r.invocation < g1 * per_group) part.push_back(r);
-        w.write_records(p, part, g0, g1);
+      for (uint32_t v : {1u, 2u}) {
+        trace_path[v] = tmp + ".v" + std::to_string(v) + ".trace";
+        remove.push_back(trace_path[v]);
+        hp::trace::TraceWriter w(trace_path[v], f.trace.header, v);
+        const hp::trace::PassInfo& pass = f.trace.passes[0];
+        const uint32_t p = w.begin_pass(pass);
+        const uint64_t per_group = pass.dispatch.invocations_per_workgroup(), groups = pass.dispatch.workgroups();
+        std::vector<hp::trace::TraceRecord> part;
+        for (uint64_t g0 = 0; g0 < groups; g0 += 64) {
+          const uint64_t g1 = std::min(groups, g0 + 64);
+          part.clear();
+          for (const auto& r : f.trace.records[0])
+            if (r.invocation >= g0 * per_group && r.invocation < g1 * per_group) part.push_back(r);
+          w.write_records(p, part, g0, g1);
+        }
+        w.finish();
       }
-      w.finish();
+    }
+    for (uint32_t v : {1u, 2u}) {
+      read_seconds[v] = 1e30;
+      for (int k = 0; k < 3; ++k) {
+        const auto t0 = std::chrono::steady_clock::now();
+        benchmark::DoNotOptimize(read_whole_trace(trace_path[v]));
+        read_seconds[v] =
+            std::min(read_seconds[v], std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      }
     }
     if (const char* d = std::getenv("HP_BENCH_DIN")) {
       din_path = d;
@@ -294,28 +338,33 @@ Files& files() {
   return f;
 }
 
+// /1, /2: the trace file in format version 1 (16 bytes a record) or 2 (compact).
 void TraceFileRead(benchmark::State& state) {
   const Files& fs = files();
+  const std::string& path = fs.trace_path[state.range(0)];
   uint64_t records = 0;
   for (auto _ : state) {
-    hp::trace::TraceReader reader(fs.trace_path);
-    records = 0;
-    for (uint32_t p = 0; p < reader.passes().size(); ++p)
-      reader.read_slices(p,
-                         [&](std::span<const hp::trace::TraceRecord> r, uint64_t, uint64_t) { records += r.size(); });
+    records = read_whole_trace(path);
     benchmark::DoNotOptimize(records);
   }
   state.SetItemsProcessed(int64_t(state.iterations() * records));
-  state.counters["bytes"] = double(std::filesystem::file_size(fs.trace_path));
+  state.counters["bytes"] = double(std::filesystem::file_size(path));
+  state.counters["bytes_per_lane_access"] = double(std::filesystem::file_size(path)) / double(records);
 }
-BENCHMARK(TraceFileRead)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(TraceFileRead)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// `cachesim TRACE` end to end from the file (items: lane accesses, per wall second). read_ms is the
+// fastest whole read of the same file (TraceFileRead's work, timed when the files were made), so each
+// row shows replay / read, the replay's cost relative to reading its input.
 void TraceFileReplay(benchmark::State& state) {
   const Files& fs = files();
   const Fixture& f = fixture();
+  const std::string& path = fs.trace_path[state.range(0)];
   uint64_t records = 0;
+  double wall_seconds = 0;
   for (auto _ : state) {
-    hp::trace::TraceReader reader(fs.trace_path);
+    const auto t0 = std::chrono::steady_clock::now();
+    hp::trace::TraceReader reader(path);
     SimOptions so;
     so.per_invocation = false;
     Simulator sim(f.preset, reader.header(), so);
@@ -326,11 +375,16 @@ void TraceFileReplay(benchmark::State& state) {
       records += sim.end_pass().lane_accesses;
     }
     benchmark::DoNotOptimize(sim.finish());
+    wall_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   }
   state.SetItemsProcessed(int64_t(state.iterations() * records));
   state.counters["lane_accesses"] = double(records);
+  state.counters["bytes_per_lane_access"] = double(std::filesystem::file_size(path)) / double(records);
+  state.counters["read_ms"] = fs.read_seconds[state.range(0)] * 1e3;
+  // The mean replay over the read (both wall clock; Google Benchmark's rate counters divide by CPU time).
+  state.counters["replay_over_read"] = wall_seconds / double(state.iterations()) / fs.read_seconds[state.range(0)];
 }
-BENCHMARK(TraceFileReplay)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(TraceFileReplay)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void DinFileRead(benchmark::State& state) {
   const Files& fs = files();

@@ -1,4 +1,5 @@
-// Trace file fuzz target: the bytes as a trace file, opened with hp::trace::TraceReader, then every pass
+// Trace file fuzz target: the bytes as a trace file (format version 1 or 2: the corpus holds both, and
+// compact_v2.hptrace seeds the compact record decoder), opened with hp::trace::TraceReader, then every pass
 // read whole (which validates each record) and slice by slice, and small passes replayed slice by slice
 // through the cache simulator (the streamed path of `hybridprof cachesim`). Success or hp::InputError only.
 #include <cstddef>

@@ -265,20 +265,20 @@ TEST(Cli, CachesimShowsReplayProgressUnlessQuiet) {
 }
 
 // A trace that the disk cannot hold stops as soon as its projection says so, with the projection in a
-// one-line error, and leaves nothing behind: a 16 MB tmpfs in a private mount namespace, where the shadow
-// pass of pica at 320x180 takes about 20 MB. Skipped where such a mount cannot be made (not root, no
+// one-line error, and leaves nothing behind: an 8 MB tmpfs in a private mount namespace, where the shadow
+// pass of pica at 640x360 takes about 11 MB (trace format 2). Skipped where such a mount cannot be made (not root, no
 // unshare).
 TEST(Cli, TraceRefusesWhatTheDiskCannotHold) {
   HP_CLI_REQUIRE_VULKAN();
   const fs::path d = temp_dir() / "small_disk";
   fs::create_directories(d);
-  const std::string mount = "mount -t tmpfs -o size=16m hp_small_disk " + d.string();
+  const std::string mount = "mount -t tmpfs -o size=8m hp_small_disk " + d.string();
   if (std::system(("unshare -m sh -c '" + mount + "' >/dev/null 2>&1").c_str()) != 0) {
     GTEST_SKIP() << "cannot mount a tmpfs in a private mount namespace here";
   }
   const std::string on_small_disk = "unshare -m sh -c '" + mount + " && exec \"$0\" \"$@\"'";
   const std::string args =
-      "trace --scene builtin:pica --width 320 --height 180 --passes shadows --trace-buffer-mib 4 "
+      "trace --scene builtin:pica --width 640 --height 360 --passes shadows --trace-buffer-mib 4 "
       "--out " +
       (d / "t.hptrace").string();
   CmdResult r = run(args + " --quiet", on_small_disk);

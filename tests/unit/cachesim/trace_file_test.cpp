@@ -1,7 +1,11 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <tuple>
 
 #include "atomic_file.hpp"
 #include "error.hpp"
@@ -72,7 +76,7 @@ bool same(const TraceRecord& a, const TraceRecord& b) {
 TEST(TraceFile, RoundTrip) {
   const Trace t = sample();
   const auto p = tmp("round.hptrace");
-  write_trace(p, t);
+  write_trace(p, t, kTraceVersionRaw);
   EXPECT_FALSE(atomic_temporary_exists(p));
   const Trace r = read_trace(p);
   EXPECT_EQ(r.header.image_width, 16u);
@@ -104,7 +108,7 @@ TEST(TraceFile, StreamedSlicesAreConcatenatedPerPass) {
   const auto p = tmp("slices.hptrace");
   const auto g0 = of_group(t, 0), g1 = of_group(t, 1);
   {
-    TraceWriter w(p, t.header);
+    TraceWriter w(p, t.header, kTraceVersionRaw);
     const uint32_t a = w.begin_pass(t.passes[0]);
     const uint32_t b = w.begin_pass(t.passes[1]);
     w.write_records(a, g0, 0, 1);
@@ -124,7 +128,7 @@ TEST(TraceFile, ReadSlicesComesInWorkgroupOrderOneSliceAtATime) {
   const auto p = tmp("slices_order.hptrace");
   const auto g0 = of_group(t, 0), g1 = of_group(t, 1);
   {
-    TraceWriter w(p, t.header);
+    TraceWriter w(p, t.header, kTraceVersionRaw);
     const uint32_t a = w.begin_pass(t.passes[0]);
     w.write_records(a, g1, 1, 2);  // written out of order
     w.write_records(a, g0, 0, 1);
@@ -151,7 +155,7 @@ TEST(TraceFile, SlicesMustHoldTheirOwnWorkgroupsAndNotOverlap) {
   const auto outside = tmp("slice_outside.hptrace"), overlap = tmp("slice_overlap.hptrace"),
              past = tmp("slice_past.hptrace");
   {
-    TraceWriter w(outside, t.header);
+    TraceWriter w(outside, t.header, kTraceVersionRaw);
     const uint32_t a = w.begin_pass(t.passes[0]);
     w.write_records(a, t.records[0], 1, 2);  // holds workgroup 0's records too
     w.finish();
@@ -159,7 +163,7 @@ TEST(TraceFile, SlicesMustHoldTheirOwnWorkgroupsAndNotOverlap) {
   EXPECT_NE(error_reading(outside).find("outside its slice's workgroups [1, 2)"), std::string::npos)
       << error_reading(outside);
   {
-    TraceWriter w(overlap, t.header);
+    TraceWriter w(overlap, t.header, kTraceVersionRaw);
     const uint32_t a = w.begin_pass(t.passes[0]);
     w.write_records(a, of_group(t, 0), 0, 1);
     w.write_records(a, of_group(t, 1), 0, 2);
@@ -167,7 +171,7 @@ TEST(TraceFile, SlicesMustHoldTheirOwnWorkgroupsAndNotOverlap) {
   }
   EXPECT_NE(error_reading(overlap).find("overlap at workgroup 0"), std::string::npos) << error_reading(overlap);
   {
-    TraceWriter w(past, t.header);
+    TraceWriter w(past, t.header, kTraceVersionRaw);
     const uint32_t a = w.begin_pass(t.passes[0]);
     w.write_records(a, {}, 2, 3);
     w.finish();
@@ -179,7 +183,7 @@ TEST(TraceFile, UnfinishedWriterLeavesNoFile) {
   const auto p = tmp("unfinished.hptrace");
   fs::remove(p);
   {
-    TraceWriter w(p, sample().header);
+    TraceWriter w(p, sample().header, kTraceVersionRaw);
     w.begin_pass(sample().passes[0]);
   }
   EXPECT_FALSE(fs::exists(p));
@@ -188,7 +192,7 @@ TEST(TraceFile, UnfinishedWriterLeavesNoFile) {
 
 TEST(TraceFile, CorruptFilesGiveOneLineErrorsNamingTheFile) {
   const auto good = tmp("good.hptrace");
-  write_trace(good, sample());
+  write_trace(good, sample(), kTraceVersionRaw);
   const auto bytes = bytes_of(good);
   const auto bad = tmp("bad.hptrace");
 
@@ -200,7 +204,7 @@ TEST(TraceFile, CorruptFilesGiveOneLineErrorsNamingTheFile) {
   corrupted = bytes;
   corrupted[8] = 9;  // version
   write_bytes(bad, corrupted);
-  EXPECT_EQ(error_reading(bad), bad.string() + ": unsupported version 9 (this build reads version 1)");
+  EXPECT_EQ(error_reading(bad), bad.string() + ": unsupported version 9 (this build reads versions 1 and 2)");
 
   write_bytes(bad, std::vector<char>(bytes.begin(), bytes.begin() + 20));
   EXPECT_EQ(error_reading(bad), bad.string() + ": truncated: shorter than the 32-byte header");
@@ -214,15 +218,15 @@ TEST(TraceFile, CorruptFilesGiveOneLineErrorsNamingTheFile) {
   // A record naming a buffer the table lacks.
   Trace t = sample();
   t.records[0][3].info = HP_TRACE_INFO(3u, HP_TRACE_LOAD, 4u);
-  write_trace(bad, t);
+  write_trace(bad, t, kTraceVersionRaw);
   EXPECT_EQ(error_reading(bad), bad.string() + ": pass 'shadows': record 3: unknown buffer id 3");
   t = sample();
   t.records[1][0].invocation = 64;
-  write_trace(bad, t);
+  write_trace(bad, t, kTraceVersionRaw);
   EXPECT_NE(error_reading(bad).find("record 0: invocation 64 outside the dispatch"), std::string::npos);
   t = sample();
   t.records[1][0].offset = 4093;  // 4-byte atomic past the 4096-byte buffer
-  write_trace(bad, t);
+  write_trace(bad, t, kTraceVersionRaw);
   EXPECT_NE(error_reading(bad).find("past the end of buffer 'nodes'"), std::string::npos);
 
   EXPECT_NE(error_reading(tmp("does_not_exist")).find("cannot open trace file"), std::string::npos);
@@ -232,7 +236,7 @@ TEST(TraceFile, CorruptFilesGiveOneLineErrorsNamingTheFile) {
 // ~4 GiB was allocated before it was checked against the chunk.
 TEST(TraceFile, NameLengthPastTheChunkIsAnErrorNotAnAllocation) {
   const auto good = tmp("name_len.hptrace");
-  write_trace(good, sample());
+  write_trace(good, sample(), kTraceVersionRaw);
   auto bytes = bytes_of(good);
   // Header 32 + chunk header 16 + count 4 = entry 0 at 52; its name_bytes field is 48 bytes in.
   ASSERT_EQ(bytes[100], 5);  // "nodes"
@@ -246,7 +250,7 @@ TEST(TraceFile, NameLengthPastTheChunkIsAnErrorNotAnAllocation) {
 // tried to allocate 2^64 bytes. The count must match the chunk exactly.
 TEST(TraceFile, WrappingRecordCountIsAnError) {
   const auto p = tmp("wrap.hptrace");
-  write_trace(p, sample());
+  write_trace(p, sample(), kTraceVersionRaw);
   auto bytes = bytes_of(p);
   const std::string text(bytes.begin(), bytes.end());
   const size_t recs = text.find("RECS"), end = text.rfind("END ");
@@ -270,7 +274,7 @@ size_t open_descriptors() {
 TEST(TraceFile, RejectedFilesDoNotLeakDescriptors) {
   if (!fs::exists("/proc/self/fd")) GTEST_SKIP() << "no /proc/self/fd";
   const auto good = tmp("leak.hptrace");
-  write_trace(good, sample());
+  write_trace(good, sample(), kTraceVersionRaw);
   const auto bytes = bytes_of(good);
   const auto bad = tmp("leak_bad.hptrace");
   write_bytes(bad, std::vector<char>(bytes.begin(), bytes.end() - 32));  // no END chunk
@@ -285,9 +289,113 @@ TEST(TraceFile, ErrorsQuotingANameStayOnOneLine) {
   t.passes[0].name = "sha\ndows";
   t.records[0][3].info = HP_TRACE_INFO(3u, HP_TRACE_LOAD, 4u);
   const auto p = tmp("newline.hptrace");
-  write_trace(p, t);
+  write_trace(p, t, kTraceVersionRaw);
   // A name the writer never writes (not printable ASCII) is rejected where it is read, on one line.
   EXPECT_EQ(error_reading(p), p.string() + ": malformed PASS chunk at byte 188: the name is not printable ASCII");
+}
+
+// Version 2 (compact records): the same records, each invocation's in the same order, in issue order
+// (workgroup, seq, invocation), in fewer bytes; lanes far apart, repeated seqs, seq gaps, offsets that
+// jump both ways and an info word that changes are all in the sample below.
+TEST(TraceFile, CompactRecordsKeepEveryInvocationsRecordsInIssueOrder) {
+  Trace t = sample();
+  t.records[0].push_back({5, 1, HP_TRACE_INFO(0u, HP_TRACE_LOAD, 4u), 4000});  // invocation 5, seq 1 again
+  t.records[0].push_back({120, 9, HP_TRACE_INFO(0u, HP_TRACE_STORE, 2u), 0});  // a seq gap, lane 56 of wg 1
+  t.records[0].push_back({64, 9, HP_TRACE_INFO(0u, HP_TRACE_LOAD, 1u), 0xFFF});
+  t.records[0].push_back({0, 0xFFFFFFFF, HP_TRACE_INFO(7u, HP_TRACE_LOAD, 8u), 8});
+  const auto raw = tmp("compact_raw.hptrace"), compact = tmp("compact.hptrace");
+  write_trace(raw, t, kTraceVersionRaw);
+  write_trace(compact, t);
+  EXPECT_EQ(TraceReader(compact).version(), 2u);
+  EXPECT_LT(fs::file_size(compact) * 3, fs::file_size(raw));
+  const Trace r = read_trace(compact);
+  for (size_t p = 0; p < t.passes.size(); ++p) {
+    ASSERT_EQ(r.records[p].size(), t.records[p].size());
+    const uint64_t per_group = t.passes[p].dispatch.invocations_per_workgroup();
+    for (size_t i = 1; i < r.records[p].size(); ++i) {
+      const TraceRecord &a = r.records[p][i - 1], &b = r.records[p][i];
+      const auto key = [&](const TraceRecord& x) { return std::tuple(x.invocation / per_group, x.seq, x.invocation); };
+      EXPECT_LE(key(a), key(b)) << i;
+    }
+    // Per invocation, the same records in the same order.
+    auto by_invocation = [](const std::vector<TraceRecord>& recs) {
+      std::map<uint32_t, std::vector<std::tuple<uint32_t, uint32_t, uint32_t>>> m;
+      for (const TraceRecord& x : recs) m[x.invocation].emplace_back(x.seq, x.info, x.offset);
+      return m;
+    };
+    EXPECT_EQ(by_invocation(r.records[p]), by_invocation(t.records[p]));
+  }
+  // Invocation 5's two seq-1 records keep their order (the store first, as written).
+  const auto it = std::find_if(r.records[0].begin(), r.records[0].end(),
+                               [](const TraceRecord& x) { return x.invocation == 5 && x.seq == 1; });
+  ASSERT_NE(it, r.records[0].end());
+  EXPECT_EQ(it->offset, 40u);
+  EXPECT_EQ((it + 1)->offset, 4000u);
+}
+
+TEST(TraceFile, CorruptCompactRecordsGiveOneLineErrorsNamingTheFile) {
+  const auto good = tmp("compact_good.hptrace"), bad = tmp("compact_bad.hptrace");
+  write_trace(good, sample());
+  const auto bytes = bytes_of(good);
+  // The first 'RECV' chunk: its 40-byte entry (u32 pass, u32 coding, u64 first, end, count, coded_bytes)
+  // follows the 16-byte chunk header, then the coded bytes.
+  const std::string tag = "RECV";
+  const size_t at = size_t(std::search(bytes.begin(), bytes.end(), tag.begin(), tag.end()) - bytes.begin());
+  ASSERT_LT(at, bytes.size());
+  const size_t entry = at + 16, coded = entry + 40;
+  auto put_u64 = [](std::vector<char>& b, size_t pos, uint64_t v) { std::memcpy(b.data() + pos, &v, 8); };
+  uint64_t count = 0;
+  std::memcpy(&count, bytes.data() + entry + 24, 8);
+
+  auto c = bytes;
+  c[entry + 4] = 9;  // coding
+  write_bytes(bad, c);
+  EXPECT_NE(error_reading(bad).find(bad.string() + ": RECV chunk at byte " + std::to_string(at) + ": unknown coding 9"),
+            std::string::npos)
+      << error_reading(bad);
+
+  c = bytes;
+  put_u64(c, entry + 24, count + 1);  // one record more than the coding holds (and the END chunk agrees)
+  uint64_t total = 0;
+  std::memcpy(&total, c.data() + c.size() - 16, 8);
+  put_u64(c, c.size() - 16, total + 1);
+  write_bytes(bad, c);
+  EXPECT_NE(error_reading(bad).find("holds " + std::to_string(count) + " records, the chunk declares " +
+                                    std::to_string(count + 1)),
+            std::string::npos)
+      << error_reading(bad);
+
+  c = bytes;
+  put_u64(c, entry + 24, uint64_t(1) << 40);  // far more records than bytes: refused before any allocation
+  write_bytes(bad, c);
+  EXPECT_NE(error_reading(bad).find("malformed RECV"), std::string::npos) << error_reading(bad);
+
+  // The first record's control byte (after the workgroup, step count, seq and record count varints).
+  c = bytes;
+  c[coded + 4] = char(uint8_t(c[coded + 4]) | 0x80);
+  write_bytes(bad, c);
+  EXPECT_NE(error_reading(bad).find(bad.string() +
+                                    ": pass 'shadows': compact records, byte 5: reserved control bit set"),
+            std::string::npos)
+      << error_reading(bad);
+  EXPECT_EQ(error_reading(bad).find('\n'), std::string::npos);
+
+  // A writer refuses what the coding cannot hold, and leaves no file.
+  const auto refused = tmp("compact_refused.hptrace");
+  Trace t = sample();
+  {
+    TraceWriter w(refused, t.header);
+    const uint32_t a = w.begin_pass(t.passes[0]);
+    try {
+      w.write_records(a, t.records[0], 1, 2);  // workgroup 0's records in the slice of workgroup 1
+      ADD_FAILURE() << "no error";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("record 0: invocation 0 outside its slice's workgroups [1, 2)"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_FALSE(fs::exists(refused));
 }
 
 }  // namespace
