@@ -3,8 +3,8 @@
 // output) and HP_BENCH_PASS=NAME (default its first pass). What an "access" is:
 //   lane access  one record of the trace: one lane's load/store (27.0 M here);
 //   request      one coalesced line request that a wave step sends to an L1 (10.6 M here): what
-//                Dinero IV counts as a reference, and what issue 6's 150 M accesses/s target and
-//                the 9-14 M/s Dinero figure are compared against.
+//                Dinero IV counts as a reference, so the rates to compare with a Dinero-style
+//                simulator are requests per second.
 // Benchmarks:
 //   Hierarchy/*      the coalesced request stream of vega56 replayed through 56 L1s + the L2
 //                    (items = requests; lane_accesses = the same work counted in lane accesses),
@@ -31,8 +31,8 @@
 //                    replay_over_read (TraceFileReplay's time / read_ms) put the ratio in the same row.
 //   DinFileRead      read(2) of a Dinero text file into a 1 MiB buffer: the memory-speed floor.
 //   DinFileReplay    `cachesim --din FILE`: the file streamed through the parser and a 16k:64:4 L1 +
-//                    4m:64:16 L2 (/0), or read whole into memory first and then replayed (/1: the
-//                    former path). items = Dinero records.
+//                    4m:64:16 L2 (/0), or read whole into memory first and then replayed (/1: what the
+//                    streamed parser saves). items = Dinero records.
 // The files: HP_BENCH_TRACE as above, plus a copy in the other format version (else the generated trace
 // written, in 64-workgroup slices as a capture writes them, to temporary files in both versions) and HP_BENCH_DIN=FILE (else the generated trace's L1
 // request stream, written as Dinero text to a temporary file). Temporary files are removed at exit.
