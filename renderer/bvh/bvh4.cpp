@@ -173,6 +173,7 @@ struct Ray4 {
   __m128 tmin;
   __m128 okx, oky, okz;  // origin on the watertight test's kx, ky, kz axes
   __m128 sx, sy, sz;
+  __m128 inf, far_up, far_down;  // constants, kept in registers across the loop rather than reloaded
 };
 
 Ray4 splat(const PreparedRay& r) {
@@ -191,6 +192,9 @@ Ray4 splat(const PreparedRay& r) {
   q.sx = _mm_set1_ps(r.sx);
   q.sy = _mm_set1_ps(r.sy);
   q.sz = _mm_set1_ps(r.sz);
+  q.inf = _mm_set1_ps(kInf);
+  q.far_up = _mm_set1_ps(detail::kFarUp);
+  q.far_down = _mm_set1_ps(detail::kFarDown);
   return q;
 }
 
@@ -198,7 +202,7 @@ Ray4 splat(const PreparedRay& r) {
 /// "a > b ? a : b" and _mm_min_ps(a, b) "a < b ? a : b", the reference's NaN-discarding selects exactly.
 inline int slab4(const Ray4& q, const Bvh4::Node& n, __m128 t_hi, __m128& tnear) {
   __m128 tn = q.tmin;
-  __m128 tf = _mm_set1_ps(kInf);
+  __m128 tf = q.inf;
   for (int a = 0; a < 3; ++a) {
     const __m128 t0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[q.near_row[a]]), q.org[a]), q.inv[a]);
     const __m128 t1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[q.far_row[a]]), q.org[a]), q.inv[a]);
@@ -207,8 +211,7 @@ inline int slab4(const Ray4& q, const Bvh4::Node& n, __m128 t_hi, __m128& tnear)
   }
   tf = _mm_min_ps(t_hi, tf);
   const __m128 nonneg = _mm_cmpge_ps(tf, _mm_setzero_ps());
-  tf = _mm_or_ps(_mm_and_ps(nonneg, _mm_mul_ps(tf, _mm_set1_ps(detail::kFarUp))),
-                 _mm_andnot_ps(nonneg, _mm_mul_ps(tf, _mm_set1_ps(detail::kFarDown))));
+  tf = _mm_or_ps(_mm_and_ps(nonneg, _mm_mul_ps(tf, q.far_up)), _mm_andnot_ps(nonneg, _mm_mul_ps(tf, q.far_down)));
   tnear = tn;
   return _mm_movemask_ps(_mm_cmple_ps(tn, tf));
 }
@@ -277,6 +280,15 @@ inline int watertight4(const Ray4& q, const PreparedRay& r, const Bvh4::Packet& 
   return mask;
 }
 
+/// Starts fetching a pushed child: it is usually visited soon, and on trees larger than the caches the
+/// wait for its node or packet is what a ray spends most of its time on.
+inline void prefetch(const Bvh4& b, uint32_t ref) {
+  const char* p = ref & Bvh4::kLeaf ? reinterpret_cast<const char*>(&b.packets[ref & ~Bvh4::kLeaf])
+                                    : reinterpret_cast<const char*>(&b.nodes[ref]);
+  _mm_prefetch(p, _MM_HINT_T0);
+  _mm_prefetch(p + 64, _MM_HINT_T0);
+}
+
 template <bool kAny>
 Hit trace(const Bvh4& b, const Ray& ray, TraversalStats* stats) {
   Hit best;
@@ -315,6 +327,20 @@ Hit trace(const Bvh4& b, const Ray& ray, TraversalStats* stats) {
         // Two to four boxes hit: visit the nearest, push the others farthest first.
         alignas(16) float tn[4];
         _mm_store_ps(tn, tn4);
+        const int second = __builtin_ctz(mask);
+        mask &= mask - 1;
+        if (!mask) {
+          // Two, the common case: selects rather than branches, whose outcome a random ray cannot predict.
+          const bool swap = tn[second] < tn[first];
+          const uint32_t c0 = n.child[first], c1 = n.child[second];
+          const float t0 = tn[first], t1 = tn[second];
+          ref = swap ? c1 : c0;
+          const uint32_t far_ref = swap ? c0 : c1;
+          stack[sp++] = Entry{far_ref, swap ? t0 : t1};
+          prefetch(b, far_ref);
+          continue;
+        }
+        mask |= 1 << second;
         uint32_t cr[4];
         float ct[4];
         cr[0] = n.child[first];
@@ -333,7 +359,10 @@ Hit trace(const Bvh4& b, const Ray& ray, TraversalStats* stats) {
           cr[j] = c;
           ct[j] = t;
         } while (mask);
-        for (int i = k - 1; i > 0; --i) stack[sp++] = Entry{cr[i], ct[i]};
+        for (int i = k - 1; i > 0; --i) {
+          stack[sp++] = Entry{cr[i], ct[i]};
+          prefetch(b, cr[i]);
+        }
         ref = cr[0];
         continue;
       }
