@@ -1,5 +1,5 @@
 // Internal to hp_bvh: the per-ray setup, slab test and watertight triangle test that every CPU traversal
-// (the binary reference in traverse.cpp, the 4-wide one in bvh4.cpp) shares, so that they compute the
+// (the binary reference in traverse.cpp, the 8-wide one in bvh8.cpp) shares, so that they compute the
 // same values to the last bit. Include only from files compiled with -ffp-contract=off (CMakeLists.txt).
 #pragma once
 

@@ -1,11 +1,11 @@
 // BVH benchmarks: build speed (single thread and all threads) and SAH quality against the exact full sweep
 // on the ~1M-triangle built-in meshes and the shared glTF scenes; single-thread traversal throughput for
 // coherent primary rays and random rays, closest and any hit: trace/... the binary reference traversal,
-// trace4/... the 4-wide one (bvh4.hpp) on the same tree.
+// trace8/... the 8-wide one (bvh8.hpp) on the same tree.
 //
 // Counters: Mtri/s (build), sah (cost relative to the root's area), sah_vs_sweep_% (binned cost over the
 // full sweep's, minus 1), sah_largest_axis_vs_sweep_% (the same for the study's largest-axis-only rule);
-// Mrays/s, nodes/ray, tris/ray, hit_% (traversal); differ_from_binary (trace4 closest: rays whose hit is not
+// Mrays/s, nodes/ray, tris/ray, hit_% (traversal); differ_from_binary (trace8 closest: rays whose hit is not
 // bit for bit the binary traversal's, counted once outside the timing; must be 0).
 //
 // Scenes come from hp_scene (builtin:sphere-1m, builtin:terrain-1m, HP_SHARED_DIR/scenes/*) when it is built;
@@ -18,7 +18,7 @@
 // closest hits whose triangle differs from ours, per million rays (counted once, outside the timing).
 #include "../unit/bvh/bvh_test_scenes.hpp"
 #include "bvh/bvh.hpp"
-#include "bvh/bvh4.hpp"
+#include "bvh/bvh8.hpp"
 #include "bvh/traverse.hpp"
 
 #include <benchmark/benchmark.h>
@@ -63,7 +63,7 @@ struct BenchScene {
   View view;
   Bvh bvh;  // default build, for traversal
   LeafOrderTriangles lt;
-  Bvh4 wide;  // the same tree, 4-wide
+  Bvh8 wide;  // the same tree, 8-wide
   double wide_differs_primary = 0.0, wide_differs_random = 0.0;
   double sah_sweep = 0.0, sah_binned = 0.0, sah_largest_axis = 0.0;
   std::vector<Ray> primary, random;
@@ -170,7 +170,7 @@ double embree_disagreement(const BenchScene& s, const std::vector<Ray>& rays) {
 }
 #endif
 
-/// Rays whose 4-wide closest hit is not bit for bit the binary traversal's.
+/// Rays whose 8-wide closest hit is not bit for bit the binary traversal's.
 double wide_differences(const BenchScene& s, const std::vector<Ray>& rays) {
   std::size_t differ = 0;
   for (const Ray& r : rays) {
@@ -194,7 +194,7 @@ std::unique_ptr<BenchScene> prepare(std::string name, std::vector<Triangle> tris
   s->bvh = build_bvh(s->tris, BuildOptions{});
   s->sah_binned = bvh_stats(s->bvh).sah_cost;
   s->lt = leaf_order(s->bvh, s->tris);
-  s->wide = make_bvh4(s->bvh, s->lt);
+  s->wide = make_bvh8(s->bvh, s->lt);
   s->primary = primary_rays(view);
   s->random = random_rays(s->tris);
   s->wide_differs_primary = wide_differences(*s, s->primary);
@@ -348,7 +348,7 @@ void embree_trace_bench(benchmark::State& state, const BenchScene* s, bool prima
 /// Which row of the ratio table a registered benchmark belongs to, and as whose figure.
 struct PairKey {
   std::string row;  // "build/sphere-1m/threads:1", "trace/sphere-1m/primary/closest"
-  std::string who;  // ours: "binned", "binary", "4-wide"; Embree's: "embree", "embree medium", "embree high"
+  std::string who;  // ours: "binned", "binary", "8-wide"; Embree's: "embree", "embree medium", "embree high"
   std::string counter;
 };
 std::map<std::string, PairKey>& pair_keys() {
@@ -439,7 +439,7 @@ int main(int argc, char** argv) {
       for (const bool any : {false, true}) {
         const std::string name =
             std::string("trace/") + s->name + (primary ? "/primary" : "/random") + (any ? "/any" : "/closest");
-        const std::string wide = "trace4/" + name.substr(6);
+        const std::string wide = "trace8/" + name.substr(6);
         benchmark::RegisterBenchmark(name.c_str(), trace_bench, s, primary, any, false)->Unit(benchmark::kMillisecond);
         benchmark::RegisterBenchmark(wide.c_str(), trace_bench, s, primary, any, true)->Unit(benchmark::kMillisecond);
 #if HP_BENCH_HAVE_EMBREE
@@ -447,7 +447,7 @@ int main(int argc, char** argv) {
         benchmark::RegisterBenchmark(theirs.c_str(), embree_trace_bench, s, primary, any)
             ->Unit(benchmark::kMillisecond);
         pair_keys()[name] = PairKey{name, "binary", "Mrays/s"};
-        pair_keys()[wide] = PairKey{name, "4-wide", "Mrays/s"};
+        pair_keys()[wide] = PairKey{name, "8-wide", "Mrays/s"};
         pair_keys()[theirs] = PairKey{name, "embree", "Mrays/s"};
 #endif
       }

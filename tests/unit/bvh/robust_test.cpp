@@ -516,22 +516,22 @@ TEST(BvhRobust, TraversalRefusesATreeDeeperThanTheStack) {
   r.dir = glm::vec3(0, 0, 1);
   EXPECT_THROW(intersect_closest(bvh, lt, r), std::logic_error);
   EXPECT_THROW(cast_rays(bvh, lt, std::vector<Ray>(3000, r), HitMode::any, 2), std::logic_error);
-  // The 4-wide form takes three chain levels per node, 24 in all: within its own stack bound, it traces.
-  EXPECT_TRUE(intersect_closest(make_bvh4(bvh, lt), r).hit());
+  // The 8-wide form takes up to seven chain levels per node, ten nodes deep: within its own stack bound.
+  EXPECT_TRUE(intersect_closest(make_bvh8(bvh, lt), r).hit());
   // A chain that is too deep for it too is refused when it is made.
   Bvh longer = bvh;
-  longer.nodes.insert(longer.nodes.begin(), 3 * HP_BVH_STACK_SIZE + 9 - chain, bvh.nodes[0]);
+  longer.nodes.insert(longer.nodes.begin(), (Bvh8::kWidth - 1) * HP_BVH_STACK_SIZE + 20 - chain, bvh.nodes[0]);
   for (auto& n : longer.nodes) {
     if (!node_is_leaf(n)) n.offset = static_cast<int>(longer.nodes.size() - 1);
   }
-  EXPECT_THROW(make_bvh4(longer, lt), std::logic_error);
+  EXPECT_THROW(make_bvh8(longer, lt), std::logic_error);
   // The same chain within the stack works.
   bvh.nodes.erase(bvh.nodes.begin(), bvh.nodes.begin() + 10);
   for (auto& n : bvh.nodes) {
     if (!node_is_leaf(n)) n.offset = static_cast<int>(bvh.nodes.size() - 1);
   }
   EXPECT_TRUE(intersect_closest(bvh, lt, r).hit());
-  EXPECT_TRUE(intersect_closest(make_bvh4(bvh, lt), r).hit());
+  EXPECT_TRUE(intersect_closest(make_bvh8(bvh, lt), r).hit());
 }
 
 }  // namespace

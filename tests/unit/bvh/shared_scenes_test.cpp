@@ -1,5 +1,5 @@
 // The real glTF scenes (HP_SHARED_DIR/scenes, via hp_scene): SAH within 3% of the full sweep, and the
-// traversal equal to brute force, for both granularities; the 4-wide traversal equal to the binary one on
+// traversal equal to brute force, for both granularities; the 8-wide traversal equal to the binary one on
 // camera and random rays. Skipped when the folder is absent.
 #include "bvh/traverse.hpp"
 #include "bvh_test_scenes.hpp"
@@ -73,7 +73,7 @@ TEST(BvhSharedScenes, SahWithinThreePercentAndTraversalMatchesBruteForce) {
   }
 }
 
-TEST(BvhSharedScenes, FourWideTraversalEqualsTheBinaryOne) {
+TEST(BvhSharedScenes, EightWideTraversalEqualsTheBinaryOne) {
   const auto files = shared_scene_files();
   if (files.empty()) GTEST_SKIP() << HP_SHARED_DIR << "/scenes not found";
   for (const auto& file : files) {

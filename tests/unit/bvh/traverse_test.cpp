@@ -1,5 +1,5 @@
 // The traversal against brute force: same closest hit (primitive and t, exactly), same any-hit answer,
-// for both granularities and both builders, from the binary and the 4-wide traversal; counters; the batch
+// for both granularities and both builders, from the binary and the 8-wide traversal; counters; the batch
 // helper.
 #include "bvh/traverse.hpp"
 #include "bvh_test_scenes.hpp"

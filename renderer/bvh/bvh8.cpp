@@ -1,5 +1,5 @@
 // Compiled with -ffp-contract=off like traverse.cpp: the lanes must round exactly as the scalar reference.
-#include "bvh/bvh4.hpp"
+#include "bvh/bvh8.hpp"
 
 #include "bvh/traverse_detail.hpp"
 
@@ -16,9 +16,10 @@ namespace {
 using detail::kInf;
 using detail::PreparedRay;
 
-/// Every wide level pushes at most three children, and a wide tree is never deeper than its binary tree,
-/// which build_bvh bounds by HP_BVH_STACK_SIZE (make_bvh4 checks it).
-constexpr int kStackSize = 3 * HP_BVH_STACK_SIZE + 1;
+/// Every wide level pushes at most kWidth - 1 children, and a wide tree is never deeper than its binary tree,
+/// which build_bvh bounds by HP_BVH_STACK_SIZE (make_bvh8 checks it).
+constexpr int kW = Bvh8::kWidth;
+constexpr int kStackSize = (kW - 1) * HP_BVH_STACK_SIZE + 1;
 
 float half_area(const gpu::BvhNode& n) {
   const glm::vec3 e = n.bmax - n.bmin;
@@ -27,7 +28,7 @@ float half_area(const gpu::BvhNode& n) {
 
 class Converter {
  public:
-  Converter(const Bvh& bvh, const LeafOrderTriangles& lt, Bvh4& out) : bvh_(bvh), lt_(lt), out_(out) {
+  Converter(const Bvh& bvh, const LeafOrderTriangles& lt, Bvh8& out) : bvh_(bvh), lt_(lt), out_(out) {
     // Children follow their parent in the depth-first layout, so one backward pass sums the subtrees.
     const std::size_t n = bvh.nodes.size();
     tri_count_.resize(n);
@@ -51,7 +52,7 @@ class Converter {
     } else {
       out_.nodes.push_back(empty_node());
       set_box(out_.nodes[0], 0, root);
-      out_.nodes[0].child[0] = Bvh4::kLeaf | make_leaf(0);
+      out_.nodes[0].child[0] = Bvh8::kLeaf | make_leaf(0);
     }
   }
 
@@ -69,9 +70,9 @@ class Converter {
   /// An interior binary node worth a wide node of its own; smaller subtrees become one leaf packet.
   bool open(uint32_t k) const { return !node_is_leaf(bvh_.nodes[k]) && tri_count_[k] > 4; }
 
-  static Bvh4::Node empty_node() {
-    Bvh4::Node n{};
-    for (int i = 0; i < 4; ++i) {
+  static Bvh8::Node empty_node() {
+    Bvh8::Node n{};
+    for (int i = 0; i < kW; ++i) {
       for (int a = 0; a < 3; ++a) {
         n.box[2 * a][i] = kInf;
         n.box[2 * a + 1][i] = -kInf;
@@ -80,7 +81,7 @@ class Converter {
     return n;
   }
 
-  static void set_box(Bvh4::Node& w, int i, const gpu::BvhNode& b) {
+  static void set_box(Bvh8::Node& w, int i, const gpu::BvhNode& b) {
     for (int a = 0; a < 3; ++a) {
       w.box[2 * a][i] = b.bmin[a];
       w.box[2 * a + 1][i] = b.bmax[a];
@@ -104,10 +105,10 @@ class Converter {
     slots_.clear();
     gather(k, slots_);
     const uint32_t first = static_cast<uint32_t>(out_.packets.size());
-    if (first >= Bvh4::kLeaf) throw std::length_error("make_bvh4: too many packets for 31-bit references");
+    if (first >= Bvh8::kLeaf) throw std::length_error("make_bvh8: too many packets for 31-bit references");
     const float nan = std::numeric_limits<float>::quiet_NaN();
     for (std::size_t base = 0; base < slots_.size(); base += 4) {
-      Bvh4::Packet p;
+      Bvh8::Packet p;
       for (int lane = 0; lane < 4; ++lane) {
         const bool used = base + lane < slots_.size();
         const Triangle* t = used ? &lt_.triangles[slots_[base + lane]] : nullptr;
@@ -117,22 +118,22 @@ class Converter {
             p.v[v][a][lane] = vert ? (*vert)[a] : nan;
           }
         }
-        p.scene[lane] = used ? lt_.scene_index[slots_[base + lane]] : Bvh4::kNoTriangle;
+        p.scene[lane] = used ? lt_.scene_index[slots_[base + lane]] : Bvh8::kNoTriangle;
       }
-      if (base + 4 < slots_.size()) p.scene[0] |= Bvh4::kMore;
+      if (base + 4 < slots_.size()) p.scene[0] |= Bvh8::kMore;
       out_.packets.push_back(p);
     }
     return first;
   }
 
-  /// A wide node for interior binary node k: its children, opened largest box first until there are four.
+  /// A wide node for interior binary node k: its children, opened largest box first until there are kWidth.
   uint32_t emit(uint32_t k, int depth) {
     if (depth > HP_BVH_STACK_SIZE) {
-      throw std::logic_error("make_bvh4: tree deeper than HP_BVH_STACK_SIZE (not built by build_bvh)");
+      throw std::logic_error("make_bvh8: tree deeper than HP_BVH_STACK_SIZE (not built by build_bvh)");
     }
-    uint32_t c[4] = {k + 1, static_cast<uint32_t>(bvh_.nodes[k].offset), 0, 0};
+    uint32_t c[kW] = {k + 1, static_cast<uint32_t>(bvh_.nodes[k].offset)};
     int count = 2;
-    while (count < 4) {
+    while (count < kW) {
       int pick = -1;
       float pick_area = -1.0f;
       for (int i = 0; i < count; ++i) {
@@ -151,8 +152,8 @@ class Converter {
     const uint32_t index = static_cast<uint32_t>(out_.nodes.size());
     out_.nodes.push_back(empty_node());
     for (int i = 0; i < count; ++i) {
-      const uint32_t child = open(c[i]) ? emit(c[i], depth + 1) : Bvh4::kLeaf | make_leaf(c[i]);
-      Bvh4::Node& w = out_.nodes[index];  // emit() may have moved the array
+      const uint32_t child = open(c[i]) ? emit(c[i], depth + 1) : Bvh8::kLeaf | make_leaf(c[i]);
+      Bvh8::Node& w = out_.nodes[index];  // emit() may have moved the array
       set_box(w, i, bvh_.nodes[c[i]]);
       w.child[i] = child;
     }
@@ -161,7 +162,7 @@ class Converter {
 
   const Bvh& bvh_;
   const LeafOrderTriangles& lt_;
-  Bvh4& out_;
+  Bvh8& out_;
   std::vector<uint32_t> tri_count_;
   std::vector<uint32_t> slots_;
 };
@@ -198,22 +199,27 @@ Ray4 splat(const PreparedRay& r) {
   return q;
 }
 
-/// detail::slab on four boxes: the same operations in the same order per lane. _mm_max_ps(a, b) is
-/// "a > b ? a : b" and _mm_min_ps(a, b) "a < b ? a : b", the reference's NaN-discarding selects exactly.
-inline int slab4(const Ray4& q, const Bvh4::Node& n, __m128 t_hi, __m128& tnear) {
-  __m128 tn = q.tmin;
-  __m128 tf = q.inf;
-  for (int a = 0; a < 3; ++a) {
-    const __m128 t0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[q.near_row[a]]), q.org[a]), q.inv[a]);
-    const __m128 t1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[q.far_row[a]]), q.org[a]), q.inv[a]);
-    tn = _mm_max_ps(t0, tn);
-    tf = _mm_min_ps(t1, tf);
+/// detail::slab on a node's eight boxes, four at a time: the same operations in the same order per lane.
+/// _mm_max_ps(a, b) is "a > b ? a : b" and _mm_min_ps(a, b) "a < b ? a : b", the reference's NaN-discarding
+/// selects exactly. Writes each box's near t to tnear; returns the mask of boxes hit.
+inline int slab8(const Ray4& q, const Bvh8::Node& n, __m128 t_hi, float* tnear) {
+  int mask = 0;
+  for (int h = 0; h < kW; h += 4) {
+    __m128 tn = q.tmin;
+    __m128 tf = q.inf;
+    for (int a = 0; a < 3; ++a) {
+      const __m128 t0 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[q.near_row[a]] + h), q.org[a]), q.inv[a]);
+      const __m128 t1 = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(n.box[q.far_row[a]] + h), q.org[a]), q.inv[a]);
+      tn = _mm_max_ps(t0, tn);
+      tf = _mm_min_ps(t1, tf);
+    }
+    tf = _mm_min_ps(t_hi, tf);
+    const __m128 nonneg = _mm_cmpge_ps(tf, _mm_setzero_ps());
+    tf = _mm_or_ps(_mm_and_ps(nonneg, _mm_mul_ps(tf, q.far_up)), _mm_andnot_ps(nonneg, _mm_mul_ps(tf, q.far_down)));
+    _mm_store_ps(tnear + h, tn);
+    mask |= _mm_movemask_ps(_mm_cmple_ps(tn, tf)) << h;
   }
-  tf = _mm_min_ps(t_hi, tf);
-  const __m128 nonneg = _mm_cmpge_ps(tf, _mm_setzero_ps());
-  tf = _mm_or_ps(_mm_and_ps(nonneg, _mm_mul_ps(tf, q.far_up)), _mm_andnot_ps(nonneg, _mm_mul_ps(tf, q.far_down)));
-  tnear = tn;
-  return _mm_movemask_ps(_mm_cmple_ps(tn, tf));
+  return mask;
 }
 
 /// detail::watertight on the four lanes of a packet. Returns the mask of lanes whose t lies in [tmin, t_hi];
@@ -221,7 +227,7 @@ inline int slab4(const Ray4& q, const Bvh4::Node& n, __m128 t_hi, __m128& tnear)
 struct Lanes {
   alignas(16) float t[4], det[4], v[4], w[4];
 };
-inline int watertight4(const Ray4& q, const PreparedRay& r, const Bvh4::Packet& p, __m128 t_hi, Lanes& out) {
+inline int watertight4(const Ray4& q, const PreparedRay& r, const Bvh8::Packet& p, __m128 t_hi, Lanes& out) {
   const int kx = r.kx, ky = r.ky, kz = r.kz;
   const __m128 ax = _mm_sub_ps(_mm_load_ps(p.v[0][kx]), q.okx), ay = _mm_sub_ps(_mm_load_ps(p.v[0][ky]), q.oky),
                az = _mm_sub_ps(_mm_load_ps(p.v[0][kz]), q.okz);
@@ -282,21 +288,21 @@ inline int watertight4(const Ray4& q, const PreparedRay& r, const Bvh4::Packet& 
 
 /// Starts fetching a pushed child: it is usually visited soon, and on trees larger than the caches the
 /// wait for its node or packet is what a ray spends most of its time on.
-inline void prefetch(const Bvh4& b, uint32_t ref) {
-  const char* p = ref & Bvh4::kLeaf ? reinterpret_cast<const char*>(&b.packets[ref & ~Bvh4::kLeaf])
+inline void prefetch(const Bvh8& b, uint32_t ref) {
+  const char* p = ref & Bvh8::kLeaf ? reinterpret_cast<const char*>(&b.packets[ref & ~Bvh8::kLeaf])
                                     : reinterpret_cast<const char*>(&b.nodes[ref]);
   _mm_prefetch(p, _MM_HINT_T0);
   _mm_prefetch(p + 64, _MM_HINT_T0);
 }
 
 template <bool kAny>
-Hit trace(const Bvh4& b, const Ray& ray, TraversalStats* stats) {
+Hit trace(const Bvh8& b, const Ray& ray, TraversalStats* stats) {
   Hit best;
   PreparedRay r;
   if (b.nodes.empty() || !detail::prepare(ray, r)) return best;
   const Ray4 q = splat(r);
-  const Bvh4::Node* nodes = b.nodes.data();
-  const Bvh4::Packet* packets = b.packets.data();
+  const Bvh8::Node* nodes = b.nodes.data();
+  const Bvh8::Packet* packets = b.packets.data();
 
   float best_t = r.tmax;
   float best_far = detail::widen_far(best_t);  // a box whose near t exceeds this cannot hold a closer hit
@@ -312,11 +318,11 @@ Hit trace(const Bvh4& b, const Ray& ray, TraversalStats* stats) {
   int sp = 0;
   uint32_t ref = 0;
   for (;;) {
-    if (!(ref & Bvh4::kLeaf)) {
-      const Bvh4::Node& n = nodes[ref];
+    if (!(ref & Bvh8::kLeaf)) {
+      const Bvh8::Node& n = nodes[ref];
       ++visited;
-      __m128 tn4;
-      int mask = slab4(q, n, kAny ? tmax4 : best4, tn4);
+      alignas(16) float tn[kW];
+      int mask = slab8(q, n, kAny ? tmax4 : best4, tn);
       if (mask) {
         const int first = __builtin_ctz(mask);
         mask &= mask - 1;
@@ -324,9 +330,7 @@ Hit trace(const Bvh4& b, const Ray& ray, TraversalStats* stats) {
           ref = n.child[first];
           continue;
         }
-        // Two to four boxes hit: visit the nearest, push the others farthest first.
-        alignas(16) float tn[4];
-        _mm_store_ps(tn, tn4);
+        // Two or more boxes hit: visit the nearest, push the others farthest first.
         const int second = __builtin_ctz(mask);
         mask &= mask - 1;
         if (!mask) {
@@ -341,8 +345,8 @@ Hit trace(const Bvh4& b, const Ray& ray, TraversalStats* stats) {
           continue;
         }
         mask |= 1 << second;
-        uint32_t cr[4];
-        float ct[4];
+        uint32_t cr[kW];
+        float ct[kW];
         cr[0] = n.child[first];
         ct[0] = tn[first];
         int k = 1;
@@ -367,15 +371,15 @@ Hit trace(const Bvh4& b, const Ray& ray, TraversalStats* stats) {
         continue;
       }
     } else {
-      for (uint32_t pi = ref & ~Bvh4::kLeaf;; ++pi) {
-        const Bvh4::Packet& p = packets[pi];
+      for (uint32_t pi = ref & ~Bvh8::kLeaf;; ++pi) {
+        const Bvh8::Packet& p = packets[pi];
         tested += 4;
         Lanes lanes;
         int hits = watertight4(q, r, p, kAny ? tmax4 : best4, lanes);
         if constexpr (kAny) {
           if (hits) {
             const int l = __builtin_ctz(hits);
-            best = Hit{static_cast<int32_t>(p.scene[l] & ~Bvh4::kMore), lanes.t[l], lanes.v[l] / lanes.det[l],
+            best = Hit{static_cast<int32_t>(p.scene[l] & ~Bvh8::kMore), lanes.t[l], lanes.v[l] / lanes.det[l],
                        lanes.w[l] / lanes.det[l]};
             sp = 0;
             break;
@@ -385,7 +389,7 @@ Hit trace(const Bvh4& b, const Ray& ray, TraversalStats* stats) {
             const int l = __builtin_ctz(hits);
             hits &= hits - 1;
             const float t = lanes.t[l];
-            const uint32_t s = p.scene[l] & ~Bvh4::kMore;
+            const uint32_t s = p.scene[l] & ~Bvh8::kMore;
             if (t < best_t || (t == best_t && s < best_scene)) {
               best_t = t;
               best_scene = s;
@@ -395,7 +399,7 @@ Hit trace(const Bvh4& b, const Ray& ray, TraversalStats* stats) {
           best4 = _mm_set1_ps(best_t);
           best_far = detail::widen_far(best_t);
         }
-        if (!(p.scene[0] & Bvh4::kMore)) break;
+        if (!(p.scene[0] & Bvh8::kMore)) break;
       }
     }
     // Pop the next entry that the reference's test, with the closest t found so far, would still accept.
@@ -417,15 +421,15 @@ Hit trace(const Bvh4& b, const Ray& ray, TraversalStats* stats) {
 
 }  // namespace
 
-Bvh4 make_bvh4(const Bvh& bvh, const LeafOrderTriangles& tris) {
-  Bvh4 out;
+Bvh8 make_bvh8(const Bvh& bvh, const LeafOrderTriangles& tris) {
+  Bvh8 out;
   if (bvh.nodes.empty()) return out;
   Converter(bvh, tris, out).run();
   return out;
 }
 
-Hit intersect_closest(const Bvh4& bvh, const Ray& ray, TraversalStats* stats) { return trace<false>(bvh, ray, stats); }
+Hit intersect_closest(const Bvh8& bvh, const Ray& ray, TraversalStats* stats) { return trace<false>(bvh, ray, stats); }
 
-Hit intersect_any(const Bvh4& bvh, const Ray& ray, TraversalStats* stats) { return trace<true>(bvh, ray, stats); }
+Hit intersect_any(const Bvh8& bvh, const Ray& ray, TraversalStats* stats) { return trace<true>(bvh, ray, stats); }
 
 }  // namespace hp::bvh

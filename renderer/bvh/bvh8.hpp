@@ -1,5 +1,7 @@
-// A 4-wide view of a built Bvh for tracing rays on the CPU fast: four child boxes per node tested at once
-// (SSE), triangles in packets of four tested at once, children visited nearest first.
+// An 8-wide view of a built Bvh for tracing rays on the CPU fast: eight child boxes per node tested in two
+// SSE groups of four, triangles in packets of four tested at once, children visited nearest first. Eight
+// children rather than four halve the dependent node fetches of an incoherent ray, which is what it spends
+// its time waiting for on trees larger than the caches (docs/bvh-performance.md).
 //
 // Same answers as the binary reference (traverse.hpp): the slab test and the watertight test are the
 // reference's operations lane for lane, the boxes are the binary tree's boxes, and a box is pruned only when
@@ -21,14 +23,14 @@
 
 namespace hp::bvh {
 
-struct Bvh4 {
+struct Bvh8 {
+  static constexpr int kWidth = 8;
   /// Child boxes in structure-of-arrays form: box[2a][i] and box[2a + 1][i] are child i's bounds on axis a.
-  /// An empty slot has an inverted box (+inf, -inf), which fails every slab test.
+  /// An empty slot has an inverted box (+inf, -inf), which fails every slab test. 224 bytes, padded to 256.
   struct alignas(64) Node {
-    float box[6][4];
+    float box[6][kWidth];
     /// Interior child: node index. Leaf child: kLeaf | index of its first packet.
-    uint32_t child[4];
-    uint32_t pad[4];
+    uint32_t child[kWidth];
   };
   /// Four triangles of one leaf in structure-of-arrays form: v[vertex][axis][lane].
   struct alignas(16) Packet {
@@ -45,14 +47,14 @@ struct Bvh4 {
   std::vector<Packet> packets;
 };
 
-/// The 4-wide form of `bvh`; `tris` must be leaf_order(bvh, ...) of the same build. A binary subtree holding
+/// The 8-wide form of `bvh`; `tris` must be leaf_order(bvh, ...) of the same build. A binary subtree holding
 /// at most four triangles becomes one leaf (one packet).
-Bvh4 make_bvh4(const Bvh& bvh, const LeafOrderTriangles& tris);
+Bvh8 make_bvh8(const Bvh& bvh, const LeafOrderTriangles& tris);
 
 /// Closest hit, bit for bit the one of intersect_closest on the Bvh it was made from. `stats` (optional)
 /// counts wide nodes visited and triangle lanes tested.
-Hit intersect_closest(const Bvh4& bvh, const Ray& ray, TraversalStats* stats = nullptr);
+Hit intersect_closest(const Bvh8& bvh, const Ray& ray, TraversalStats* stats = nullptr);
 /// Some hit in [tmin, tmax], or a miss exactly when intersect_any on the binary tree misses.
-Hit intersect_any(const Bvh4& bvh, const Ray& ray, TraversalStats* stats = nullptr);
+Hit intersect_any(const Bvh8& bvh, const Ray& ray, TraversalStats* stats = nullptr);
 
 }  // namespace hp::bvh
