@@ -1,6 +1,7 @@
 // Compiled with -ffp-contract=off like traverse.cpp: the lanes must round exactly as the scalar reference.
 #include "bvh/bvh8.hpp"
 
+#include "bvh/build_common.hpp"
 #include "bvh/traverse_detail.hpp"
 
 #include <emmintrin.h>
@@ -44,6 +45,13 @@ class Converter {
   }
 
   void run() {
+    // Upper bounds for build_bvh's trees, reserved so that the arrays do not move as they grow (a wide node
+    // per opened interior node, of which a binary tree has (nodes - 1) / 2; a packet holds at least one
+    // triangle); only the pages written are ever touched.
+    out_.nodes.reserve(bvh_.nodes.size() / 2 + 1);
+    out_.packets.reserve(std::max<std::size_t>(lt_.triangles.size(), 1));
+    detail::advise_huge_pages(out_.nodes.data(), out_.nodes.capacity() * sizeof(Bvh8::Node));
+    detail::advise_huge_pages(out_.packets.data(), out_.packets.capacity() * sizeof(Bvh8::Packet));
     const gpu::BvhNode& root = bvh_.nodes[0];
     if (bvh_.prim_ids.empty()) {
       out_.nodes.push_back(empty_node());
