@@ -126,12 +126,14 @@ class BinnedBuilder {
       // One thread appends: the reserve never reallocates, and its pages are touched only as nodes are
       // written.
       flat_.reserve(capacity_);
+      advise_huge_pages(flat_.data(), capacity_ * sizeof(gpu::BvhNode));
       flat_.emplace_back();
     } else {
       // Threads: a forked first child gets a window of 2n - 1 slots for its n primitives and the second
       // child starts after it; the unused ends of the windows are squeezed out at the end (finish_windows).
       // Uninitialised on purpose: every slot handed out is written before it is read.
       win_.reset(new gpu::BvhNode[capacity_]);
+      advise_huge_pages(win_.get(), capacity_ * sizeof(gpu::BvhNode));
     }
   }
 
@@ -204,6 +206,7 @@ class BinnedBuilder {
     };
     std::vector<gpu::BvhNode> out;
     out.reserve(end - shift.back());
+    advise_huge_pages(out.data(), out.capacity() * sizeof(gpu::BvhNode));
     uint32_t at = 0;
     for (const auto& [b, e] : gaps_) {
       out.insert(out.end(), win_.get() + at, win_.get() + b);

@@ -13,7 +13,26 @@
 #include <thread>
 #include <vector>
 
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
+
 namespace hp::bvh::detail {
+
+/// Asks for transparent huge pages on a large buffer that is about to be written for the first time. A
+/// 1M-triangle build writes about 75 MB of fresh memory (references, nodes); in 4 KiB pages their first-touch
+/// faults took a quarter of a single-thread build's CPU time on the 2-core VM. Advice only: where it is
+/// ignored (THP off, another OS) nothing changes, and it never changes what is written.
+inline void advise_huge_pages([[maybe_unused]] const void* data, [[maybe_unused]] std::size_t bytes) {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+  constexpr std::size_t kHuge = std::size_t{2} << 20;
+  if (bytes < 2 * kHuge) return;
+  const auto begin = reinterpret_cast<std::uintptr_t>(data);
+  const std::uintptr_t first = (begin + kHuge - 1) & ~(kHuge - 1);
+  const std::uintptr_t last = (begin + bytes) & ~(kHuge - 1);
+  if (last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
+#endif
+}
 
 /// A primitive's bounds and its scene index, 32 bytes so that partitioning moves whole cache-line halves.
 /// The centroid is never stored: the builders use lo + hi (twice the centroid) everywhere.

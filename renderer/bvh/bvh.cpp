@@ -73,6 +73,7 @@ Refs make_refs(std::span<const Triangle> tris, std::span<const uint32_t> object_
   const bool objects = !object_first.empty();
   const std::size_t n = objects ? object_first.size() - 1 : tris.size();
   Refs refs{std::unique_ptr<PrimRef[]>(new PrimRef[std::max<std::size_t>(n, 1)]), 0};
+  detail::advise_huge_pages(refs.data.get(), n * sizeof(PrimRef));
   // Each chunk compacts its valid primitives to the front of its own slice; the slices are then joined.
   std::vector<std::size_t> chunk_begin(std::max(threads, 1)), chunk_count(std::max(threads, 1));
   detail::Forker::parallel_chunks(n, threads, [&](std::size_t b, std::size_t e, std::size_t c) {

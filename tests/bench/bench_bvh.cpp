@@ -1,10 +1,12 @@
 // BVH benchmarks: build speed (single thread and all threads) and SAH quality against the exact full sweep
 // on the ~1M-triangle built-in meshes and the shared glTF scenes; single-thread traversal throughput for
-// coherent primary rays and random rays, closest and any hit.
+// coherent primary rays and random rays, closest and any hit: trace/... the binary reference traversal,
+// trace8/... the 8-wide one (bvh8.hpp) on the same tree.
 //
 // Counters: Mtri/s (build), sah (cost relative to the root's area), sah_vs_sweep_% (binned cost over the
 // full sweep's, minus 1), sah_largest_axis_vs_sweep_% (the same for the study's largest-axis-only rule);
-// Mrays/s, nodes/ray, tris/ray, hit_% (traversal).
+// Mrays/s, nodes/ray, tris/ray, hit_% (traversal); differ_from_binary (trace8 closest: rays whose hit is not
+// bit for bit the binary traversal's, counted once outside the timing; must be 0).
 //
 // Scenes come from hp_scene (builtin:sphere-1m, builtin:terrain-1m, HP_SHARED_DIR/scenes/*) when it is built;
 // without it, a procedural 1M-triangle sphere and terrain stand in and the shared scenes are skipped.
@@ -16,6 +18,7 @@
 // closest hits whose triangle differs from ours, per million rays (counted once, outside the timing).
 #include "../unit/bvh/bvh_test_scenes.hpp"
 #include "bvh/bvh.hpp"
+#include "bvh/bvh8.hpp"
 #include "bvh/traverse.hpp"
 
 #include <benchmark/benchmark.h>
@@ -60,6 +63,8 @@ struct BenchScene {
   View view;
   Bvh bvh;  // default build, for traversal
   LeafOrderTriangles lt;
+  Bvh8 wide;  // the same tree, 8-wide
+  double wide_differs_primary = 0.0, wide_differs_random = 0.0;
   double sah_sweep = 0.0, sah_binned = 0.0, sah_largest_axis = 0.0;
   std::vector<Ray> primary, random;
 #if HP_BENCH_HAVE_EMBREE
@@ -165,6 +170,16 @@ double embree_disagreement(const BenchScene& s, const std::vector<Ray>& rays) {
 }
 #endif
 
+/// Rays whose 8-wide closest hit is not bit for bit the binary traversal's.
+double wide_differences(const BenchScene& s, const std::vector<Ray>& rays) {
+  std::size_t differ = 0;
+  for (const Ray& r : rays) {
+    const Hit a = intersect_closest(s.bvh, s.lt, r), b = intersect_closest(s.wide, r);
+    differ += std::memcmp(&a, &b, sizeof(Hit)) != 0;
+  }
+  return static_cast<double>(differ);
+}
+
 std::unique_ptr<BenchScene> prepare(std::string name, std::vector<Triangle> tris, View view) {
   auto s = std::make_unique<BenchScene>();
   s->name = std::move(name);
@@ -179,8 +194,11 @@ std::unique_ptr<BenchScene> prepare(std::string name, std::vector<Triangle> tris
   s->bvh = build_bvh(s->tris, BuildOptions{});
   s->sah_binned = bvh_stats(s->bvh).sah_cost;
   s->lt = leaf_order(s->bvh, s->tris);
+  s->wide = make_bvh8(s->bvh, s->lt);
   s->primary = primary_rays(view);
   s->random = random_rays(s->tris);
+  s->wide_differs_primary = wide_differences(*s, s->primary);
+  s->wide_differs_random = wide_differences(*s, s->random);
 #if HP_BENCH_HAVE_EMBREE
   s->embree = embree_scene(s->tris, RTC_BUILD_QUALITY_MEDIUM);
   s->disagree_primary = embree_disagreement(*s, s->primary);
@@ -261,16 +279,20 @@ void build_bench(benchmark::State& state, const BenchScene* s, int threads, bool
   if (!full_sweep) state.counters["sah_largest_axis_vs_sweep_%"] = 100.0 * (s->sah_largest_axis / s->sah_sweep - 1.0);
 }
 
-void trace_bench(benchmark::State& state, const BenchScene* s, bool primary, bool any) {
+void trace_bench(benchmark::State& state, const BenchScene* s, bool primary, bool any, bool wide) {
   const std::vector<Ray>& rays = primary ? s->primary : s->random;
   TraversalStats ts;
   std::size_t hits = 0;
   for (auto _ : state) {
     ts = TraversalStats{};
     hits = 0;
-    for (const Ray& r : rays) {
-      const Hit h = any ? intersect_any(s->bvh, s->lt, r, &ts) : intersect_closest(s->bvh, s->lt, r, &ts);
-      hits += h.hit();
+    if (wide) {
+      for (const Ray& r : rays)
+        hits += (any ? intersect_any(s->wide, r, &ts) : intersect_closest(s->wide, r, &ts)).hit();
+    } else {
+      for (const Ray& r : rays) {
+        hits += (any ? intersect_any(s->bvh, s->lt, r, &ts) : intersect_closest(s->bvh, s->lt, r, &ts)).hit();
+      }
     }
     benchmark::DoNotOptimize(hits);
   }
@@ -280,6 +302,7 @@ void trace_bench(benchmark::State& state, const BenchScene* s, bool primary, boo
   state.counters["nodes/ray"] = static_cast<double>(ts.nodes_visited) / n;
   state.counters["tris/ray"] = static_cast<double>(ts.triangles_tested) / n;
   state.counters["hit_%"] = 100.0 * static_cast<double>(hits) / n;
+  if (wide && !any) state.counters["differ_from_binary"] = primary ? s->wide_differs_primary : s->wide_differs_random;
 }
 
 #if HP_BENCH_HAVE_EMBREE
@@ -322,10 +345,10 @@ void embree_trace_bench(benchmark::State& state, const BenchScene* s, bool prima
   if (!any) state.counters["disagree_per_M"] = primary ? s->disagree_primary : s->disagree_random;
 }
 
-/// Which ours/Embree pair a registered benchmark belongs to, for the ratio table.
+/// Which row of the ratio table a registered benchmark belongs to, and as whose figure.
 struct PairKey {
-  std::string row;     // "build/sphere-1m" (Embree: medium and high), "trace/sphere-1m/primary/closest"
-  std::string theirs;  // "" for ours, else the Embree variant ("embree", "embree high")
+  std::string row;  // "build/sphere-1m/threads:1", "trace/sphere-1m/primary/closest"
+  std::string who;  // ours: "binned", "binary", "8-wide"; Embree's: "embree", "embree medium", "embree high"
   std::string counter;
 };
 std::map<std::string, PairKey>& pair_keys() {
@@ -343,7 +366,7 @@ class RatioReporter : public benchmark::ConsoleReporter {
       const auto key = pair_keys().find(run.run_name.function_name);
       if (key == pair_keys().end()) continue;
       const auto c = run.counters.find(key->second.counter);
-      if (c != run.counters.end()) values_[key->second.row][key->second.theirs].push_back(c->second.value);
+      if (c != run.counters.end()) values_[key->second.row][key->second.who].push_back(c->second.value);
     }
   }
   void Finalize() override {
@@ -351,15 +374,17 @@ class RatioReporter : public benchmark::ConsoleReporter {
     if (values_.empty()) return;
     std::printf("\nours vs Embree %d.%d.%d (one thread each; medians of the runs above)\n", RTC_VERSION_MAJOR,
                 RTC_VERSION_MINOR, RTC_VERSION_PATCH);
-    std::printf("%-44s %-12s %12s %12s %8s\n", "row", "embree", "ours", "embree", "ratio");
+    std::printf("%-40s %-8s %-14s %10s %10s %7s\n", "row", "ours", "embree", "ours", "embree", "ratio");
     for (auto& [row, by] : values_) {
-      const auto ours = by.find("");
-      if (ours == by.end()) continue;
-      const double o = median(ours->second);
-      for (auto& [who, v] : by) {
-        if (who.empty()) continue;
-        const double e = median(v);
-        std::printf("%-44s %-12s %12.3f %12.3f %8.2f\n", row.c_str(), who.c_str(), o, e, e > 0.0 ? o / e : 0.0);
+      for (auto& [ours, ov] : by) {
+        if (ours.rfind("embree", 0) == 0) continue;
+        const double o = median(ov);
+        for (auto& [theirs, tv] : by) {
+          if (theirs.rfind("embree", 0) != 0) continue;
+          const double e = median(tv);
+          std::printf("%-40s %-8s %-14s %10.3f %10.3f %7.2f\n", row.c_str(), ours.c_str(), theirs.c_str(), o, e,
+                      e > 0.0 ? o / e : 0.0);
+        }
       }
     }
   }
@@ -414,19 +439,22 @@ int main(int argc, char** argv) {
       for (const bool any : {false, true}) {
         const std::string name =
             std::string("trace/") + s->name + (primary ? "/primary" : "/random") + (any ? "/any" : "/closest");
-        benchmark::RegisterBenchmark(name.c_str(), trace_bench, s, primary, any)->Unit(benchmark::kMillisecond);
+        const std::string wide = "trace8/" + name.substr(6);
+        benchmark::RegisterBenchmark(name.c_str(), trace_bench, s, primary, any, false)->Unit(benchmark::kMillisecond);
+        benchmark::RegisterBenchmark(wide.c_str(), trace_bench, s, primary, any, true)->Unit(benchmark::kMillisecond);
 #if HP_BENCH_HAVE_EMBREE
         const std::string theirs = "embree/" + name;
         benchmark::RegisterBenchmark(theirs.c_str(), embree_trace_bench, s, primary, any)
             ->Unit(benchmark::kMillisecond);
-        pair_keys()[name] = PairKey{name, "", "Mrays/s"};
+        pair_keys()[name] = PairKey{name, "binary", "Mrays/s"};
+        pair_keys()[wide] = PairKey{name, "8-wide", "Mrays/s"};
         pair_keys()[theirs] = PairKey{name, "embree", "Mrays/s"};
 #endif
       }
     }
 #if HP_BENCH_HAVE_EMBREE
     const std::string ours_build = "build/" + s->name + "/threads:1";
-    pair_keys()[ours_build] = PairKey{"build/" + s->name + "/threads:1", "", "Mtri/s"};
+    pair_keys()[ours_build] = PairKey{ours_build, "binned", "Mtri/s"};
     for (const auto& [quality, label] :
          {std::pair{RTC_BUILD_QUALITY_MEDIUM, "medium"}, std::pair{RTC_BUILD_QUALITY_HIGH, "high"}}) {
       const std::string name = std::string("embree/build_") + label + "/" + s->name + "/threads:1";

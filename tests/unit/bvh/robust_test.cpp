@@ -3,6 +3,7 @@
 // trees that a greedy SAH would make deeper than the traversal stack.
 #include "bvh/traverse.hpp"
 #include "bvh_test_scenes.hpp"
+#include "checked_traversal.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,19 +14,14 @@
 namespace hp::bvh {
 namespace {
 
+using testing::any;
+using testing::build;
+using testing::Built;
+using testing::closest;
 using testing::IndexedMesh;
 using testing::random_dir;
 using testing::uv_sphere;
-
-struct Built {
-  Bvh bvh;
-  LeafOrderTriangles lt;
-};
-Built build(std::span<const Triangle> tris, BuildOptions o = {}) {
-  Built b{build_bvh(tris, o), {}};
-  b.lt = leaf_order(b.bvh, tris);
-  return b;
-}
+using testing::wrap;
 
 /// Möller–Trumbore as the study wrote it (no culling here, epsilon on the determinant, float): only used
 /// to show that a ray set is hard, i.e. that a non-watertight test does lose rays on it.
@@ -67,8 +63,8 @@ void expect_no_fall_through(std::span<const Triangle> tris, const std::vector<Ra
   const Built b = build(tris);
   std::size_t lost = 0, lost_any = 0, lost_mt = 0;
   for (const Ray& r : rays) {
-    lost += !intersect_closest(b.bvh, b.lt, r).hit();
-    lost_any += !intersect_any(b.bvh, b.lt, r).hit();
+    lost += !closest(b, r).hit();
+    lost_any += !any(b, r).hit();
     bool mt = false;
     for (const Triangle& t : tris) mt = mt || moller_trumbore(r, t);
     lost_mt += !mt;
@@ -238,9 +234,9 @@ TEST(BvhRobust, AxisAlignedRaysWithSignedZerosOnBoxPlanes) {
       std::size_t hits = 0, mismatches = 0;
       for (const Ray& r : rays) {
         const Hit want = brute_force_closest(tris, r);
-        const Hit got = intersect_closest(b.bvh, b.lt, r);
-        const bool any = intersect_any(b.bvh, b.lt, r).hit();
-        if (want.prim != got.prim || want.t != got.t || any != want.hit()) ++mismatches;
+        const Hit got = closest(b, r);
+        const bool any_hit = any(b, r).hit();
+        if (want.prim != got.prim || want.t != got.t || any_hit != want.hit()) ++mismatches;
         hits += want.hit();
       }
       EXPECT_EQ(mismatches, 0u) << "sweep " << sweep << " leaf " << leaf;
@@ -253,7 +249,7 @@ TEST(BvhRobust, AxisAlignedRaysWithSignedZerosOnBoxPlanes) {
   Ray r;
   r.origin = glm::vec3(-1.0f, 0.0f, 0.5f);
   r.dir = glm::vec3(1.0f, -0.0f, 0.0f);
-  const Hit h = intersect_closest(b.bvh, b.lt, r);
+  const Hit h = closest(b, r);
   ASSERT_TRUE(h.hit());
   EXPECT_EQ(h.t, 1.0f);
 }
@@ -296,7 +292,7 @@ TEST(BvhRobust, ZeroThicknessWallsOfAClosedBoxCatchEveryRay) {
       r.dir = glm::vec3((i & 8) ? -0.0f : 0.0f, (i & 16) ? -0.0f : 0.0f, (i & 32) ? -0.0f : 0.0f);
       r.dir[axis] = (i & 64) ? -1.0f : 1.0f;
     }
-    const Hit got = intersect_closest(b.bvh, b.lt, r);
+    const Hit got = closest(b, r);
     const Hit want = brute_force_closest(tris, r);
     lost += !got.hit();
     mismatches += got.prim != want.prim || got.t != want.t;
@@ -355,6 +351,13 @@ TEST(BvhRobust, ScaleAndTranslationInvariance) {
     for (const Hit& h : in) lost += !h.hit();
     for (const Hit& h : in_any) lost_any += !h.hit();
     for (const Hit& h : rnd) random_hits += h.hit();
+    std::size_t wide_differs = 0;
+    for (std::size_t i = 0; i < c.random.size(); ++i) {
+      wide_differs += !testing::same_bits(in[i], intersect_closest(b.wide, c.inside[i])) ||
+                      !testing::same_bits(rnd[i], intersect_closest(b.wide, c.random[i])) ||
+                      !intersect_any(b.wide, c.inside[i]).hit();
+    }
+    EXPECT_EQ(wide_differs, 0u) << "scale " << scale << " shift " << shift;
     EXPECT_EQ(lost, 0u) << "scale " << scale << " shift " << shift;
     EXPECT_EQ(lost_any, 0u) << "scale " << scale << " shift " << shift;
     if (scale == 1.0f && shift == 0.0f) {
@@ -404,8 +407,7 @@ TEST(BvhRobust, DegenerateTrianglesNeverHitNeverCrash) {
     rays.push_back(straight);
   }
   for (const Ray& r : rays) {
-    for (const Hit h :
-         {intersect_closest(b.bvh, b.lt, r), intersect_any(b.bvh, b.lt, r), brute_force_closest(tris, r)}) {
+    for (const Hit h : {closest(b, r), any(b, r), brute_force_closest(tris, r)}) {
       if (h.hit()) {
         EXPECT_TRUE(h.prim == 0 || h.prim == 8) << "hit degenerate triangle " << h.prim;
       }
@@ -417,12 +419,11 @@ TEST(BvhRobust, DegenerateTrianglesNeverHitNeverCrash) {
   // Object 0 mixes the real triangle 0 with degenerate ones; objects 1 and 2 hold no valid triangle at all
   // and are left out; object 3 is triangle 8.
   const std::vector<uint32_t> objects{0, 4, 5, 8, 9};
-  const Bvh ob = build_bvh(tris, o, objects);
-  EXPECT_EQ(ob.prim_ids.size(), 2u);
-  const LeafOrderTriangles olt = leaf_order(ob, tris);
+  const Built ob = wrap(build_bvh(tris, o, objects), tris);
+  EXPECT_EQ(ob.bvh.prim_ids.size(), 2u);
   std::size_t hits = 0;
   for (const Ray& r : rays) {
-    for (const Hit h : {intersect_closest(ob, olt, r), intersect_any(ob, olt, r)}) {
+    for (const Hit h : {closest(ob, r), any(ob, r)}) {
       if (h.hit()) {
         EXPECT_TRUE(h.prim == 0 || h.prim == 8) << "hit degenerate triangle " << h.prim;
       }
@@ -433,21 +434,20 @@ TEST(BvhRobust, DegenerateTrianglesNeverHitNeverCrash) {
   // Only degenerate triangles: an empty tree that every ray misses.
   const std::vector<Triangle> bad(tris.begin() + 1, tris.begin() + 8);
   const Built e = build(bad);
-  for (const Ray& r : rays) EXPECT_FALSE(intersect_closest(e.bvh, e.lt, r).hit());
+  for (const Ray& r : rays) EXPECT_FALSE(closest(e, r).hit());
 }
 
 /// Checks depth against a bound and a few rays against brute force.
 void check_deep(const std::vector<Triangle>& tris, const BuildOptions& o, const std::vector<Ray>& rays) {
-  const Bvh bvh = build_bvh(tris, o);
-  EXPECT_LE(bvh.max_depth, o.max_depth);
-  EXPECT_EQ(bvh_stats(bvh).max_depth, bvh.max_depth);
-  const LeafOrderTriangles lt = leaf_order(bvh, tris);
+  const Built b = build(tris, o);
+  EXPECT_LE(b.bvh.max_depth, o.max_depth);
+  EXPECT_EQ(bvh_stats(b.bvh).max_depth, b.bvh.max_depth);
   for (const Ray& r : rays) {
     const Hit want = brute_force_closest(tris, r);
-    const Hit got = intersect_closest(bvh, lt, r);
+    const Hit got = closest(b, r);
     EXPECT_EQ(want.prim, got.prim);
     EXPECT_EQ(want.t, got.t);
-    EXPECT_EQ(want.hit(), intersect_any(bvh, lt, r).hit());
+    EXPECT_EQ(want.hit(), any(b, r).hit());
   }
 }
 
@@ -516,12 +516,22 @@ TEST(BvhRobust, TraversalRefusesATreeDeeperThanTheStack) {
   r.dir = glm::vec3(0, 0, 1);
   EXPECT_THROW(intersect_closest(bvh, lt, r), std::logic_error);
   EXPECT_THROW(cast_rays(bvh, lt, std::vector<Ray>(3000, r), HitMode::any, 2), std::logic_error);
+  // The 8-wide form takes up to seven chain levels per node, ten nodes deep: within its own stack bound.
+  EXPECT_TRUE(intersect_closest(make_bvh8(bvh, lt), r).hit());
+  // A chain that is too deep for it too is refused when it is made.
+  Bvh longer = bvh;
+  longer.nodes.insert(longer.nodes.begin(), (Bvh8::kWidth - 1) * HP_BVH_STACK_SIZE + 20 - chain, bvh.nodes[0]);
+  for (auto& n : longer.nodes) {
+    if (!node_is_leaf(n)) n.offset = static_cast<int>(longer.nodes.size() - 1);
+  }
+  EXPECT_THROW(make_bvh8(longer, lt), std::logic_error);
   // The same chain within the stack works.
   bvh.nodes.erase(bvh.nodes.begin(), bvh.nodes.begin() + 10);
   for (auto& n : bvh.nodes) {
     if (!node_is_leaf(n)) n.offset = static_cast<int>(bvh.nodes.size() - 1);
   }
   EXPECT_TRUE(intersect_closest(bvh, lt, r).hit());
+  EXPECT_TRUE(intersect_closest(make_bvh8(bvh, lt), r).hit());
 }
 
 }  // namespace

@@ -1,7 +1,9 @@
 // The real glTF scenes (HP_SHARED_DIR/scenes, via hp_scene): SAH within 3% of the full sweep, and the
-// traversal equal to brute force, for both granularities. Skipped when the folder is absent.
+// traversal equal to brute force, for both granularities; the 8-wide traversal equal to the binary one on
+// camera and random rays. Skipped when the folder is absent.
 #include "bvh/traverse.hpp"
 #include "bvh_test_scenes.hpp"
+#include "checked_traversal.hpp"
 #include "scene/load.hpp"
 #include "scene/scene.hpp"
 
@@ -68,6 +70,39 @@ TEST(BvhSharedScenes, SahWithinThreePercentAndTraversalMatchesBruteForce) {
     }
     EXPECT_EQ(mismatches, 0u) << file;
     EXPECT_GT(hits, 0u) << file;
+  }
+}
+
+TEST(BvhSharedScenes, EightWideTraversalEqualsTheBinaryOne) {
+  const auto files = shared_scene_files();
+  if (files.empty()) GTEST_SKIP() << HP_SHARED_DIR << "/scenes not found";
+  for (const auto& file : files) {
+    const Scene scene = load_scene(file);
+    const WorldGeometry world = world_geometry(scene);
+    const std::vector<Triangle> tris = make_triangles(world.positions, world.indices);
+    // Coherent camera rays (many grazing the same edges) and incoherent rays from inside the box.
+    const Camera cam = scene.has_camera ? scene.camera : auto_frame(scene, 1.0f);
+    std::vector<Ray> rays = pinhole_rays(cam.position, cam.target, cam.up, cam.vfov_deg, 160 * 160);
+    const Aabb box = world_bounds(scene);
+    std::mt19937 rng(6);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    for (int i = 0; i < 20000; ++i) {
+      Ray r;
+      r.origin = box.min + glm::vec3(u(rng), u(rng), u(rng)) * box.extent();
+      r.dir = testing::random_dir(rng);
+      rays.push_back(r);
+    }
+    BuildOptions objects;
+    objects.granularity = Granularity::object;
+    for (const testing::Built& b :
+         {testing::build(tris), testing::build(tris, objects, world.instance_first_triangle)}) {
+      std::size_t hits = 0;
+      for (const Ray& r : rays) {
+        hits += testing::closest(b, r).hit();
+        testing::any(b, r);
+      }
+      EXPECT_GT(hits, rays.size() / 10) << file;
+    }
   }
 }
 

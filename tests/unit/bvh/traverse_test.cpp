@@ -1,7 +1,9 @@
 // The traversal against brute force: same closest hit (primitive and t, exactly), same any-hit answer,
-// for both granularities and both builders; counters; the batch helper.
+// for both granularities and both builders, from the binary and the 8-wide traversal; counters; the batch
+// helper.
 #include "bvh/traverse.hpp"
 #include "bvh_test_scenes.hpp"
+#include "checked_traversal.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,21 +12,12 @@
 namespace hp::bvh {
 namespace {
 
+using testing::build;
+using testing::Built;
 using testing::random_rays;
 using testing::random_soup;
 using testing::terrain;
 using testing::uv_sphere;
-
-struct Built {
-  Bvh bvh;
-  LeafOrderTriangles lt;
-};
-
-Built build(std::span<const Triangle> tris, BuildOptions o, std::span<const uint32_t> objects = {}) {
-  Built b{build_bvh(tris, o, objects), {}};
-  b.lt = leaf_order(b.bvh, tris);
-  return b;
-}
 
 /// Compares every ray against brute force; returns the number of closest hits (so callers can check the
 /// test was not vacuous).
@@ -32,8 +25,8 @@ std::size_t expect_matches_brute_force(const Built& b, std::span<const Triangle>
   std::size_t hits = 0, mismatches = 0;
   for (std::size_t i = 0; i < rays.size(); ++i) {
     const Hit want = brute_force_closest(tris, rays[i]);
-    const Hit got = intersect_closest(b.bvh, b.lt, rays[i]);
-    const bool any = intersect_any(b.bvh, b.lt, rays[i]).hit();
+    const Hit got = testing::closest(b, rays[i]);
+    const bool any = testing::any(b, rays[i]).hit();
     if (want.prim != got.prim || (want.hit() && (want.t != got.t || want.u != got.u || want.v != got.v)) ||
         any != want.hit()) {
       if (++mismatches <= 5) {
@@ -191,8 +184,8 @@ TEST(BvhTraverse, InvalidRaysNeverHit) {
   bad[3].tmin = nan;
   bad[4].dir = glm::vec3(-0.0f, 0.0f, -0.0f);
   for (const Ray& r : bad) {
-    EXPECT_FALSE(intersect_closest(b.bvh, b.lt, r).hit());
-    EXPECT_FALSE(intersect_any(b.bvh, b.lt, r).hit());
+    EXPECT_FALSE(testing::closest(b, r).hit());
+    EXPECT_FALSE(testing::any(b, r).hit());
     EXPECT_FALSE(brute_force_closest(tris, r).hit());
   }
 }
