@@ -331,7 +331,6 @@ class Builder {
     ga->requests.reserve(n / 4 + 8);
     const uint32_t waves = uint32_t((per_group + width_ - 1) / width_);
     const LaneAccess* recs = recs_.data();
-    auto end_step = [&] { this->end_step(*ga); };
     for (uint32_t w = 0; w < waves; ++w) {
       const uint32_t l0 = w * width_;
       const uint32_t lanes = uint32_t(std::min<uint64_t>(width_, per_group - l0));
@@ -370,7 +369,7 @@ class Builder {
           co_.begin();
           for (uint32_t j = s0; j < s1; ++j)
             co_.add(steps[j].address, steps[j].info, lane_base + steps[j].seq, steps[j].seq, per_inv_);
-          end_step();
+          end_step(*ga);
         }
         ga->wave_steps_end.push_back(uint32_t(ga->step_end.size()));
         continue;
@@ -397,7 +396,7 @@ class Builder {
           co_.add(a.address, a.info, lane_base + l, l, per_inv_);
           if (++c[l] < end[l]) next = std::min<uint64_t>(next, recs[c[l]].seq);
         }
-        end_step();
+        end_step(*ga);
         step_seq = next;
       }
       ga->wave_steps_end.push_back(uint32_t(ga->step_end.size()));

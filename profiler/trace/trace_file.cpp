@@ -338,6 +338,15 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
       fail("truncated: chunk at byte " + std::to_string(pos - sizeof ch) + " declares " +
            std::to_string(ch.payload_bytes) + " bytes, " + std::to_string(file_size - pos) + " remain");
     const std::string at = " chunk at byte " + std::to_string(pos - sizeof ch);
+    // Either records chunk, once its own fields are checked: its workgroup range lies in its pass's dispatch.
+    const auto add_chunk = [&](const char* name, const Chunk& c) {
+      const uint64_t groups = passes_[c.pass].dispatch.workgroups();
+      if (c.first_workgroup > c.end_workgroup || c.end_workgroup > groups)
+        fail(name + at + ": workgroups [" + std::to_string(c.first_workgroup) + ", " + std::to_string(c.end_workgroup) +
+             ") outside the dispatch of " + std::to_string(groups));
+      chunks_.push_back(c);
+      total += c.count;
+    };
     if (ch.tag == kTagRecords) {
       RecordsEntry e{};
       if (ch.payload_bytes < sizeof e || std::fread(&e, sizeof e, 1, file_) != 1) fail("malformed RECS" + at);
@@ -346,12 +355,7 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
       if ((ch.payload_bytes - sizeof e) % sizeof(TraceRecord) != 0 ||
           e.count != (ch.payload_bytes - sizeof e) / sizeof(TraceRecord))
         fail("malformed RECS" + at + ": record count does not match the chunk size");
-      const uint64_t groups = passes_[e.pass].dispatch.workgroups();
-      if (e.first_workgroup > e.end_workgroup || e.end_workgroup > groups)
-        fail("RECS" + at + ": workgroups [" + std::to_string(e.first_workgroup) + ", " +
-             std::to_string(e.end_workgroup) + ") outside the dispatch of " + std::to_string(groups));
-      chunks_.push_back({e.pass, pos + sizeof e, e.count, e.first_workgroup, e.end_workgroup});
-      total += e.count;
+      add_chunk("RECS", {e.pass, pos + sizeof e, e.count, e.first_workgroup, e.end_workgroup});
     } else if (ch.tag == kTagCoded && version_ >= 2) {
       CodedEntry e{};
       if (ch.payload_bytes < sizeof e || std::fread(&e, sizeof e, 1, file_) != 1) fail("malformed RECV" + at);
@@ -361,12 +365,7 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
       if (e.coded_bytes > ch.payload_bytes - sizeof e || e.count > e.coded_bytes ||
           ch.payload_bytes - sizeof e - e.coded_bytes != pad8(e.coded_bytes))
         fail("malformed RECV" + at + ": record count or coded size does not match the chunk size");
-      const uint64_t groups = passes_[e.pass].dispatch.workgroups();
-      if (e.first_workgroup > e.end_workgroup || e.end_workgroup > groups)
-        fail("RECV" + at + ": workgroups [" + std::to_string(e.first_workgroup) + ", " +
-             std::to_string(e.end_workgroup) + ") outside the dispatch of " + std::to_string(groups));
-      chunks_.push_back({e.pass, pos + sizeof e, e.count, e.first_workgroup, e.end_workgroup, e.coded_bytes});
-      total += e.count;
+      add_chunk("RECV", {e.pass, pos + sizeof e, e.count, e.first_workgroup, e.end_workgroup, e.coded_bytes});
     } else {
       std::vector<char> payload(ch.payload_bytes);
       if (!payload.empty() && std::fread(payload.data(), 1, payload.size(), file_) != payload.size())
