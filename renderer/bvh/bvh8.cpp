@@ -22,11 +22,6 @@ using detail::PreparedRay;
 constexpr int kW = Bvh8::kWidth;
 constexpr int kStackSize = (kW - 1) * HP_BVH_STACK_SIZE + 1;
 
-float half_area(const gpu::BvhNode& n) {
-  const glm::vec3 e = n.bmax - n.bmin;
-  return e.x * e.y + e.y * e.z + e.z * e.x;
-}
-
 class Converter {
  public:
   Converter(const Bvh& bvh, const LeafOrderTriangles& lt, Bvh8& out) : bvh_(bvh), lt_(lt), out_(out) {
@@ -146,7 +141,7 @@ class Converter {
       float pick_area = -1.0f;
       for (int i = 0; i < count; ++i) {
         if (!open(c[i])) continue;
-        const float a = half_area(bvh_.nodes[c[i]]);
+        const float a = detail::half_area(bvh_.nodes[c[i]].bmin, bvh_.nodes[c[i]].bmax);
         if (a > pick_area) {
           pick_area = a;
           pick = i;
