@@ -76,6 +76,22 @@ struct Slicer {
     const auto* recs = reinterpret_cast<const gpu::TraceRecord*>(head + 1);
     const uint32_t units = step.one_d ? wg.x : wg.y;
     const uint64_t groups_per_unit = step.one_d ? 1 : wg.x;
+    // The next slice's size, aimed at half the buffer: rows differ tenfold (sky rows make few records), so the
+    // density assumed is the larger of the last slice's and the rest of the pass's average, known once the
+    // whole pass has run (a slice that overflows still counts every record it made: they are counted past
+    // capacity, not stored). One overflow of the whole pass, then slices that mostly fit, instead of a halving
+    // series that re-runs much of the pass's work. Growth is at most twofold a slice.
+    uint64_t pass_total = 0;  // records of the whole pass, once a whole-pass slice has counted them
+    const auto sized = [&](uint32_t n, uint64_t count, uint32_t next_unit) {
+      const double aim = double(capacity) / 2;
+      double density = double(count) / n;
+      if (pass_total > 0 && next_unit < units) {
+        const double rest = double(pass_total - std::min<uint64_t>(pass_total, cp.records)) / (units - next_unit);
+        density = std::max(density, rest);
+      }
+      const double m = density <= 0 ? 2.0 * n : std::min(aim / density, 2.0 * n);
+      return uint32_t(std::clamp<double>(std::floor(m), 1, units));
+    };
     uint32_t n_max = units;  // first try: the whole pass in one slice
     for (uint32_t unit = 0; unit < units;) {
       const uint32_t n = std::min(n_max, units - unit);
@@ -85,6 +101,7 @@ struct Slicer {
       head->pass_id = pass_index;
       ctx.submit_and_wait([&](VkCommandBuffer cmd) { step.record_slice(cmd, unit, n, sampling); });
       const uint32_t count = head->count;
+      if (unit == 0 && n == units) pass_total = count;
       if (count > capacity) {
         if (n == 1) {
           throw InputError(std::string("trace: one workgroup ") + (step.one_d ? "" : "row ") + "of the " + step.name +
@@ -92,7 +109,7 @@ struct Slicer {
                            std::to_string(capacity) + " (raise the trace buffer size, or sample workgroups)");
         }
         if (step.restore) step.restore();
-        n_max = std::max(1u, n / 2);  // re-run this slice smaller
+        n_max = std::min(sized(n, count, unit), n - 1);  // re-run this slice smaller
         ++cp.reruns;
         continue;
       }
@@ -101,6 +118,7 @@ struct Slicer {
       cp.records += count;
       ++cp.slices;
       unit += n;
+      n_max = sized(n, count, unit);
       if (options.on_slice) options.on_slice(step.name, cp.records, unit, units);
     }
     if (step.finish) step.finish();

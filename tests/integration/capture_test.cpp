@@ -101,6 +101,29 @@ TEST(Capture, TracedImageEqualsUntracedAndRecordsAreComplete) {
   fs::remove(tiny.file);
 }
 
+// A slice that overflows the buffer still counts every record it made, so the rerun is sized from that
+// count: one overflow of the whole pass, not a halving series that runs the pass's work about twice more.
+TEST(Capture, AnOverflowSizesTheRerunFromItsCount) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  const FrameSettings s = small(96, 448);  // 56 workgroup rows a pass
+  CaptureOptions o;
+  const Captured big = capture(*ctx, scene, s, o, "whole");
+  ASSERT_EQ(big.passes.size(), 2u);
+  const uint64_t least = std::min(big.passes[0].records, big.passes[1].records);
+  o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (least / 6);
+  const Captured small_buffer = capture(*ctx, scene, s, o, "sixth");
+  for (size_t i = 0; i < 2; ++i) {
+    const CapturedPass& p = small_buffer.passes[i];
+    EXPECT_EQ(p.records, big.passes[i].records) << p.pass;
+    EXPECT_GE(p.slices, 6u) << p.pass << ": a sixth of the pass a slice at most";
+    // Halving would take 56 -> 28 -> 14 -> 7 rows: three reruns at least.
+    EXPECT_LE(p.reruns, 2u) << p.pass << ": the whole pass overflowed, then at most one more slice";
+  }
+  fs::remove(big.file);
+  fs::remove(small_buffer.file);
+}
+
 // Audit find (2026-11-30): a capture ran every enabled pass and the composite even when only one pass was
 // traced and nobody read the image (every cell of `hybridprof run` with a trace). final_image = false runs
 // the traced passes alone, with the same records.
