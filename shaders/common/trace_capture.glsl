@@ -12,6 +12,9 @@
 #endif
 
 #ifdef HP_TRACE
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_ballot : require
+
 layout(std430, set = 0, binding = HP_BIND_TRACE_RECORDS) coherent buffer TraceBuffer {
   TraceBufferHeader trace_head;
   TraceRecord trace_records[];
@@ -34,7 +37,13 @@ void hp_trace_begin(uvec2 workgroup, uint workgroups_x, uint sampling, uint grou
 
 void hp_rec(uint buffer_id, uint kind, uint offset, uint size) {
   if (!hp_trace_on) return;
-  uint i = atomicAdd(trace_head.count, 1u);
+  // One atomic per subgroup, not per invocation: the active lanes take consecutive slots after the first
+  // one's add (the file's writer puts records into issue order, so the slot order does not matter).
+  uvec4 lanes = subgroupBallot(true);
+  uint n = subgroupBallotBitCount(lanes);
+  uint base = 0u;
+  if (subgroupElect()) base = atomicAdd(trace_head.count, n);
+  uint i = subgroupBroadcastFirst(base) + subgroupBallotExclusiveBitCount(lanes);
   // Past capacity the record is dropped here but counted, so the host sees the overflow and re-runs the
   // slice smaller: nothing is lost silently.
   if (i < trace_head.capacity) {
