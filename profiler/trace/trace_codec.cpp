@@ -12,12 +12,13 @@ static_assert(std::endian::native == std::endian::little, "the trace format is l
 
 namespace {
 
-void put_varint(std::vector<uint8_t>& out, uint64_t v) {
+// Writes through a pointer into room reserved beforehand (the coding's bound per record is known).
+void put_varint(uint8_t*& p, uint64_t v) {
   while (v >= 0x80) {
-    out.push_back(uint8_t(v | 0x80));
+    *p++ = uint8_t(v | 0x80);
     v >>= 7;
   }
-  out.push_back(uint8_t(v));
+  *p++ = uint8_t(v);
 }
 
 uint32_t zigzag(int64_t d) { return uint32_t((uint64_t(d) << 1) ^ uint64_t(d >> 63)); }
@@ -28,8 +29,15 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
                           uint64_t per_group, std::vector<uint8_t>& out) {
   const uint64_t groups = end_workgroup - first_workgroup;
   const uint64_t first_invocation = first_workgroup * per_group;
-  // Records by workgroup (counting sort, stable), then each workgroup's by (seq, lane, position).
+  // Records by workgroup (counting sort, stable; copied, so that each workgroup's records lie together in
+  // the host's caches while they are coded), then each workgroup's by (seq, lane, position).
+  const int shift = std::has_single_bit(per_group) ? std::countr_zero(per_group) : -1;
+  const auto group_of = [&](uint32_t invocation) {
+    const uint64_t i = invocation - first_invocation;
+    return uint32_t(shift >= 0 ? i >> shift : i / per_group);
+  };
   group_begin.assign(groups + 1, 0);
+  gid.resize(records.size());
   for (size_t i = 0; i < records.size(); ++i) {
     const TraceRecord& r = records[i];
     // What the coding cannot hold is refused here rather than written as something else (a version-1
@@ -39,45 +47,81 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
                        " outside its slice's workgroups [" + std::to_string(first_workgroup) + ", " +
                        std::to_string(end_workgroup) + ")");
     if (r.info > 0xFFFF) throw InputError("trace writer: record " + std::to_string(i) + ": reserved info bits set");
-    ++group_begin[(r.invocation - first_invocation) / per_group + 1];
+    gid[i] = group_of(r.invocation);
+    ++group_begin[gid[i] + 1];
   }
   for (uint64_t g = 0; g < groups; ++g) group_begin[g + 1] += group_begin[g];
-  order.resize(records.size());
+  grouped.resize(records.size());
   {
     std::vector<uint32_t> at(group_begin.begin(), group_begin.end() - 1);
-    for (size_t i = 0; i < records.size(); ++i)
-      order[at[(records[i].invocation - first_invocation) / per_group]++] = uint32_t(i);
+    for (size_t i = 0; i < records.size(); ++i) grouped[at[gid[i]]++] = records[i];
   }
+  // At most 5 + 5 bytes a workgroup and a step, 1 + 5 + 2 + 4 a record; a slice has no more steps than
+  // records.
+  // Coded into scratch room (left uninitialised: zeroing the bound would cost more than the coding), then
+  // appended.
+  const size_t bound = 22 * records.size() + 10 * groups + 16;
+  if (room_size < bound) {
+    room = std::make_unique_for_overwrite<uint8_t[]>(bound);
+    room_size = bound;
+  }
+  uint8_t* p = room.get();
   uint64_t next_g = 0;
   uint32_t prev_info = 0, prev_offset = 0;
   for (uint64_t g = 0; g < groups; ++g) {
     const uint32_t b = group_begin[g], e = group_begin[g + 1];
     if (b == e) continue;
     const uint64_t base = first_invocation + g * per_group;
+    // Order by (seq, lane). A GPU capture numbers each invocation's records 0, 1, 2, ... so the keys are
+    // distinct and dense: placed straight into a table of (largest seq + 1) x per_group slots and read back
+    // in order (linear time). A key that repeats (the format allows it), or a table much larger than the
+    // workgroup's records, takes a comparison sort instead; both give the same order.
     keys.clear();
-    for (uint32_t k = b; k < e; ++k) {
-      const TraceRecord& r = records[order[k]];
-      keys.emplace_back(uint64_t(r.seq) << 32 | (r.invocation - base), order[k]);
+    uint32_t max_seq = 0;
+    for (uint32_t k = b; k < e; ++k) max_seq = std::max(max_seq, grouped[k].seq);
+    const uint64_t range = (uint64_t(max_seq) + 1) * per_group;
+    bool placed = range <= 8 * uint64_t(e - b) + 4096;
+    if (placed) {
+      slot.assign(range, kEmpty);
+      for (uint32_t k = b; k < e && placed; ++k) {
+        const TraceRecord& r = grouped[k];
+        uint32_t& at = slot[uint64_t(r.seq) * per_group + (r.invocation - base)];
+        placed = at == kEmpty;
+        at = k;
+      }
     }
-    std::sort(keys.begin(), keys.end());  // positions break ties: stable
-    put_varint(out, g - next_g);
+    if (placed) {
+      const uint32_t* at = slot.data();
+      for (uint64_t seq = 0; seq <= max_seq; ++seq) {
+        for (uint64_t lane = 0; lane < per_group; ++lane, ++at) {
+          if (*at != kEmpty) keys.emplace_back(seq << 32 | lane, *at);
+        }
+      }
+    } else {
+      for (uint32_t k = b; k < e; ++k) {
+        const TraceRecord& r = grouped[k];
+        keys.emplace_back(uint64_t(r.seq) << 32 | (r.invocation - base), k);
+      }
+      std::sort(keys.begin(), keys.end());  // positions break ties: stable
+    }
+    put_varint(p, g - next_g);
     next_g = g + 1;
     uint64_t steps = 1;
     for (size_t k = 1; k < keys.size(); ++k) steps += (keys[k].first >> 32) != (keys[k - 1].first >> 32);
-    put_varint(out, steps);
+    put_varint(p, steps);
     uint64_t prev_seq = 0;
     bool first_step = true;
     for (size_t k = 0; k < keys.size();) {
       const uint64_t seq = keys[k].first >> 32;
       size_t j = k;
       while (j < keys.size() && (keys[j].first >> 32) == seq) ++j;
-      put_varint(out, first_step ? seq : seq - prev_seq - 1);
-      put_varint(out, j - k - 1);
+      put_varint(p, first_step ? seq : seq - prev_seq - 1);
+      put_varint(p, j - k - 1);
       first_step = false;
       prev_seq = seq;
       int64_t prev_lane = -1;
       for (; k < j; ++k) {
-        const TraceRecord& r = records[keys[k].second];
+        const TraceRecord& r = grouped[keys[k].second];
         const int64_t lane = int64_t(r.invocation - base);
         const uint64_t d = uint64_t(lane - prev_lane);
         prev_lane = lane;
@@ -87,19 +131,21 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
         const uint32_t zz = zigzag(int64_t(r.offset) - int64_t(prev_offset));
         const uint32_t mode = zz == 0 ? 0 : zz < (1u << 8) ? 1 : zz < (1u << 16) ? 2 : zz < (1u << 24) ? 3 : 4;
         control |= uint8_t(mode << 4);
-        out.push_back(control);
-        if (d >= 7) put_varint(out, d - 7);
+        *p++ = control;
+        if (d >= 7) put_varint(p, d - 7);
         if (info != prev_info) {
-          out.push_back(uint8_t(info));
-          out.push_back(uint8_t(info >> 8));
+          *p++ = uint8_t(info);
+          *p++ = uint8_t(info >> 8);
           prev_info = info;
         }
         const uint32_t v = mode == 4 ? r.offset : zz;
-        for (uint32_t byte = 0; byte < (mode == 4 ? 4u : mode); ++byte) out.push_back(uint8_t(v >> (8 * byte)));
+        std::memcpy(p, &v, 4);  // little-endian; only the first `bytes` count
+        p += mode == 4 ? 4u : mode;
         prev_offset = r.offset;
       }
     }
   }
+  out.insert(out.end(), room.get(), p);
 }
 
 namespace {

@@ -30,6 +30,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -40,7 +41,11 @@ namespace hp::trace {
 
 // Scratch kept between slices by an encoder (no allocation per slice once warm).
 struct SliceEncoder {
-  std::vector<uint32_t> group_begin, order;
+  std::vector<uint32_t> group_begin, gid, slot;
+  std::vector<TraceRecord> grouped;
+  static constexpr uint32_t kEmpty = 0xFFFFFFFFu;
+  std::unique_ptr<uint8_t[]> room;  // the coding's room, of room_size bytes
+  size_t room_size = 0;
   std::vector<std::pair<uint64_t, uint32_t>> keys;
   // Appends the coding of `records` (of workgroups [first_workgroup, end_workgroup) of a dispatch of
   // `per_group` invocations per workgroup) to `out`. Throws InputError on a record the coding cannot
