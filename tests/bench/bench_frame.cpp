@@ -14,6 +14,10 @@
 // Shadows: one any-hit ray per lit-facing pixel. Reflections: closest-hit rays of reflective pixels,
 // shaded without a shadow ray at the hit (so both sides cast exactly the same rays); every visible pixel
 // reflects (roughness threshold above 1).
+//   Capture/<pass>/<scene>: `hybridprof trace` of that pass alone: its instrumented variant, sliced through
+//                       the trace buffer into a compact (version 2) trace file; real time per capture.
+//                       untraced_ms: the median GPU time of the same pass untraced (6 frames);
+//                       capture_over_untraced: the mean capture over it.
 // Gpu/* and Trace/* also run through the driver's ray tracing where the device has it: names ending in
 // /ray-query (ray queries from the same compute shaders) and /pipeline (a ray-tracing pipeline whose
 // ray-generation shaders are the same sources), the driver's acceleration structure built from the compute
@@ -23,6 +27,7 @@
 #include "frame.hpp"
 #include "passes/ray_batch.hpp"
 #include "scene/load.hpp"
+#include "trace/trace_file.hpp"
 #include "vk/context.hpp"
 
 #include <benchmark/benchmark.h>
@@ -35,6 +40,7 @@
 #include <memory>
 #include <thread>
 #include <tuple>
+#include <unistd.h>
 
 namespace {
 
@@ -202,6 +208,49 @@ void cpu_pass(benchmark::State& state, const std::string& spec, Pass pass) {
   state.counters["tri_lane_use"] = s.tri_lane_use;
 }
 
+void capture_pass(benchmark::State& state, const std::string& spec, Pass pass) {
+  Setup& s = setup(spec, pass, Traversal::compute);
+  const char* name = pass == Pass::shadows ? "shadows" : "reflections";
+  for (int i = 0; i < 2; ++i) s.frame->render();  // warm-up
+  std::vector<double> untraced;
+  for (int i = 0; i < 6; ++i) {
+    for (const auto& p : s.frame->render().passes) {
+      if (p.name == name) untraced.push_back(double(p.duration_ns()) * 1e-9);
+    }
+  }
+  if (untraced.empty()) {
+    state.SkipWithError("the pass did not run");
+    return;
+  }
+  std::sort(untraced.begin(), untraced.end());
+  const double untraced_s = (untraced[(untraced.size() - 1) / 2] + untraced[untraced.size() / 2]) / 2;
+  CaptureOptions o;
+  o.shadows = pass == Pass::shadows;
+  o.reflections = pass == Pass::reflections;
+  o.final_image = false;
+  const std::filesystem::path file =
+      std::filesystem::temp_directory_path() / ("hp_bench_capture_" + std::to_string(::getpid()) + ".hptrace");
+  uint64_t records = 0, bytes = 0;
+  double wall = 0;
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    {
+      trace::TraceWriter writer(file, s.frame->trace_header(o.tiled_images));
+      records = 0;
+      for (const CapturedPass& cp : s.frame->render_captured(o, writer)) records += cp.records;
+      writer.finish();
+    }
+    wall += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    bytes = std::filesystem::file_size(file);
+  }
+  std::filesystem::remove(file);
+  state.counters["lane_accesses"] = double(records);
+  state.counters["bytes_per_lane_access"] = records ? double(bytes) / double(records) : 0.0;
+  state.counters["untraced_ms"] = untraced_s * 1e3;
+  state.counters["capture_over_untraced"] = wall / double(state.iterations()) / untraced_s;
+  state.SetLabel(context().info().name);
+}
+
 std::vector<std::string> scenes() {
   std::vector<std::string> out = {"builtin:pica"};
   const std::filesystem::path root = std::filesystem::path(HP_SHARED_DIR) / "scenes";
@@ -239,6 +288,10 @@ const bool registered = [] {
           ->UseRealTime()
           ->Unit(benchmark::kMillisecond)
           ->Iterations(6);
+      benchmark::RegisterBenchmark(("Capture/" + p + "/" + short_name(spec)).c_str(), capture_pass, spec, pass)
+          ->UseRealTime()
+          ->Unit(benchmark::kMillisecond)
+          ->Iterations(3);
     }
   }
   return true;
