@@ -506,6 +506,10 @@ uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
   // 2-5x slower on the VM, whose page-table updates are expensive: reading 512 KiB blocks is the
   // cheapest way in.)
   RecordBuffer buffers[2];
+  // Sized once for the largest slice: growing with the slices (which get larger past a frame's sky rows)
+  // mapped fresh memory at each step, and the kernel's zeroing of it cost about 8% of a replay.
+  buffers[0].reserve(largest);
+  if (order.size() > 1) buffers[1].reserve(largest);
   std::exception_ptr read_error;
   auto read_into = [&](size_t k, RecordBuffer& into) {
     try {
