@@ -240,6 +240,22 @@ class Buckets {
     }
     return true;
   }
+  // Records already validated against the buffer table and in workgroup order, with where each
+  // workgroup's start (a decoded version-2 slice): no pass over the records. False when the index does not
+  // describe them.
+  bool fill_indexed(std::span<const trace::TraceRecord> records, uint64_t first_group, uint64_t end_group,
+                    uint64_t per_group, const uint32_t* group_begin) {
+    per_group_ = per_group;
+    first_group_ = first_group;
+    const uint64_t groups = end_group - first_group;
+    if (group_begin[0] != 0 || group_begin[groups] != records.size()) return false;
+    begin_.assign(group_begin, group_begin + groups + 1);
+    for (uint64_t g = 0; g < groups; ++g)
+      if (begin_[g] > begin_[g + 1]) return false;
+    data_ = records.data();
+    mode_ = Mode::in_place;
+    return true;
+  }
   uint64_t records(uint64_t g) const { return begin_[g + 1] - begin_[g]; }
   // Calls f(pointer, count) for each run of group g's records, in record order.
   template <typename F>
@@ -749,7 +765,8 @@ void Simulator::begin_pass(const trace::PassInfo& pass) {
   });
 }
 
-void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup) {
+void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup,
+                     const uint32_t* group_begin) {
   if (!pass_ || pass_->ended) throw std::logic_error("Simulator::feed outside begin_pass / end_pass");
   PassState& ps = *pass_;
   const std::string& name = ps.info.name;
@@ -771,8 +788,10 @@ void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first
     ps.publish_locked(std::move(p));
     return;
   }
-  if (!ps.buckets.fill(records, first_workgroup, end_workgroup, ps.per_group))
-    throw InputError("pass '" + name + "': record outside its slice's workgroups or the buffer table");
+  const bool filled = group_begin
+                          ? ps.buckets.fill_indexed(records, first_workgroup, end_workgroup, ps.per_group, group_begin)
+                          : ps.buckets.fill(records, first_workgroup, end_workgroup, ps.per_group);
+  if (!filled) throw InputError("pass '" + name + "': record outside its slice's workgroups or the buffer table");
   ps.fed_end = end_workgroup;
   ps.lane_accesses += records.size();
   ps.slices += !records.empty();
@@ -959,8 +978,14 @@ void Simulator::schedule() {
 void feed_slices(Simulator& sim, const trace::TraceReader& reader, uint32_t pass,
                  const std::function<void(uint64_t records_done)>& on_slice) {
   uint64_t done = 0;
-  reader.read_slices(pass, [&](std::span<const trace::TraceRecord> records, uint64_t first, uint64_t end) {
-    sim.feed(records, first, end);
+  // The reader validates each record against its header's buffer table; the simulator trusts that only
+  // where it knows every buffer of that table, and then takes a version-2 slice's workgroup index as
+  // decoded instead of scanning the records again.
+  const bool trusted = std::all_of(reader.header().buffers.begin(), reader.header().buffers.end(),
+                                   [&](const trace::BufferInfo& b) { return sim.knows_buffer(b.id); });
+  reader.read_slices_indexed(pass, [&](std::span<const trace::TraceRecord> records, uint64_t first, uint64_t end,
+                                       const uint32_t* group_begin) {
+    sim.feed(records, first, end, trusted ? group_begin : nullptr);
     done += records.size();
     if (on_slice) on_slice(done);
   });

@@ -96,7 +96,11 @@ class Simulator {
   // workgroups retire. The counts equal run_pass's whatever the slicing and the threads' timing. Throws InputError on a record outside its slice or buffer table, or on slices
   // out of order.
   void begin_pass(const trace::PassInfo& pass);
-  void feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup);
+  // `group_begin` (optional): the records are already validated against this simulator's buffer table
+  // and in workgroup order, group_begin[g] .. group_begin[g + 1] being workgroup first_workgroup + g's
+  // (TraceReader::read_slices_indexed gives it for a version-2 slice): they are then not scanned again.
+  void feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup,
+            const uint32_t* group_begin = nullptr);
   PassResult end_pass();
 
   // End of the frame: dirty L2 sectors written back, in bytes.
@@ -108,6 +112,8 @@ class Simulator {
   }
 
   const Preset& preset() const { return preset_; }
+  // Whether the trace header this simulator was made with has a buffer of this id.
+  bool knows_buffer(uint32_t id) const { return id < 256 && buffers_[id] != nullptr; }
 
  private:
   struct PassState;

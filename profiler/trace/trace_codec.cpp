@@ -174,15 +174,20 @@ struct Stream {
 }  // namespace
 
 void decode_slice(std::span<const uint8_t> in, uint64_t count, uint64_t first_workgroup, uint64_t end_workgroup,
-                  uint64_t per_group, TraceRecord* out, const std::string& where, const DecodeCheck& check) {
+                  uint64_t per_group, TraceRecord* out, const std::string& where, const DecodeCheck& check,
+                  uint32_t* group_begin) {
   Stream s{in.data(), in.data(), in.data() + in.size(), where};
   const uint64_t groups = end_workgroup - first_workgroup;
+  if (group_begin && count > 0xFFFFFFFFu) s.fail("more than 2^32 - 1 records in one slice");
   uint64_t next_g = 0, n_out = 0, checked = 0;
   uint32_t prev_info = 0, prev_offset = 0;
   constexpr uint64_t kCheckRun = 1 << 14;
   while (s.p != s.end) {
     const uint64_t g = next_g + s.varint();
     if (g >= groups) s.fail("workgroup " + std::to_string(first_workgroup + g) + " outside the slice");
+    if (group_begin) {
+      for (uint64_t e = next_g; e <= g; ++e) group_begin[e] = uint32_t(n_out);  // g and the empty ones before it
+    }
     next_g = g + 1;
     const uint64_t base = (first_workgroup + g) * per_group;
     const uint64_t steps = s.varint();
@@ -268,6 +273,9 @@ void decode_slice(std::span<const uint8_t> in, uint64_t count, uint64_t first_wo
   }
   if (n_out != count)
     s.fail("holds " + std::to_string(n_out) + " records, the chunk declares " + std::to_string(count));
+  if (group_begin) {
+    for (uint64_t e = next_g; e <= groups; ++e) group_begin[e] = uint32_t(n_out);
+  }
   if (n_out > checked) check(out + checked, checked, n_out - checked);
 }
 

@@ -59,9 +59,11 @@ struct SliceEncoder {
 // out[first, first + n)), so the caller validates them there. Throws InputError "`where`: ..." on any
 // inconsistency: a truncated or overlong stream, a workgroup outside [first_workgroup, end_workgroup), a
 // lane outside its workgroup, seqs that do not increase, a record count other than `count`, a reserved
-// control bit.
+// control bit. `group_begin`, if set (room for end_workgroup - first_workgroup + 1), gets where each
+// workgroup's records start in `out` (the last entry: count), so that a consumer need not scan them.
 using DecodeCheck = std::function<void(const TraceRecord* records, uint64_t first, uint64_t n)>;
 void decode_slice(std::span<const uint8_t> in, uint64_t count, uint64_t first_workgroup, uint64_t end_workgroup,
-                  uint64_t per_group, TraceRecord* out, const std::string& where, const DecodeCheck& check);
+                  uint64_t per_group, TraceRecord* out, const std::string& where, const DecodeCheck& check,
+                  uint32_t* group_begin = nullptr);
 
 }  // namespace hp::trace

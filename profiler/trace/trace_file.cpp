@@ -410,7 +410,7 @@ uint64_t TraceReader::record_count(uint32_t pass) const {
   return n;
 }
 
-void TraceReader::read_chunk(const Chunk& c, TraceRecord* out) const {
+void TraceReader::read_chunk(const Chunk& c, TraceRecord* out, uint32_t* group_begin) const {
   std::fseek(file_, long(c.file_offset), SEEK_SET);
   if (c.coded_bytes > 0) {
     // The coded slice is small (about 3 bytes a record): read whole, decoded into `out`, each run of
@@ -420,12 +420,14 @@ void TraceReader::read_chunk(const Chunk& c, TraceRecord* out) const {
       fail("truncated records of pass " + std::to_string(c.pass));
     const std::string where = path_.string() + ": pass '" + passes_[c.pass].name + "'";
     const PassInfo& pass = passes_[c.pass];
-    decode_slice(std::span<const uint8_t>(coded_.data(), c.coded_bytes), c.count, c.first_workgroup, c.end_workgroup,
-                 pass.dispatch.invocations_per_workgroup(), out, where,
-                 [&](const TraceRecord* r, uint64_t first, uint64_t n) {
-                   validate_records(where, header_, pass, std::span<const TraceRecord>(r, n), c.first_workgroup,
-                                    c.end_workgroup, first);
-                 });
+    decode_slice(
+        std::span<const uint8_t>(coded_.data(), c.coded_bytes), c.count, c.first_workgroup, c.end_workgroup,
+        pass.dispatch.invocations_per_workgroup(), out, where,
+        [&](const TraceRecord* r, uint64_t first, uint64_t n) {
+          validate_records(where, header_, pass, std::span<const TraceRecord>(r, n), c.first_workgroup, c.end_workgroup,
+                           first);
+        },
+        group_begin);
     return;
   }
   // Block by block, each validated while it is still in the host's caches (one pass over memory, not two).
@@ -492,6 +494,11 @@ class RecordBuffer {
 }  // namespace
 
 uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
+  return read_slices_indexed(pass, [&](std::span<const TraceRecord> records, uint64_t first, uint64_t end,
+                                       const uint32_t*) { consume(records, first, end); });
+}
+
+uint64_t TraceReader::read_slices_indexed(uint32_t pass, const IndexedSliceFn& consume) const {
   if (pass >= passes_.size()) fail("no pass " + std::to_string(pass));
   std::vector<const Chunk*> order;
   for (const Chunk& c : chunks_)
@@ -506,6 +513,7 @@ uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
   // 2-5x slower on the VM, whose page-table updates are expensive: reading 512 KiB blocks is the
   // cheapest way in.)
   RecordBuffer buffers[2];
+  std::vector<uint32_t> group_begin[2];  // per buffer, for a 'RECV' slice: where each workgroup's records start
   // Sized once for the largest slice: growing with the slices (which get larger past a frame's sky rows)
   // mapped fresh memory at each step, and the kernel's zeroing of it cost about 8% of a replay.
   buffers[0].reserve(largest);
@@ -513,7 +521,10 @@ uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
   std::exception_ptr read_error;
   auto read_into = [&](size_t k, RecordBuffer& into) {
     try {
-      read_chunk(*order[k], into.reserve(order[k]->count));
+      const Chunk& c = *order[k];
+      std::vector<uint32_t>& index = group_begin[&into - buffers];
+      index.resize(c.coded_bytes > 0 ? c.end_workgroup - c.first_workgroup + 1 : 0);
+      read_chunk(c, into.reserve(c.count), index.empty() ? nullptr : index.data());
     } catch (...) {
       read_error = std::current_exception();
     }
@@ -524,8 +535,9 @@ uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
     std::thread next;
     if (k + 1 < order.size()) next = std::thread(read_into, k + 1, std::ref(buffers[(k + 1) % 2]));
     try {
+      const std::vector<uint32_t>& index = group_begin[k % 2];
       consume(std::span<const TraceRecord>(buffers[k % 2].reserve(0), order[k]->count), order[k]->first_workgroup,
-              order[k]->end_workgroup);
+              order[k]->end_workgroup, index.empty() ? nullptr : index.data());
     } catch (...) {
       if (next.joinable()) next.join();
       throw;

@@ -106,6 +106,12 @@ class TraceReader {
   using SliceFn =
       std::function<void(std::span<const TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup)>;
   uint64_t read_slices(uint32_t pass, const SliceFn& consume) const;
+  // The same, also handing over where each workgroup's records start when the slice comes in workgroup
+  // order, as a version-2 slice decodes: group_begin[g] .. group_begin[g + 1] are workgroup
+  // first_workgroup + g's records (null for a version-1 slice, whose records come in the GPU's order).
+  using IndexedSliceFn = std::function<void(std::span<const TraceRecord> records, uint64_t first_workgroup,
+                                            uint64_t end_workgroup, const uint32_t* group_begin)>;
+  uint64_t read_slices_indexed(uint32_t pass, const IndexedSliceFn& consume) const;
 
  private:
   struct Chunk {
@@ -115,7 +121,9 @@ class TraceReader {
     uint64_t first_workgroup, end_workgroup;
     uint64_t coded_bytes = 0;  // 'RECV' chunks: the coding's size (0: 16-byte records)
   };
-  void read_chunk(const Chunk& c, TraceRecord* out) const;  // c.count records to `out`, validated
+  // c.count records to `out`, validated; `group_begin` (room for the chunk's workgroups + 1), if set, gets
+  // where each workgroup's records start, for a 'RECV' chunk.
+  void read_chunk(const Chunk& c, TraceRecord* out, uint32_t* group_begin = nullptr) const;
   [[noreturn]] void fail(const std::string& what) const;
   // Parts of the constructor's directory read; `at` names the chunk in errors.
   void read_buffer_table(const std::vector<char>& payload, const std::string& at);

@@ -150,6 +150,57 @@ TEST(TraceFile, ReadSlicesComesInWorkgroupOrderOneSliceAtATime) {
   EXPECT_EQ(largest, g0.size());
 }
 
+// A version-2 slice decodes in workgroup order, and the reader hands over where each workgroup's records
+// start (workgroups without records included), so that the simulator need not scan them; a version-1
+// slice, in the GPU's order, comes without.
+TEST(TraceFile, CompactSlicesComeWithTheirWorkgroupIndex) {
+  const Trace t = sample();
+  const auto g0 = of_group(t, 0), g1 = of_group(t, 1);
+  ASSERT_FALSE(g0.empty());
+  ASSERT_FALSE(g1.empty());
+  for (const uint32_t version : {kTraceVersion, kTraceVersionRaw}) {
+    const auto p = tmp("slices_index_v" + std::to_string(version) + ".hptrace");
+    {
+      TraceWriter w(p, t.header, version);
+      const uint32_t a = w.begin_pass(t.passes[0]);
+      w.write_records(a, t.records[0], 0, 2);  // both workgroups in one slice
+      w.finish();
+    }
+    TraceReader r(p);
+    int slices = 0;
+    r.read_slices_indexed(0, [&](std::span<const TraceRecord> recs, uint64_t first, uint64_t end,
+                                 const uint32_t* group_begin) {
+      ++slices;
+      if (version == kTraceVersionRaw) {
+        EXPECT_EQ(group_begin, nullptr);
+        return;
+      }
+      ASSERT_NE(group_begin, nullptr);
+      EXPECT_EQ(group_begin[0], 0u);
+      EXPECT_EQ(group_begin[1], g0.size());
+      EXPECT_EQ(group_begin[end - first], recs.size());
+      for (uint64_t g = 0; g < end - first; ++g)
+        for (uint32_t i = group_begin[g]; i < group_begin[g + 1]; ++i) EXPECT_EQ(recs[i].invocation / 64, first + g);
+    });
+    EXPECT_EQ(slices, 1);
+  }
+  // A workgroup without records in the middle of a slice: its entry equals the next one's.
+  const auto gap = tmp("slices_index_gap.hptrace");
+  {
+    TraceWriter w(gap, t.header);
+    const uint32_t a = w.begin_pass(t.passes[0]);
+    w.write_records(a, g1, 0, 2);  // workgroup 0 has none
+    w.finish();
+  }
+  TraceReader r(gap);
+  r.read_slices_indexed(0, [&](std::span<const TraceRecord> recs, uint64_t, uint64_t, const uint32_t* group_begin) {
+    ASSERT_NE(group_begin, nullptr);
+    EXPECT_EQ(group_begin[0], 0u);
+    EXPECT_EQ(group_begin[1], 0u);
+    EXPECT_EQ(group_begin[2], recs.size());
+  });
+}
+
 TEST(TraceFile, SlicesMustHoldTheirOwnWorkgroupsAndNotOverlap) {
   const Trace t = sample();
   const auto outside = tmp("slice_outside.hptrace"), overlap = tmp("slice_overlap.hptrace"),
