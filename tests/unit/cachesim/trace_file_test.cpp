@@ -5,10 +5,12 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <random>
 #include <tuple>
 
 #include "atomic_file.hpp"
 #include "error.hpp"
+#include "trace/trace_codec.hpp"
 #include "trace/trace_file.hpp"
 
 namespace hp::trace {
@@ -382,6 +384,45 @@ TEST(TraceFile, CompactRecordsKeepEveryInvocationsRecordsInIssueOrder) {
   ASSERT_NE(it, r.records[0].end());
   EXPECT_EQ(it->offset, 40u);
   EXPECT_EQ((it + 1)->offset, 4000u);
+}
+
+// The coder buckets a capture's records by their runs of one workgroup (no copy) and records in no order
+// by copying them into workgroup order; both give the same bytes, and so does a sparse seq (comparison sort
+// instead of direct placement).
+TEST(TraceFile, CompactCodingDoesNotDependOnTheRecordsOrder) {
+  std::mt19937 rng(5);
+  // 40 workgroups of 64 lanes; two at a time, each in 3 runs taking turns (as two GPU cores append).
+  std::vector<TraceRecord> clustered;
+  for (uint32_t pair = 0; pair < 20; ++pair) {
+    for (uint32_t part = 0; part < 3; ++part) {
+      for (uint32_t g = 2 * pair; g < 2 * pair + 2; ++g) {
+        for (uint32_t lane = part * 22; lane < std::min(64u, part * 22 + 22); ++lane) {
+          const uint32_t n = 1 + rng() % 30;
+          for (uint32_t seq = 0; seq < n; ++seq)
+            clustered.push_back({(100 + g) * 64 + lane, seq == n - 1 && lane == 5 ? 1000 + seq : seq,
+                                 HP_TRACE_INFO(rng() % 3, HP_TRACE_LOAD, 4u), uint32_t(rng() % 4096) * 4});
+        }
+      }
+    }
+  }
+  std::vector<TraceRecord> shuffled = clustered;
+  std::shuffle(shuffled.begin(), shuffled.end(), rng);
+  // One invocation's records keep their order in both (the coding keeps it for equal seqs only, and the
+  // seqs here are distinct per invocation).
+  SliceEncoder a, b;
+  std::vector<uint8_t> ca, cb;
+  a.encode(clustered, 100, 140, 64, ca);
+  b.encode(shuffled, 100, 140, 64, cb);
+  EXPECT_EQ(ca, cb);
+  std::vector<TraceRecord> back(clustered.size());
+  decode_slice(ca, clustered.size(), 100, 140, 64, back.data(), "test", [](const TraceRecord*, uint64_t, uint64_t) {});
+  auto key = [](const TraceRecord& r) { return std::tuple(r.invocation, r.seq, r.info, r.offset); };
+  std::vector<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>> x, y;
+  for (const auto& r : clustered) x.push_back(key(r));
+  for (const auto& r : back) y.push_back(key(r));
+  std::sort(x.begin(), x.end());
+  std::sort(y.begin(), y.end());
+  EXPECT_EQ(x, y);
 }
 
 TEST(TraceFile, CorruptCompactRecordsGiveOneLineErrorsNamingTheFile) {
