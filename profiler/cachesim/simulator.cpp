@@ -241,8 +241,8 @@ class Buckets {
     return true;
   }
   // Records already validated against the buffer table and in workgroup order, with where each
-  // workgroup's start (a decoded version-2 slice): no pass over the records. False when the index does not
-  // describe them.
+  // workgroup's records start (a decoded version-2 slice): no pass over the records. False when the index
+  // cannot describe them.
   bool fill_indexed(std::span<const trace::TraceRecord> records, uint64_t first_group, uint64_t end_group,
                     uint64_t per_group, const uint32_t* group_begin) {
     per_group_ = per_group;

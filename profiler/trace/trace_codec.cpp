@@ -86,10 +86,9 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
       for (uint32_t i = runs[k].first; i < end; ++i) f(i);
     }
   };
-  // At most 5 + 5 bytes a workgroup and a step, 1 + 5 + 2 + 4 a record; a slice has no more steps than
-  // records.
-  // Coded into scratch room (left uninitialised: zeroing the bound would cost more than the coding), then
-  // appended.
+  // Coded into scratch room, then appended. Its bound: at most 5 + 5 bytes a workgroup and a step,
+  // 1 + 5 + 2 + 4 a record, and a slice has no more steps than records. Left uninitialised: zeroing the
+  // bound would cost more than the coding.
   const size_t bound = 22 * records.size() + 10 * groups + 16;
   if (room_size < bound) {
     room = std::make_unique_for_overwrite<uint8_t[]>(bound);
