@@ -139,6 +139,11 @@ std::vector<std::string> Frame::captured_pass_names(const CaptureOptions& o) con
 
 std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace::TraceSink& sink) {
   if (!rt_) throw InputError("trace: no ray-tracing pass is enabled, nothing to trace");
+  if (!ctx_.info().subgroup_ballot_compute) {
+    throw InputError("trace: " + ctx_.info().name +
+                     " has no subgroup ballot in compute shaders, which the instrumented passes use to reserve "
+                     "their record slots");
+  }
   const uint32_t sampling = checked_sampling(o);
   const uint64_t bytes = checked_buffer_bytes(o, ctx_);
   if (!trace_buffer_ || trace_buffer_->size() != bytes) {

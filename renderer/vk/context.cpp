@@ -148,6 +148,9 @@ DeviceInfo describe(VkPhysicalDevice pd, const std::vector<VkQueueFamilyProperti
   info.vendor_id = p.vendorID;
   info.device_id = p.deviceID;
   info.subgroup_size = subgroup.subgroupSize;
+  const VkSubgroupFeatureFlags ballot = VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_BALLOT_BIT;
+  info.subgroup_ballot_compute = (subgroup.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT) != 0 &&
+                                 (subgroup.supportedOperations & ballot) == ballot;
   info.timestamp_period_ns = p.limits.timestampPeriod;
   info.timestamp_valid_bits = family < families.size() ? families[family].timestampValidBits : 0;
   info.max_storage_buffer_range = p.limits.maxStorageBufferRange;

@@ -37,6 +37,9 @@ struct DeviceInfo {
   uint32_t vendor_id = 0;
   uint32_t device_id = 0;
   uint32_t subgroup_size = 0;
+  /// Subgroup ballot (and the basic operations) in compute shaders: the instrumented variants of a memory
+  /// trace reserve their record slots with it.
+  bool subgroup_ballot_compute = false;
   double timestamp_period_ns = 0.0;
   uint32_t timestamp_valid_bits = 0;
   uint64_t max_storage_buffer_range = 0;
