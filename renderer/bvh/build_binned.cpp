@@ -550,8 +550,16 @@ class BinnedBuilder {
       build(second, right, depth + 1, s);
       return;
     }
-    // The second child on a new thread, depth first into a buffer of its own; the first child here. The
-    // buffer is appended after the first child's subtree, its interior offsets moved by where it lands.
+    fork_second(index, first, left, right, depth, s);
+  }
+
+  /// The second child on a new thread (which holds a worker slot), depth first into a buffer of its own;
+  /// the first child here. The buffer is appended after the first child's subtree, its interior offsets
+  /// moved by where it lands. Out of line, so that the one-thread recursion stays small.
+  [[gnu::noinline]] void fork_second(uint32_t index, uint32_t first, const Range& left, const Range& right, int depth,
+                                     Scratch& s) {
+    std::vector<gpu::BvhNode>& out = *s.out;
+    const uint32_t nr = right.end - right.begin;
     std::vector<gpu::BvhNode> sub;
     std::exception_ptr error;
     int right_depth = 0;
