@@ -10,8 +10,8 @@
 // The tree is a pure function of the input and the options (tests/unit/bvh/build_identity_test.cpp pins
 // it): every speed-up computes the same floats in the same order per value, and regrouping min/max folds
 // (which can only change the sign of a zero) is limited to inputs without -0.0 bounds (signed_zeros_).
-// Nodes are written in the final depth-first layout, by one thread or by several in windows (see the
-// constructor).
+// Nodes are appended in the final depth-first layout; a subtree built on another thread is appended after
+// its sibling's (see finish_interior).
 #include "bvh/build_common.hpp"
 
 #include <algorithm>
@@ -19,7 +19,6 @@
 #include <cstring>
 #include <limits>
 #include <memory>
-#include <mutex>
 #include <thread>
 
 #include <emmintrin.h>
@@ -101,8 +100,8 @@ struct Scratch {
   // The three-axis sweep: N_B * S_B per bin (lane = axis), and the bins transposed to lane = axis
   // (lo x, y, z, hi x, y, z, count per bin).
   std::vector<Lanes> soa;
-  /// Next free node slot of this worker's part of the tree, and the deepest leaf it wrote.
-  uint32_t cursor = 1;
+  /// Where this worker appends its nodes (depth first), and the deepest leaf it wrote.
+  std::vector<gpu::BvhNode>* out = nullptr;
   int max_depth = 0;
 };
 
@@ -117,25 +116,7 @@ constexpr uint32_t kRunBinning = 64;
 
 class BinnedBuilder {
  public:
-  BinnedBuilder(std::span<PrimRef> prims, const BuildParams& p)
-      : prims_(prims), p_(p), forker_(p.threads), dfs_(p.threads == 1) {
-    // Nodes are written depth first, in the final layout (a node's first child right after it, the second
-    // after the first's subtree). A tree over N primitives has at most 2N - 1 nodes.
-    capacity_ = std::max<std::size_t>(1, 2 * prims.size());
-    if (dfs_) {
-      // One thread appends: the reserve never reallocates, and its pages are touched only as nodes are
-      // written.
-      flat_.reserve(capacity_);
-      advise_huge_pages(flat_.data(), capacity_ * sizeof(gpu::BvhNode));
-      flat_.emplace_back();
-    } else {
-      // Threads: a forked first child gets a window of 2n - 1 slots for its n primitives and the second
-      // child starts after it; the unused ends of the windows are squeezed out at the end (finish_windows).
-      // Uninitialised on purpose: every slot handed out is written before it is read.
-      win_.reset(new gpu::BvhNode[capacity_]);
-      advise_huge_pages(win_.get(), capacity_ * sizeof(gpu::BvhNode));
-    }
-  }
+  BinnedBuilder(std::span<PrimRef> prims, const BuildParams& p) : prims_(prims), p_(p), forker_(p.threads) {}
 
   PairTree run() {
     Range root;
@@ -163,14 +144,17 @@ class BinnedBuilder {
     }
     root.begin = 0;
     root.end = static_cast<uint32_t>(prims_.size());
+    // Nodes are appended depth first, in the final layout (a node's first child right after it, the second
+    // after the first's subtree). A tree over N primitives has at most 2N - 1 nodes, so the reserve never
+    // reallocates, and its pages are touched only as nodes are written.
+    std::vector<gpu::BvhNode> flat;
+    reserve_nodes(flat, prims_.size());
+    flat.emplace_back();
     Scratch scratch(p_.buckets);
+    scratch.out = &flat;
     build(0, root, 0, scratch);
     PairTree tree;
-    if (dfs_) {
-      tree.flat = std::move(flat_);
-    } else {
-      tree.flat = finish_windows(scratch.cursor);
-    }
+    tree.flat = std::move(flat);
     tree.flat_max_depth = scratch.max_depth;
     tree.order.resize(prims_.size());
     Forker::parallel_chunks(prims_.size(), p_.threads, [&](std::size_t b, std::size_t e, std::size_t) {
@@ -187,43 +171,13 @@ class BinnedBuilder {
     return glm::vec3(f[0], f[1], f[2]);
   }
   void leaf(uint32_t index, const Range& r, int depth, Scratch& s) {
-    node_at(index) = make_leaf(to_vec3(r.box.lo), to_vec3(r.box.hi), r.begin, r.end - r.begin);
+    (*s.out)[index] = make_leaf(to_vec3(r.box.lo), to_vec3(r.box.hi), r.begin, r.end - r.begin);
     s.max_depth = std::max(s.max_depth, depth);
   }
-  gpu::BvhNode& node_at(uint32_t index) { return dfs_ ? flat_[index] : win_[index]; }
-
-  /// The threaded build's windows, gaps removed, as the final node array: every slot keeps its order, and
-  /// a second-child offset moves down by the gap slots before it.
-  std::vector<gpu::BvhNode> finish_windows(uint32_t end) {
-    std::sort(gaps_.begin(), gaps_.end());
-    std::vector<uint32_t> gap_end, shift{0};  // shift[k]: the slots of the first k gaps
-    for (const auto& [b, e] : gaps_) {
-      gap_end.push_back(e);
-      shift.push_back(shift.back() + (e - b));
-    }
-    const auto shift_of = [&](uint32_t slot) {
-      return shift[std::upper_bound(gap_end.begin(), gap_end.end(), slot) - gap_end.begin()];
-    };
-    std::vector<gpu::BvhNode> out;
-    out.reserve(end - shift.back());
-    advise_huge_pages(out.data(), out.capacity() * sizeof(gpu::BvhNode));
-    uint32_t at = 0;
-    for (const auto& [b, e] : gaps_) {
-      out.insert(out.end(), win_.get() + at, win_.get() + b);
-      at = e;
-    }
-    out.insert(out.end(), win_.get() + at, win_.get() + end);
-    if (!gaps_.empty()) {
-      Forker::parallel_chunks(out.size(), p_.threads, [&](std::size_t b, std::size_t e, std::size_t) {
-        for (std::size_t i = b; i < e; ++i) {
-          gpu::BvhNode& n = out[i];
-          if ((n.prim_axis >> HP_BVH_AXIS_BITS) == 0)
-            n.offset -= static_cast<int>(shift_of(static_cast<uint32_t>(n.offset)));
-        }
-      });
-    }
-    win_.reset();
-    return out;
+  static void reserve_nodes(std::vector<gpu::BvhNode>& v, std::size_t prims) {
+    const std::size_t capacity = std::max<std::size_t>(1, 2 * prims);
+    v.reserve(capacity);
+    advise_huge_pages(v.data(), capacity * sizeof(gpu::BvhNode));
   }
 
   Range range_of(uint32_t begin, uint32_t end) const {
@@ -583,68 +537,65 @@ class BinnedBuilder {
 
   void finish_interior(uint32_t index, const Range& r, int axis, const Range& left, const Range& right, int depth,
                        Scratch& s) {
-    if (dfs_) {
-      flat_[index] = make_interior(to_vec3(r.box.lo), to_vec3(r.box.hi), 0, static_cast<uint32_t>(axis));
-      const auto first = static_cast<uint32_t>(flat_.size());
-      flat_.emplace_back();
+    std::vector<gpu::BvhNode>& out = *s.out;
+    out[index] = make_interior(to_vec3(r.box.lo), to_vec3(r.box.hi), 0, static_cast<uint32_t>(axis));
+    const auto first = static_cast<uint32_t>(out.size());
+    out.emplace_back();
+    const uint32_t nr = right.end - right.begin;
+    if (!forker_.try_fork(nr)) {
       build(first, left, depth + 1, s);
-      const auto second = static_cast<uint32_t>(flat_.size());
-      flat_.emplace_back();
-      flat_[index].offset = static_cast<int>(second);
+      const auto second = static_cast<uint32_t>(out.size());
+      out.emplace_back();
+      out[index].offset = static_cast<int>(second);
       build(second, right, depth + 1, s);
       return;
     }
-    win_[index] = make_interior(to_vec3(r.box.lo), to_vec3(r.box.hi), 0, static_cast<uint32_t>(axis));
-    const uint32_t first = s.cursor++;
-    const uint32_t nl = left.end - left.begin;
-    if (!forker_.try_fork(nl)) {
-      build(first, left, depth + 1, s);
-      const uint32_t second = s.cursor++;
-      win_[index].offset = static_cast<int>(second);
-      build(second, right, depth + 1, s);
-      return;
-    }
-    // The first child on a new thread, in the window [first, first + 2 nl - 1); the second child here.
-    const uint32_t second = first + 2 * nl - 1;
-    win_[index].offset = static_cast<int>(second);
+    fork_second(index, first, left, right, depth, s);
+  }
+
+  /// The second child on a new thread (which holds a worker slot), depth first into a buffer of its own;
+  /// the first child here. The buffer is appended after the first child's subtree, its interior offsets
+  /// moved by where it lands. Out of line, so that the one-thread recursion stays small.
+  [[gnu::noinline]] void fork_second(uint32_t index, uint32_t first, const Range& left, const Range& right, int depth,
+                                     Scratch& s) {
+    std::vector<gpu::BvhNode>& out = *s.out;
+    const uint32_t nr = right.end - right.begin;
+    std::vector<gpu::BvhNode> sub;
     std::exception_ptr error;
-    int left_depth = 0;
+    int right_depth = 0;
     std::thread t([&] {
       try {
+        reserve_nodes(sub, nr);
+        sub.emplace_back();
         Scratch own(p_.buckets);
-        own.cursor = first + 1;
-        build(first, left, depth + 1, own);
-        left_depth = own.max_depth;
-        if (own.cursor < second) {
-          std::lock_guard lock(gaps_mutex_);
-          gaps_.emplace_back(own.cursor, second);
-        }
+        own.out = &sub;
+        build(0, right, depth + 1, own);
+        right_depth = own.max_depth;
       } catch (...) {
         error = std::current_exception();
       }
       forker_.release();
     });
-    s.cursor = second + 1;
     try {
-      build(second, right, depth + 1, s);
+      build(first, left, depth + 1, s);
     } catch (...) {
       t.join();
       throw;
     }
     t.join();
     if (error) std::rethrow_exception(error);
-    s.max_depth = std::max(s.max_depth, left_depth);
+    s.max_depth = std::max(s.max_depth, right_depth);
+    const auto second = static_cast<uint32_t>(out.size());
+    out[index].offset = static_cast<int>(second);
+    out.insert(out.end(), sub.begin(), sub.end());
+    for (std::size_t i = second; i < out.size(); ++i) {
+      if ((out[i].prim_axis >> HP_BVH_AXIS_BITS) == 0) out[i].offset += static_cast<int>(second);
+    }
   }
 
   std::span<PrimRef> prims_;
   BuildParams p_;
   Forker forker_;
-  std::size_t capacity_ = 0;
-  bool dfs_;                             ///< one thread: nodes go straight into flat_
-  std::vector<gpu::BvhNode> flat_;       ///< one thread
-  std::unique_ptr<gpu::BvhNode[]> win_;  ///< threads: the windowed layout
-  std::mutex gaps_mutex_;
-  std::vector<std::pair<uint32_t, uint32_t>> gaps_;  ///< threads: unused window ends [begin, end)
   std::atomic<std::size_t> depth_limited_{0};
   /// Some primitive bound is -0.0. Folding boxes with min/max in another order can then change a box's
   /// zero sign (min and max keep their second operand on ties), so the builder keeps the reference order:
