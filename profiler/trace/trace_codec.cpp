@@ -29,18 +29,15 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
                           uint64_t per_group, std::vector<uint8_t>& out) {
   const uint64_t groups = end_workgroup - first_workgroup;
   const uint64_t first_invocation = first_workgroup * per_group;
-  // Records by workgroup, stably. A capture writes a workgroup's records in a few runs (the GPU runs it on
-  // one core), so a workgroup is usually a list of runs in `records`, bucketed without copying a record;
-  // records in no order at all (many short runs) are copied into workgroup order instead. Then each
-  // workgroup's records are ordered by (seq, lane, position).
+  // Records by workgroup (counting sort, stable; copied, so that each workgroup's records lie together in
+  // the host's caches while they are coded), then each workgroup's by (seq, lane, position).
   const int shift = std::has_single_bit(per_group) ? std::countr_zero(per_group) : -1;
   const auto group_of = [&](uint32_t invocation) {
     const uint64_t i = invocation - first_invocation;
     return uint32_t(shift >= 0 ? i >> shift : i / per_group);
   };
   group_begin.assign(groups + 1, 0);
-  runs.clear();
-  uint32_t prev_g = ~0u;
+  gid.resize(records.size());
   for (size_t i = 0; i < records.size(); ++i) {
     const TraceRecord& r = records[i];
     // What the coding cannot hold is refused here rather than written as something else (a version-1
@@ -50,42 +47,15 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
                        " outside its slice's workgroups [" + std::to_string(first_workgroup) + ", " +
                        std::to_string(end_workgroup) + ")");
     if (r.info > 0xFFFF) throw InputError("trace writer: record " + std::to_string(i) + ": reserved info bits set");
-    const uint32_t g = group_of(r.invocation);
-    ++group_begin[g + 1];
-    if (g != prev_g) {
-      runs.push_back({uint32_t(i), g});
-      prev_g = g;
-    }
+    gid[i] = group_of(r.invocation);
+    ++group_begin[gid[i] + 1];
   }
   for (uint64_t g = 0; g < groups; ++g) group_begin[g + 1] += group_begin[g];
-  const bool by_runs = runs.size() <= records.size() / 8 + 1;
-  const TraceRecord* src = records.data();  // what a workgroup's record positions index
-  if (by_runs) {
-    // Runs by workgroup (stable): group g's are run_order[run_begin[g] .. run_begin[g + 1]).
-    run_begin.assign(groups + 1, 0);
-    for (const Run& r : runs) ++run_begin[r.group + 1];
-    for (uint64_t g = 0; g < groups; ++g) run_begin[g + 1] += run_begin[g];
-    std::vector<uint32_t> at(run_begin.begin(), run_begin.end() - 1);
-    run_order.resize(runs.size());
-    for (uint32_t k = 0; k < runs.size(); ++k) run_order[at[runs[k].group]++] = k;
-  } else {
-    grouped.resize(records.size());
+  grouped.resize(records.size());
+  {
     std::vector<uint32_t> at(group_begin.begin(), group_begin.end() - 1);
-    for (const TraceRecord& r : records) grouped[at[group_of(r.invocation)]++] = r;
-    src = grouped.data();
+    for (size_t i = 0; i < records.size(); ++i) grouped[at[gid[i]]++] = records[i];
   }
-  // Calls f(position) for each of group g's records, in record order (positions index `src`).
-  const auto for_each_of_group = [&](uint64_t g, auto&& f) {
-    if (!by_runs) {
-      for (uint32_t k = group_begin[g]; k < group_begin[g + 1]; ++k) f(k);
-      return;
-    }
-    for (uint32_t q = run_begin[g]; q < run_begin[g + 1]; ++q) {
-      const uint32_t k = run_order[q];
-      const uint32_t end = k + 1 < runs.size() ? runs[k + 1].first : uint32_t(records.size());
-      for (uint32_t i = runs[k].first; i < end; ++i) f(i);
-    }
-  };
   // Coded into scratch room, then appended. Its bound: at most 5 + 5 bytes a workgroup and a step,
   // 1 + 5 + 2 + 4 a record, and a slice has no more steps than records. Left uninitialised: zeroing the
   // bound would cost more than the coding.
@@ -107,17 +77,17 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
     // workgroup's records, takes a comparison sort instead; both give the same order.
     keys.clear();
     uint32_t max_seq = 0;
-    for_each_of_group(g, [&](uint32_t k) { max_seq = std::max(max_seq, src[k].seq); });
+    for (uint32_t k = b; k < e; ++k) max_seq = std::max(max_seq, grouped[k].seq);
     const uint64_t range = (uint64_t(max_seq) + 1) * per_group;
     bool placed = range <= 8 * uint64_t(e - b) + 4096;
     if (placed) {
       slot.assign(range, kEmpty);
-      for_each_of_group(g, [&](uint32_t k) {
-        const TraceRecord& r = src[k];
+      for (uint32_t k = b; k < e && placed; ++k) {
+        const TraceRecord& r = grouped[k];
         uint32_t& at = slot[uint64_t(r.seq) * per_group + (r.invocation - base)];
-        placed &= at == kEmpty;
+        placed = at == kEmpty;
         at = k;
-      });
+      }
     }
     if (placed) {
       const uint32_t* at = slot.data();
@@ -127,10 +97,10 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
         }
       }
     } else {
-      for_each_of_group(g, [&](uint32_t k) {
-        const TraceRecord& r = src[k];
+      for (uint32_t k = b; k < e; ++k) {
+        const TraceRecord& r = grouped[k];
         keys.emplace_back(uint64_t(r.seq) << 32 | (r.invocation - base), k);
-      });
+      }
       std::sort(keys.begin(), keys.end());  // positions break ties: stable
     }
     put_varint(p, g - next_g);
@@ -150,7 +120,7 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
       prev_seq = seq;
       int64_t prev_lane = -1;
       for (; k < j; ++k) {
-        const TraceRecord& r = src[keys[k].second];
+        const TraceRecord& r = grouped[keys[k].second];
         const int64_t lane = int64_t(r.invocation - base);
         const uint64_t d = uint64_t(lane - prev_lane);
         prev_lane = lane;

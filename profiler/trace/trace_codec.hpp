@@ -41,11 +41,7 @@ namespace hp::trace {
 
 // Scratch kept between slices by an encoder (no allocation per slice once warm).
 struct SliceEncoder {
-  struct Run {
-    uint32_t first, group;  // a run of one workgroup's records from position `first` to the next run
-  };
-  std::vector<Run> runs;
-  std::vector<uint32_t> group_begin, run_begin, run_order, slot;
+  std::vector<uint32_t> group_begin, gid, slot;
   std::vector<TraceRecord> grouped;
   static constexpr uint32_t kEmpty = 0xFFFFFFFFu;
   std::unique_ptr<uint8_t[]> room;  // the coding's room, of room_size bytes

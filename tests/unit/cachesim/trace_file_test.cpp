@@ -386,9 +386,9 @@ TEST(TraceFile, CompactRecordsKeepEveryInvocationsRecordsInIssueOrder) {
   EXPECT_EQ((it + 1)->offset, 4000u);
 }
 
-// The coder buckets a capture's records by their runs of one workgroup (no copy) and records in no order
-// by copying them into workgroup order; both give the same bytes, and so does a sparse seq (comparison sort
-// instead of direct placement).
+// The coding does not depend on the order the records come in: records appended by workgroup in runs
+// (as two GPU cores append them) and the same records shuffled give the same bytes, with a sparse seq among
+// them (a comparison sort instead of direct placement), and decode to the same records.
 TEST(TraceFile, CompactCodingDoesNotDependOnTheRecordsOrder) {
   std::mt19937 rng(5);
   // 40 workgroups of 64 lanes; two at a time, each in 3 runs taking turns (as two GPU cores append).
@@ -400,7 +400,7 @@ TEST(TraceFile, CompactCodingDoesNotDependOnTheRecordsOrder) {
           const uint32_t n = 1 + rng() % 30;
           for (uint32_t seq = 0; seq < n; ++seq)
             clustered.push_back({(100 + g) * 64 + lane, seq == n - 1 && lane == 5 ? 1000 + seq : seq,
-                                 HP_TRACE_INFO(rng() % 3, HP_TRACE_LOAD, 4u), uint32_t(rng() % 4096) * 4});
+                                 HP_TRACE_INFO(uint32_t(rng() % 3), HP_TRACE_LOAD, 4u), uint32_t(rng() % 4096) * 4});
         }
       }
     }
