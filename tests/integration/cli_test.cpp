@@ -1,5 +1,6 @@
 // The command line as a user meets it: exit codes, one-line errors, nothing half-written.
 #include "atomic_file.hpp"
+#include "common/scratch_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -39,11 +40,7 @@ CmdResult run(const std::string& args, const std::string& env = "") {
   return r;
 }
 
-fs::path temp_dir() {
-  fs::path d = fs::temp_directory_path() / ("hp_cli_test_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path temp_dir() { return hp::test::scratch_dir(); }
 
 size_t line_count(const std::string& s) {
   size_t n = 0;

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "cache_analysis.hpp"
+#include "common/scratch_dir.hpp"
 
 namespace hp {
 namespace {
@@ -42,7 +43,7 @@ std::string lane_preset() {
   const size_t at = s.find(key);
   EXPECT_NE(at, std::string::npos);
   s.insert(at + key.size(), " \"l1_hit_counting\": \"lane\",");
-  const auto path = std::filesystem::temp_directory_path() / "hp_cache_analysis_lane_preset.json";
+  const auto path = hp::test::scratch_dir() / "lane_preset.json";
   std::ofstream(path) << s;
   return path.string();
 }

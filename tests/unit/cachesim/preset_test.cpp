@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "cachesim/preset.hpp"
+#include "common/scratch_dir.hpp"
 #include "error.hpp"
 
 namespace hp::cachesim {
@@ -135,8 +136,7 @@ TEST(Preset, SizesBeyondTheSimulatorsLimitsAreNamed) {
 }
 
 TEST(Preset, FileErrorsNameThePath) {
-  const auto dir = std::filesystem::temp_directory_path() / "hp_preset_test";
-  std::filesystem::create_directories(dir);
+  const auto dir = hp::test::scratch_dir();
   const auto f = dir / "bad.json";
   std::ofstream(f) << replace(kValid, "\"channels\": 4", "\"channels\": 0");
   try {

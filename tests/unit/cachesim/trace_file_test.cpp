@@ -9,6 +9,7 @@
 #include <tuple>
 
 #include "atomic_file.hpp"
+#include "common/scratch_dir.hpp"
 #include "error.hpp"
 #include "trace/trace_codec.hpp"
 #include "trace/trace_file.hpp"
@@ -48,11 +49,7 @@ Trace sample() {
   return t;
 }
 
-fs::path tmp(const std::string& name) {
-  auto d = fs::temp_directory_path() / "hp_trace_test";
-  fs::create_directories(d);
-  return d / name;
-}
+fs::path tmp(const std::string& name) { return hp::test::scratch_dir() / name; }
 
 std::string error_reading(const fs::path& p) {
   try {

@@ -557,9 +557,11 @@ TEST(Report, WritesFilesAtomically) {
   EXPECT_TRUE(fs::exists(dir + "/charts/pass_times.svg"));
   std::ifstream report_in(dir + "/report.md");
   const std::string md{std::istreambuf_iterator<char>(report_in), {}};
-  for (const auto& e : fs::directory_iterator(dir + "/charts"))
-    if (e.path().extension() == ".svg")
+  for (const auto& e : fs::directory_iterator(dir + "/charts")) {
+    if (e.path().extension() == ".svg") {
       EXPECT_NE(md.find("charts/" + e.path().filename().string()), std::string::npos) << e.path();
+    }
+  }
   EXPECT_THROW(write_report(dir + "/nothing"), InputError);
   std::ofstream(dir + "/results.jsonl", std::ios::app) << "{not json\n";
   EXPECT_THROW(write_report(dir), InputError);

@@ -1,4 +1,5 @@
 #include "synthetic.hpp"
+#include "common/scratch_dir.hpp"
 
 #include "timing/result_json.hpp"
 
@@ -163,7 +164,7 @@ void write_results(const std::string& dir, const std::vector<json>& lines) {
 }
 
 std::string temp_dir(const std::string& name) {
-  const fs::path p = fs::temp_directory_path() / ("hp_reports_tests_" + std::to_string(::getpid())) / name;
+  const fs::path p = scratch_dir() / name;
   fs::remove_all(p);
   fs::create_directories(p);
   return p.string();
