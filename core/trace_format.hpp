@@ -55,7 +55,8 @@ struct TraceHeader {
 
 // Where a capture sends its trace, pass by pass and slice by slice (a file, the cache simulator, both).
 // Passes begin in order; a pass's slices come in increasing, non-overlapping workgroup order, and each
-// slice's records are only valid during the call.
+// slice's records are only valid during the call. A capture writes a slice on a worker thread while the
+// device runs the next one: calls come one at a time, in that order, but not always from one thread.
 class TraceSink {
  public:
   virtual ~TraceSink() = default;

@@ -8,7 +8,12 @@
 
 #include <algorithm>
 #include <bit>
+#include <exception>
+#include <functional>
 #include <span>
+#include <thread>
+#include <utility>
+#include <vector>
 
 namespace hp {
 
@@ -45,6 +50,41 @@ uint64_t checked_buffer_bytes(const CaptureOptions& o, const vk::Context& ctx) {
   }
   return bytes;
 }
+
+// Writes a captured slice on a worker thread while the device runs the next one: the slice's records are
+// copied out of the trace buffer first (the next slice overwrites it), and the sink is only ever called
+// by one thread at a time, in slice order. wait() joins the write in flight and rethrows its error; the
+// destructor joins it too, so a capture that throws leaves no thread behind.
+class SliceWriter {
+ public:
+  explicit SliceWriter(trace::TraceSink& sink) : sink_(sink) {}
+  SliceWriter(const SliceWriter&) = delete;
+  SliceWriter& operator=(const SliceWriter&) = delete;
+  ~SliceWriter() {
+    if (thread_.joinable()) thread_.join();
+  }
+  void wait() {
+    if (thread_.joinable()) thread_.join();
+    if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
+  }
+  // Starts writing `records` of workgroups [first, end) of sink pass `pass` (after wait()).
+  void start(uint32_t pass, std::span<const gpu::TraceRecord> records, uint64_t first, uint64_t end) {
+    copy_.assign(records.begin(), records.end());
+    thread_ = std::thread([this, pass, first, end] {
+      try {
+        sink_.write_records(pass, std::span<const gpu::TraceRecord>(copy_), first, end);
+      } catch (...) {
+        error_ = std::current_exception();
+      }
+    });
+  }
+
+ private:
+  trace::TraceSink& sink_;
+  std::vector<gpu::TraceRecord> copy_;
+  std::thread thread_;
+  std::exception_ptr error_;
+};
 
 // The mapped trace buffer and what one capture writes into it.
 struct Slicer {
@@ -92,6 +132,14 @@ struct Slicer {
       const double m = density <= 0 ? 2.0 * n : std::min(aim / density, 2.0 * n);
       return uint32_t(std::clamp<double>(std::floor(m), 1, units));
     };
+    // A slice is written while the next one runs; its progress call (which may stop the capture, e.g. for
+    // disk space) follows its write, before the next write starts.
+    SliceWriter writer(sink);
+    std::function<void()> written_progress;
+    const auto finish_write = [&] {
+      writer.wait();
+      if (written_progress) std::exchange(written_progress, nullptr)();
+    };
     uint32_t n_max = units;  // first try: the whole pass in one slice
     for (uint32_t unit = 0; unit < units;) {
       const uint32_t n = std::min(n_max, units - unit);
@@ -113,14 +161,20 @@ struct Slicer {
         ++cp.reruns;
         continue;
       }
-      sink.write_records(pass_index, std::span<const gpu::TraceRecord>(recs, count), unit * groups_per_unit,
-                         (unit + n) * groups_per_unit);
+      finish_write();
+      writer.start(pass_index, std::span<const gpu::TraceRecord>(recs, count), unit * groups_per_unit,
+                   (unit + n) * groups_per_unit);
       cp.records += count;
       ++cp.slices;
       unit += n;
       n_max = sized(n, count, unit);
-      if (options.on_slice) options.on_slice(step.name, cp.records, unit, units);
+      if (options.on_slice) {
+        written_progress = [&on_slice = options.on_slice, name = step.name, records = cp.records, unit, units] {
+          on_slice(name, records, unit, units);
+        };
+      }
     }
+    finish_write();
     if (step.finish) step.finish();
     return cp;
   }

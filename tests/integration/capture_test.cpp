@@ -10,10 +10,13 @@
 #include "scene/load.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <map>
 #include <set>
+#include <thread>
 #include <tuple>
 
 namespace hp {
@@ -249,6 +252,62 @@ TEST(Capture, SoupLayoutReadsTheSoupOnly) {
   EXPECT_TRUE(buffers.count(HP_TBUF_SOUP_NORMALS)) << "reflection hits shade with the soup's normals";
   EXPECT_TRUE(buffers.count(HP_TBUF_REFLECTION));
   fs::remove(c.file);
+}
+
+// Slices are written on a worker thread while the device runs the next one: the sink still sees one call
+// at a time in slice order, each slice's progress call follows its write, and an error thrown by the sink
+// comes out of render_captured.
+struct SliceLog final : trace::TraceSink {
+  std::vector<std::pair<uint64_t, uint64_t>> slices;
+  uint64_t records = 0;
+  size_t fail_at = 0;  // 1-based slice that throws; 0: none
+  std::atomic<int> inside{0};
+  bool overlapped_calls = false;
+  uint32_t begin_pass(const trace::PassInfo&) override { return 0; }
+  void write_records(uint32_t, std::span<const gpu::TraceRecord> r, uint64_t first, uint64_t end) override {
+    overlapped_calls |= inside.fetch_add(1) != 0;
+    slices.emplace_back(first, end);
+    records += r.size();
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));  // a slow sink: the next slice runs meanwhile
+    inside.fetch_sub(1);
+    if (fail_at && slices.size() == fail_at) throw InputError("sink: disk full");
+  }
+};
+
+TEST(Capture, SlicesAreWrittenInOrderBesideTheNextSliceAndTheirErrorsSurface) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = small(96, 112);
+  s.rt.reflections = false;
+  Frame frame(*ctx, scene, scene.camera, s);
+  CaptureOptions o;
+  o.final_image = false;
+  o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * 60000;  // several slices
+  SliceLog log;
+  std::vector<std::pair<uint64_t, uint64_t>> progress;  // (records, rows done) at each progress call
+  o.on_slice = [&](const std::string&, uint64_t records, uint64_t done, uint64_t) {
+    EXPECT_EQ(records, log.records) << "a slice's progress call follows its write";
+    progress.emplace_back(records, done);
+  };
+  const std::vector<CapturedPass> passes = frame.render_captured(o, log);
+  ASSERT_EQ(passes.size(), 1u);
+  ASSERT_GE(log.slices.size(), 3u);
+  EXPECT_FALSE(log.overlapped_calls);
+  for (size_t i = 1; i < log.slices.size(); ++i) EXPECT_EQ(log.slices[i].first, log.slices[i - 1].second);
+  EXPECT_EQ(log.records, passes[0].records);
+  ASSERT_EQ(progress.size(), log.slices.size());
+  EXPECT_EQ(progress.back().second, 14u);
+
+  SliceLog failing;
+  failing.fail_at = 2;
+  o.on_slice = nullptr;
+  try {
+    frame.render_captured(o, failing);
+    FAIL() << "expected the sink's error";
+  } catch (const InputError& e) {
+    EXPECT_STREQ(e.what(), "sink: disk full");
+  }
+  EXPECT_EQ(failing.slices.size(), 2u) << "no slice is written after the one that failed";
 }
 
 TEST(Capture, OneRowThatCannotFitIsAClearError) {
