@@ -96,7 +96,8 @@ struct Slicer {
   const CaptureOptions& options;
 
   // Captures one dispatch in slices: of workgroup rows for a 2D pass, of groups for a 1D one (the consume
-  // pass, the sort kernels). The whole dispatch is tried first; a slice that overflows is re-run halved.
+  // pass, the sort kernels). The whole dispatch is tried first; a slice that overflows is re-run smaller,
+  // sized from its count.
   CapturedPass capture(const TracedStep& step) const {
     const glm::uvec2 wg = step.workgroups();
     trace::PassInfo info;
