@@ -519,21 +519,21 @@ uint64_t TraceReader::read_slices_indexed(uint32_t pass, const IndexedSliceFn& c
   buffers[0].reserve(largest);
   if (order.size() > 1) buffers[1].reserve(largest);
   std::exception_ptr read_error;
-  auto read_into = [&](size_t k, RecordBuffer& into) {
+  auto read_into = [&](size_t k, size_t slot) {
     try {
       const Chunk& c = *order[k];
-      std::vector<uint32_t>& index = group_begin[&into - buffers];
+      std::vector<uint32_t>& index = group_begin[slot];
       index.resize(c.coded_bytes > 0 ? c.end_workgroup - c.first_workgroup + 1 : 0);
-      read_chunk(c, into.reserve(c.count), index.empty() ? nullptr : index.data());
+      read_chunk(c, buffers[slot].reserve(c.count), index.empty() ? nullptr : index.data());
     } catch (...) {
       read_error = std::current_exception();
     }
   };
-  if (!order.empty()) read_into(0, buffers[0]);
+  if (!order.empty()) read_into(0, 0);
   for (size_t k = 0; k < order.size(); ++k) {
     if (read_error) std::rethrow_exception(read_error);
     std::thread next;
-    if (k + 1 < order.size()) next = std::thread(read_into, k + 1, std::ref(buffers[(k + 1) % 2]));
+    if (k + 1 < order.size()) next = std::thread(read_into, k + 1, (k + 1) % 2);
     try {
       const std::vector<uint32_t>& index = group_begin[k % 2];
       consume(std::span<const TraceRecord>(buffers[k % 2].reserve(0), order[k]->count), order[k]->first_workgroup,

@@ -27,6 +27,7 @@
 #include "frame.hpp"
 #include "passes/ray_batch.hpp"
 #include "scene/load.hpp"
+#include "timing/stats.hpp"
 #include "trace/trace_file.hpp"
 #include "vk/context.hpp"
 
@@ -222,8 +223,7 @@ void capture_pass(benchmark::State& state, const std::string& spec, Pass pass) {
     state.SkipWithError("the pass did not run");
     return;
   }
-  std::sort(untraced.begin(), untraced.end());
-  const double untraced_s = (untraced[(untraced.size() - 1) / 2] + untraced[untraced.size() / 2]) / 2;
+  const double untraced_s = quantile(untraced, 0.5);
   CaptureOptions o;
   o.shadows = pass == Pass::shadows;
   o.reflections = pass == Pass::reflections;
