@@ -12,6 +12,12 @@ enum class Granularity {
              ///< triangle by triangle, as the study's Unity code did
 };
 
+/// How the built tree is laid out for the traversals (bvh/wide.hpp). The builder's tree is the same.
+enum class NodeLayout {
+  binary32,  ///< the study's 32-byte binary node (gpu::BvhNode): the default, what the study's scenarios use
+  wide4,     ///< 64-byte 4-wide nodes with 8-bit quantized child boxes (gpu::WideNode), leaves of <= 15
+};
+
 struct BuildOptions {
   /// Number of SAH buckets per binned axis, 2..1024 (a node of n < buckets primitives uses n). Ignored by
   /// the full sweep.
@@ -33,6 +39,8 @@ struct BuildOptions {
   int threads = 0;
   /// Largest number of interior nodes above any leaf, 1..HP_BVH_STACK_SIZE (which it defaults to).
   int max_depth = HP_BVH_STACK_SIZE;
+  /// Layout the traversals read; not an input of the build itself.
+  NodeLayout node_layout = NodeLayout::binary32;
 };
 
 }  // namespace hp::bvh

@@ -48,6 +48,26 @@ HP_CHECK_LAYOUT(BvhNode, prim_axis, 28);
 // needs more (its depth is bounded so that stack use <= HP_BVH_STACK_SIZE).
 #define HP_BVH_STACK_SIZE 64
 
+// BVH node of the 4-wide layout (node layout "wide4", bvh::NodeLayout): 64 bytes, four 16-byte texels. A wide
+// node stands for a binary node P and holds P's grandchildren in slots [LL, LR, RL, RR], L = P's first child
+// (P + 1), R = its second; a child of P that is a leaf takes slot LL (RL) itself, its partner slot left empty.
+// Visiting the slots in the order the ray's signs on the split axes of P, L and R give is the binary order.
+//   w[0].xyz: the quantization origin (P's box min, float bits);
+//   w[0].w:   bits 0-23 an 8-bit float exponent per axis (the axis' step is 2^(e - 127)), bits 24-25 P's split
+//             axis, 26-27 L's, 28-29 R's;
+//   w[1] = (lo.x, hi.x, lo.y, hi.y), w[2] = (lo.z, hi.z, 0, 0): byte i of each word is slot i's bound in steps,
+//             decoded as origin + q * step (one rounding; q * step is exact) and never inside the binary box;
+//   w[3]:     the slots' child words: 0 = empty; interior = wide node index; leaf = HP_WIDE_LEAF |
+//             count << HP_WIDE_COUNT_SHIFT | first primitive (count 1..15, as the binary leaf's offset/count).
+struct WideNode {
+  uvec4 w[4];
+};
+HP_CHECK_SIZE(WideNode, 64);
+#define HP_WIDE_LEAF 0x80000000u
+#define HP_WIDE_COUNT_SHIFT 27u
+#define HP_WIDE_COUNT_MASK 15u
+#define HP_WIDE_FIRST_MASK 0x07FFFFFFu
+
 // ---------------------------------------------------------------------------------------------------------
 // Frame-wide constants (uniform buffer, std140-compatible: only vec4/mat4 members).
 struct FrameUniforms {

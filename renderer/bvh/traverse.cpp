@@ -6,13 +6,9 @@
 #include "bvh/traverse_detail.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
-#include <exception>
 #include <limits>
-#include <mutex>
 #include <stdexcept>
-#include <thread>
 
 namespace hp::bvh {
 namespace {
@@ -129,47 +125,14 @@ Hit intersect_any(const Bvh& bvh, const LeafOrderTriangles& tris, const Ray& ray
 
 std::vector<Hit> cast_rays(const Bvh& bvh, const LeafOrderTriangles& tris, std::span<const Ray> rays, HitMode mode,
                            int threads, TraversalStats* stats) {
-  std::vector<Hit> hits(rays.size());
-  const int workers =
-      std::max(1, std::min<int>(threads > 0 ? threads : static_cast<int>(std::thread::hardware_concurrency()),
-                                static_cast<int>(rays.size() / 1024 + 1)));
-  // Rays are handed out in blocks from a shared counter, so a slow region does not idle the other workers.
-  constexpr std::size_t kBlock = 1024;
-  std::atomic<std::size_t> next{0};
-  std::vector<TraversalStats> partial(workers);
-  auto work_block = [&](int w) {
-    TraversalStats local;
-    for (;;) {
-      const std::size_t begin = next.fetch_add(kBlock, std::memory_order_relaxed);
-      if (begin >= rays.size()) break;
-      const std::size_t end = std::min(rays.size(), begin + kBlock);
-      for (std::size_t i = begin; i < end; ++i) {
-        hits[i] = mode == HitMode::closest ? traverse<false>(bvh, tris, rays[i], &local)
-                                           : traverse<true>(bvh, tris, rays[i], &local);
-      }
-    }
-    partial[w] = local;
-  };
-  std::exception_ptr error;
-  std::mutex error_mutex;
-  auto work = [&](int w) noexcept {
-    try {
-      work_block(w);
-    } catch (...) {
-      std::lock_guard lock(error_mutex);
-      error = std::current_exception();
-      next.store(rays.size());  // stop the other workers early
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int w = 1; w < workers; ++w) pool.emplace_back(work, w);
-  work(0);
-  for (auto& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
-  if (stats) {
-    for (const auto& p : partial) *stats += p;
+  if (mode == HitMode::closest) {
+    return detail::cast_parallel(rays, threads, stats, [&](const Ray& ray, TraversalStats* local) {
+      return traverse<false>(bvh, tris, ray, local);
+    });
   }
-  return hits;
+  return detail::cast_parallel(rays, threads, stats, [&](const Ray& ray, TraversalStats* local) {
+    return traverse<true>(bvh, tris, ray, local);
+  });
 }
 
 bool intersect_triangle(const Ray& ray, const Triangle& tri, Hit& hit) {

@@ -5,9 +5,17 @@
 
 #include "bvh/geometry.hpp"
 
+#include "bvh/traverse.hpp"
+
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <exception>
 #include <limits>
+#include <mutex>
+#include <span>
+#include <thread>
+#include <vector>
 
 namespace hp::bvh::detail {
 
@@ -128,6 +136,50 @@ inline bool watertight(const PreparedRay& r, const Triangle& tri, float& t, floa
   u = V / det;
   v = W / det;
   return true;
+}
+
+/// Casts `rays` on `threads` workers (0 = all cores) with `trace(ray, stats) -> Hit`; hit i belongs to rays[i],
+/// `stats` (optional) receives the sum over all rays. Rays are handed out in blocks from a shared counter, so
+/// a slow region does not idle the other workers; the first exception a worker throws is rethrown.
+template <typename Trace>
+std::vector<Hit> cast_parallel(std::span<const Ray> rays, int threads, TraversalStats* stats, Trace trace) {
+  std::vector<Hit> hits(rays.size());
+  const int workers =
+      std::max(1, std::min<int>(threads > 0 ? threads : static_cast<int>(std::thread::hardware_concurrency()),
+                                static_cast<int>(rays.size() / 1024 + 1)));
+  constexpr std::size_t kBlock = 1024;
+  std::atomic<std::size_t> next{0};
+  std::vector<TraversalStats> partial(workers);
+  auto work_block = [&](int w) {
+    TraversalStats local;
+    for (;;) {
+      const std::size_t begin = next.fetch_add(kBlock, std::memory_order_relaxed);
+      if (begin >= rays.size()) break;
+      const std::size_t end = std::min(rays.size(), begin + kBlock);
+      for (std::size_t i = begin; i < end; ++i) hits[i] = trace(rays[i], &local);
+    }
+    partial[w] = local;
+  };
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  auto work = [&](int w) noexcept {
+    try {
+      work_block(w);
+    } catch (...) {
+      std::lock_guard lock(error_mutex);
+      error = std::current_exception();
+      next.store(rays.size());  // stop the other workers early
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int w = 1; w < workers; ++w) pool.emplace_back(work, w);
+  work(0);
+  for (auto& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+  if (stats) {
+    for (const auto& p : partial) *stats += p;
+  }
+  return hits;
 }
 
 }  // namespace hp::bvh::detail

@@ -1,0 +1,287 @@
+// Compiled with -ffp-contract=off (CMakeLists.txt): the box decoding, the slab test and the triangle test
+// must round as the shader's `precise` code does (shaders/common/traversal.glsl, hp_trace_wide).
+#include "bvh/wide.hpp"
+
+#include "bvh/traverse_detail.hpp"
+#include "error.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace hp::bvh {
+namespace {
+
+using detail::prepare;
+using detail::PreparedRay;
+using detail::slab;
+using detail::watertight;
+
+/// The step of an axis with biased exponent e (1..254): 2^(e - 127), a normal float.
+float axis_step(uint32_t e) { return std::bit_cast<float>(e << 23); }
+
+/// A quantized bound decoded: origin + q * step, one rounding (q * step is exact: q has 8 bits).
+float decode(float origin, uint32_t q, float step) { return origin + static_cast<float>(q) * step; }
+
+/// The smallest exponent whose 255 steps from `lo` decode to at least `hi` (so every box inside the frame
+/// gets bounds in 0..255).
+uint32_t frame_exponent(float lo, float hi) {
+  const double extent = static_cast<double>(hi) - static_cast<double>(lo);
+  for (uint32_t e = 1; e < 255; ++e) {
+    if (255.0 * std::ldexp(1.0, static_cast<int>(e) - 127) >= extent && decode(lo, 255, axis_step(e)) >= hi) {
+      return e;
+    }
+  }
+  return 254;  // not reached for finite boxes: 255 * 2^127 decodes to +inf
+}
+
+/// Conservative 8-bit bounds of [blo, bhi] in the frame (origin, step): the largest q whose decoded value is
+/// <= blo and the smallest whose decoded value is >= bhi. Rounding is monotonic, so decoded values compare
+/// with the float bounds exactly as they are computed on the GPU.
+void quantize(float origin, float step, float blo, float bhi, uint32_t& qlo, uint32_t& qhi) {
+  const double s = static_cast<double>(step);
+  const double glo = std::floor((static_cast<double>(blo) - origin) / s);
+  const double ghi = std::ceil((static_cast<double>(bhi) - origin) / s);
+  qlo = static_cast<uint32_t>(std::clamp(glo, 0.0, 255.0));
+  while (qlo > 0 && decode(origin, qlo, step) > blo) --qlo;
+  while (qlo < 255 && decode(origin, qlo + 1, step) <= blo) ++qlo;
+  qhi = static_cast<uint32_t>(std::clamp(ghi, 0.0, 255.0));
+  while (qhi < 255 && decode(origin, qhi, step) < bhi) ++qhi;
+  while (qhi > 0 && decode(origin, qhi - 1, step) >= bhi) --qhi;
+  if (decode(origin, qlo, step) > blo || decode(origin, qhi, step) < bhi) {
+    throw std::logic_error("make_wide: a child box does not fit its frame");
+  }
+}
+
+class Converter {
+ public:
+  explicit Converter(const Bvh& bvh, WideBvh& out) : bvh_(bvh), out_(out) {}
+
+  void run() {
+    out_.nodes.reserve(bvh_.nodes.size() / 3 + 1);
+    if (bvh_.prim_ids.empty()) {
+      out_.nodes.push_back(gpu::WideNode{});  // four empty slots: every ray misses at once
+      return;
+    }
+    const gpu::BvhNode& root = bvh_.nodes[0];
+    if (node_is_leaf(root)) {
+      // One slot: the root leaf, framed by its own box.
+      out_.nodes.push_back(gpu::WideNode{});
+      const int slots[4] = {0, -1, -1, -1};
+      fill(0, root, slots, 0, 0, 0, 0);
+      return;
+    }
+    emit(0, 0);
+  }
+
+ private:
+  /// Emits the wide node of binary interior node p; `stack_before` = entries its ancestors may have pushed.
+  uint32_t emit(uint32_t p, int stack_before) {
+    const gpu::BvhNode& n = bvh_.nodes[p];
+    const uint32_t l = p + 1, r = static_cast<uint32_t>(n.offset);
+    int slots[4] = {-1, -1, -1, -1};
+    uint32_t axes[2] = {0, 0};
+    const uint32_t sides[2] = {l, r};
+    for (int s = 0; s < 2; ++s) {
+      const gpu::BvhNode& c = bvh_.nodes[sides[s]];
+      if (node_is_leaf(c)) {
+        slots[2 * s] = static_cast<int>(sides[s]);
+      } else {
+        slots[2 * s] = static_cast<int>(sides[s] + 1);
+        slots[2 * s + 1] = c.offset;
+        axes[s] = node_axis(c);
+      }
+    }
+    const uint32_t index = static_cast<uint32_t>(out_.nodes.size());
+    out_.nodes.push_back(gpu::WideNode{});
+    int occupied = 0;
+    for (int s : slots) occupied += s >= 0 ? 1 : 0;
+    const int stack_here = stack_before + occupied - 1;
+    fill(index, n, slots, node_axis(n), axes[0], axes[1], stack_here);
+    for (int k = 0; k < 4; ++k) {
+      if (slots[k] < 0 || node_is_leaf(bvh_.nodes[slots[k]])) continue;
+      const uint32_t child = emit(static_cast<uint32_t>(slots[k]), stack_here);
+      out_.nodes[index].w[3][k] = child;
+    }
+    return index;
+  }
+
+  /// Writes wide node `index`: frame = `frame`'s box, the slots' quantized boxes, leaf words (interior
+  /// words are set by emit once the child exists).
+  void fill(uint32_t index, const gpu::BvhNode& frame, const int (&slots)[4], uint32_t ax_p, uint32_t ax_l,
+            uint32_t ax_r, int stack_here) {
+    if (stack_here > HP_BVH_STACK_SIZE) {
+      throw InputError("node layout wide4: the tree needs " + std::to_string(stack_here) +
+                       " traversal stack entries, over HP_BVH_STACK_SIZE (" + std::to_string(HP_BVH_STACK_SIZE) +
+                       "); lower the BVH's depth bound (max_depth)");
+    }
+    out_.stack_need = std::max(out_.stack_need, stack_here);
+    gpu::WideNode w{};
+    uint32_t e[3];
+    for (int a = 0; a < 3; ++a) e[a] = frame_exponent(frame.bmin[a], frame.bmax[a]);
+    w.w[0] = glm::uvec4(std::bit_cast<uint32_t>(frame.bmin.x), std::bit_cast<uint32_t>(frame.bmin.y),
+                        std::bit_cast<uint32_t>(frame.bmin.z),
+                        e[0] | e[1] << 8 | e[2] << 16 | ax_p << 24 | ax_l << 26 | ax_r << 28);
+    for (int k = 0; k < 4; ++k) {
+      if (slots[k] < 0) continue;
+      const gpu::BvhNode& c = bvh_.nodes[slots[k]];
+      for (int a = 0; a < 3; ++a) {
+        uint32_t qlo, qhi;
+        quantize(frame.bmin[a], axis_step(e[a]), c.bmin[a], c.bmax[a], qlo, qhi);
+        // lo.x, hi.x, lo.y, hi.y in w[1]; lo.z, hi.z in w[2].
+        const int word = 2 * a;
+        w.w[1 + word / 4][word % 4] |= qlo << (8 * k);
+        w.w[1 + (word + 1) / 4][(word + 1) % 4] |= qhi << (8 * k);
+      }
+      if (node_is_leaf(c)) {
+        const uint32_t count = node_count(c), first = static_cast<uint32_t>(c.offset);
+        if (count > HP_WIDE_COUNT_MASK) {
+          throw InputError("node layout wide4: a leaf holds " + std::to_string(count) +
+                           " primitives, over the layout's 15 (use a BVH leaf size of at most 15)");
+        }
+        if (first > HP_WIDE_FIRST_MASK) {
+          throw InputError("node layout wide4: primitive slot " + std::to_string(first) + " needs more than 27 bits");
+        }
+        w.w[3][k] = HP_WIDE_LEAF | count << HP_WIDE_COUNT_SHIFT | first;
+      }
+    }
+    out_.nodes[index] = w;
+  }
+
+  const Bvh& bvh_;
+  WideBvh& out_;
+};
+
+inline bool neg(const PreparedRay& r, uint32_t axis) { return r.near_at[axis] >= 4; }
+
+template <bool kAny>
+Hit traverse(const WideBvh& bvh, const LeafOrderTriangles& lt, const Ray& ray, TraversalStats* stats) {
+  Hit best;
+  PreparedRay r;
+  if (bvh.nodes.empty() || !prepare(ray, r)) return best;
+  const bool objects = !lt.object_first.empty();
+  const gpu::WideNode* nodes = bvh.nodes.data();
+  const Triangle* tris = lt.triangles.data();
+  const uint32_t* scene = lt.scene_index.data();
+
+  float best_t = r.tmax;
+  uint32_t best_scene = UINT32_MAX;
+  uint64_t visited = 0, tested = 0;
+  uint32_t stack[HP_BVH_STACK_SIZE];
+  int sp = 0;
+  uint32_t entry = 0;  // the root, an interior node
+  for (;;) {
+    if ((entry & HP_WIDE_LEAF) != 0) {
+      uint32_t first = entry & HP_WIDE_FIRST_MASK;
+      uint32_t last = first + ((entry >> HP_WIDE_COUNT_SHIFT) & HP_WIDE_COUNT_MASK);
+      if (objects) {
+        first = lt.object_first[first];
+        last = lt.object_first[last];
+      }
+      for (uint32_t k = first; k < last; ++k) {
+        ++tested;
+        float t, u, v;
+        if (!watertight(r, tris[k], t, u, v)) continue;
+        if (!(t >= r.tmin)) continue;
+        if constexpr (kAny) {
+          if (!(t <= r.tmax)) continue;
+          best = Hit{static_cast<int32_t>(scene[k]), t, u, v};
+          sp = 0;  // occluded: nothing else matters
+          break;
+        } else {
+          if (t < best_t || (t == best_t && scene[k] < best_scene)) {
+            best_t = t;
+            best_scene = scene[k];
+            best = Hit{static_cast<int32_t>(scene[k]), t, u, v};
+          }
+        }
+      }
+    } else {
+      const gpu::WideNode& n = nodes[entry];
+      ++visited;
+      bool hit[4];
+      for (int k = 0; k < 4; ++k) {
+        glm::vec3 lo, hi;
+        wide_child_box(n, k, lo, hi);
+        const float box[8] = {lo.x, lo.y, lo.z, 0.0f, hi.x, hi.y, hi.z, 0.0f};
+        float tn, tf;
+        hit[k] = n.w[3][k] != 0 && slab(r, box, best_t, tn, tf);
+      }
+      // The binary order: the pair on the near side of P's split first, each pair by its own split axis.
+      const uint32_t meta = n.w[0].w;
+      const int l0 = neg(r, (meta >> 26) & 3) ? 1 : 0;
+      const int r0 = neg(r, (meta >> 28) & 3) ? 3 : 2;
+      int order[4] = {l0, 1 - l0, r0, 5 - r0};
+      if (neg(r, (meta >> 24) & 3)) order[0] = r0, order[1] = 5 - r0, order[2] = l0, order[3] = 1 - l0;
+      // The first hit child in that order is next; the other hit children are pushed, the last first.
+      bool have = false;
+      uint32_t next = 0;
+      for (int k = 3; k >= 0; --k) {
+        if (!hit[order[k]]) continue;
+        if (have) {
+          if (sp == HP_BVH_STACK_SIZE) throw std::logic_error("wide bvh traversal: stack overflow");
+          stack[sp++] = next;
+        }
+        next = n.w[3][order[k]];
+        have = true;
+      }
+      if (have) {
+        entry = next;
+        continue;
+      }
+    }
+    if (sp == 0) break;
+    entry = stack[--sp];
+  }
+  if (stats) {
+    stats->nodes_visited += visited;
+    stats->triangles_tested += tested;
+  }
+  return best;
+}
+
+}  // namespace
+
+WideBvh make_wide(const Bvh& bvh) {
+  WideBvh out;
+  Converter(bvh, out).run();
+  return out;
+}
+
+void wide_child_box(const gpu::WideNode& n, int slot, glm::vec3& bmin, glm::vec3& bmax) {
+  const uint32_t meta = n.w[0].w;
+  const uint32_t sh = 8u * static_cast<uint32_t>(slot);
+  for (int a = 0; a < 3; ++a) {
+    const float origin = std::bit_cast<float>(n.w[0][a]);
+    const float step = axis_step((meta >> (8 * a)) & 255u);
+    const int word = 2 * a;
+    const uint32_t qlo = (n.w[1 + word / 4][word % 4] >> sh) & 255u;
+    const uint32_t qhi = (n.w[1 + (word + 1) / 4][(word + 1) % 4] >> sh) & 255u;
+    bmin[a] = decode(origin, qlo, step);
+    bmax[a] = decode(origin, qhi, step);
+  }
+}
+
+Hit intersect_closest(const WideBvh& bvh, const LeafOrderTriangles& tris, const Ray& ray, TraversalStats* stats) {
+  return traverse<false>(bvh, tris, ray, stats);
+}
+
+Hit intersect_any(const WideBvh& bvh, const LeafOrderTriangles& tris, const Ray& ray, TraversalStats* stats) {
+  return traverse<true>(bvh, tris, ray, stats);
+}
+
+std::vector<Hit> cast_rays(const WideBvh& bvh, const LeafOrderTriangles& tris, std::span<const Ray> rays, HitMode mode,
+                           int threads, TraversalStats* stats) {
+  if (mode == HitMode::closest) {
+    return detail::cast_parallel(rays, threads, stats, [&](const Ray& ray, TraversalStats* local) {
+      return traverse<false>(bvh, tris, ray, local);
+    });
+  }
+  return detail::cast_parallel(rays, threads, stats, [&](const Ray& ray, TraversalStats* local) {
+    return traverse<true>(bvh, tris, ray, local);
+  });
+}
+
+}  // namespace hp::bvh
