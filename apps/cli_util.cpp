@@ -184,6 +184,9 @@ void FrameOptions::add_to(CLI::App* cmd) {
       ->check(CLI::Range(2, 1024))
       ->capture_default_str();
   cmd->add_option("--leaf-size", leaf_size, "largest BVH leaf")->check(CLI::Range(1, 1 << 20))->capture_default_str();
+  cmd->add_option("--node-layout", node_layout,
+                  "BVH nodes the compute traversal reads: binary32 (the study's) or wide4 (4-wide, quantized boxes)")
+      ->capture_default_str();
   cmd->add_option("--seed", seed, "seed of the reflection jitter")->capture_default_str();
   cmd->add_option("--reflection-path", reflection_path,
                   "direct (a thread per reflective pixel) or compact (append, sort, consume: the study's 4.2)")
@@ -233,6 +236,7 @@ FrameSettings FrameOptions::settings() const {
   }
   s.bvh.buckets = buckets;
   s.bvh.max_leaf_size = leaf_size;
+  s.bvh.node_layout = parse_node_layout(node_layout);
   s.rt.reflection_path = parse_reflection_path(reflection_path);
   s.rt.sort = parse_sort_key(sort);
   s.rt.writeback = parse_writeback(writeback);
@@ -241,6 +245,14 @@ FrameSettings FrameOptions::settings() const {
     throw InputError("--sort/--writeback apply to --reflection-path compact only");
   }
   apply_traversal_options(s.rt, traversal);
+  if (s.bvh.node_layout == bvh::NodeLayout::wide4) {
+    if (s.rt.traversal != Traversal::compute)
+      throw InputError("--node-layout wide4 applies to --traversal compute only");
+    if (s.bvh.max_leaf_size > 15) {
+      throw InputError("--node-layout wide4 holds leaves of at most 15 primitives: --leaf-size " +
+                       std::to_string(s.bvh.max_leaf_size));
+    }
+  }
   return s;
 }
 

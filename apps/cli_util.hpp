@@ -83,6 +83,7 @@ struct FrameOptions {
   std::string granularity = "triangle";
   int buckets = 12;
   int leaf_size = 4;
+  std::string node_layout = "binary32";
   uint32_t seed = 1;
   std::string reflection_path = "direct", sort = "none", writeback = "index";
   TraversalOptions traversal;

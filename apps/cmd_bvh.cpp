@@ -3,7 +3,8 @@
 // another ray tracer (formats in renderer/bvh/ray_io.hpp); with --gpu, casts them on the Vulkan device too,
 // through the passes' own traversal, times that and checks every ray against the reference.
 //   hybridprof bvh --scene S [--buckets N | --full-sweep] [--largest-axis-only] [--granularity triangle|object]
-//                  [--leaf-size K] [--threads T] [--export-triangles FILE] [--rays FILE --hits FILE [--any-hit]
+//                  [--leaf-size K] [--node-layout binary32|wide4] [--threads T] [--export-triangles FILE]
+//                  [--rays FILE --hits FILE [--any-hit]
 //                  [--gpu [--geometry indexed|soup] [--traversal compute|ray-query|pipeline [--as-layout L]
 //                  [--as-order O] [--as-compaction]] [--device D] [--validate]]]
 #include "apps/cli_util.hpp"
@@ -38,6 +39,7 @@ struct BvhArgs {
   bool largest_axis_only = false;
   std::string granularity = "triangle";
   int leaf_size = 4;
+  std::string node_layout = "binary32";
   int threads = 0;
   std::string export_triangles;
   std::string rays;
@@ -86,22 +88,23 @@ void print_build(const BvhArgs& a, const bvh::BuildOptions& o, const bvh::Bvh& t
   std::printf("\n");
 }
 
-// The rays through the reference traversal; the hits go to --hits.
-void cast_on_cpu(const BvhArgs& a, const bvh::Bvh& tree, const bvh::LeafOrderTriangles& lt,
-                 const std::vector<bvh::Ray>& rays) {
+// The rays through the reference traversal of the chosen node layout; the hits go to --hits.
+void cast_on_cpu(const BvhArgs& a, const RtGeometry& g, const std::vector<bvh::Ray>& rays) {
   bvh::TraversalStats ts;
   const auto cast_start = std::chrono::steady_clock::now();
   const std::vector<bvh::Hit> hits =
-      bvh::cast_rays(tree, lt, rays, a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest, a.threads, &ts);
+      cast_reference(g, rays, a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest, a.threads, &ts);
   const double cast_ms = ms_since(cast_start);
   bvh::write_hits(a.hits, hits);
   std::size_t hit_count = 0;
   for (const auto& h : hits) hit_count += h.hit();
   const double n = rays.empty() ? 1.0 : static_cast<double>(rays.size());
-  std::printf("rays: %zu (%s), %zu hits (%.2f%%), %.2f ms (%.2f M rays/s), %.1f nodes and %.1f triangles per ray\n",
-              rays.size(), a.any_hit ? "any hit" : "closest hit", hit_count, 100.0 * static_cast<double>(hit_count) / n,
-              cast_ms, cast_ms > 0 ? static_cast<double>(rays.size()) / cast_ms / 1e3 : 0.0,
-              static_cast<double>(ts.nodes_visited) / n, static_cast<double>(ts.triangles_tested) / n);
+  std::printf(
+      "rays: %zu (%s, %s nodes), %zu hits (%.2f%%), %.2f ms (%.2f M rays/s), %.1f nodes and %.1f triangles per ray\n",
+      rays.size(), a.any_hit ? "any hit" : "closest hit", to_string(g.node_layout), hit_count,
+      100.0 * static_cast<double>(hit_count) / n, cast_ms,
+      cast_ms > 0 ? static_cast<double>(rays.size()) / cast_ms / 1e3 : 0.0, static_cast<double>(ts.nodes_visited) / n,
+      static_cast<double>(ts.triangles_tested) / n);
   std::printf("hits written to %s\n", a.hits.c_str());
 }
 
@@ -148,9 +151,10 @@ void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeom
   for (int i = 0; i < 3; ++i) ms.push_back(double(tracer.trace(ctx, mode)) * 1e-6);
   std::sort(ms.begin(), ms.end());
   if (ms[1] > 0.0) {
-    std::printf("gpu: %s, %s traversal, %s layout: %.2f ms median of 3 (%.2f-%.2f) by timestamps, %.2f M rays/s\n",
-                ctx.info().name.c_str(), a.traversal.traversal.c_str(), a.geometry.c_str(), ms[1], ms[0], ms[2],
-                double(rays.size()) / ms[1] / 1e3);
+    std::printf(
+        "gpu: %s, %s traversal, %s layout, %s nodes: %.2f ms median of 3 (%.2f-%.2f) by timestamps, %.2f M rays/s\n",
+        ctx.info().name.c_str(), a.traversal.traversal.c_str(), a.geometry.c_str(), to_string(g.node_layout), ms[1],
+        ms[0], ms[2], double(rays.size()) / ms[1] / 1e3);
   } else {
     std::printf("gpu: %s, %s traversal, %s layout: no timestamps on this queue, not timed\n", ctx.info().name.c_str(),
                 a.traversal.traversal.c_str(), a.geometry.c_str());
@@ -164,7 +168,7 @@ void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeom
     }
     return;
   }
-  const BatchCheck check = check_against_reference(g.bvh, g.leaf, rays, mode, tracer.results(ctx));
+  const BatchCheck check = check_against_reference(g, rays, mode, tracer.results(ctx));
   for (const std::string& d : check.first_differences) std::printf("  differs: %s\n", d.c_str());
   std::printf("gpu vs reference: %zu of %zu rays equal (hit, t, u, v bit for bit; nodes and triangles per ray)\n",
               check.rays - check.differ, check.rays);
@@ -180,6 +184,13 @@ void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeom
 
 void run_bvh(const BvhArgs& a) {
   if (a.rays.empty() != a.hits.empty()) throw InputError("bvh: --rays and --hits go together");
+  if (a.node_layout == "wide4" && a.leaf_size > 15) {
+    throw InputError("bvh: --node-layout wide4 holds leaves of at most 15 primitives: --leaf-size " +
+                     std::to_string(a.leaf_size));
+  }
+  if (a.node_layout == "wide4" && a.traversal.traversal != "compute") {
+    throw InputError("bvh: --node-layout wide4 applies to --traversal compute only");
+  }
   RayTracingOptions checked;
   apply_traversal_options(checked, a.traversal);  // names a bad option first
   // Outputs and the device are checked before any work: a failure leaves no file of this run behind.
@@ -221,18 +232,25 @@ void run_bvh(const BvhArgs& a) {
   const auto build_start = std::chrono::steady_clock::now();
   bvh::Bvh tree = bvh::build_bvh(tris, o, objects);
   print_build(a, o, tree, tris.size(), ms_since(build_start));
+  RtGeometry g;
+  g.node_layout = parse_node_layout(a.node_layout);
+  if (g.node_layout == bvh::NodeLayout::wide4) {
+    const auto wide_start = std::chrono::steady_clock::now();
+    g.wide = bvh::make_wide(tree);
+    std::printf("wide4: %zu nodes (%.2f MiB, binary %.2f MiB), stack <= %d entries, converted in %.2f ms\n",
+                g.wide.nodes.size(), double(g.wide.nodes.size() * sizeof(gpu::WideNode)) / 1048576.0,
+                double(tree.nodes.size() * sizeof(gpu::BvhNode)) / 1048576.0, g.wide.stack_need, ms_since(wide_start));
+  }
 
   if (a.rays.empty()) return;
   const std::vector<bvh::Ray> rays = bvh::read_rays(a.rays);
-  bvh::LeafOrderTriangles lt = bvh::leaf_order(tree, tris);
+  g.leaf = bvh::leaf_order(tree, tris);
+  g.bvh = std::move(tree);
   // With a driver traversal --hits receives the driver's hits (trace_on_gpu), not the reference's.
-  if (a.traversal.traversal == "compute") cast_on_cpu(a, tree, lt, rays);
+  if (a.traversal.traversal == "compute") cast_on_cpu(a, g, rays);
   if (!a.gpu) return;
-  RtGeometry g;
   g.world = world;
   g.triangles = tris;
-  g.bvh = std::move(tree);
-  g.leaf = std::move(lt);
   trace_on_gpu(a, *ctx, scene, std::move(g), rays);
 }
 
@@ -255,6 +273,11 @@ void add_bvh_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--leaf-size", args->leaf_size, "largest leaf, in primitives")
       ->check(CLI::Range(1, (1 << 30) - 1))
+      ->capture_default_str();
+  cmd->add_option("--node-layout", args->node_layout,
+                  "nodes the traversals read: binary32 (the study's 32-byte nodes) or wide4 (64-byte 4-wide nodes, "
+                  "quantized boxes, leaves of at most 15)")
+      ->check(CLI::IsMember({"binary32", "wide4"}))
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "build and cast threads (0 = all cores)")
       ->check(CLI::Range(0, 1024))

@@ -14,6 +14,14 @@ GeometryLayout parse_geometry_layout(const std::string& name) {
 
 const char* to_string(GeometryLayout g) { return g == GeometryLayout::indexed ? "indexed" : "soup"; }
 
+bvh::NodeLayout parse_node_layout(const std::string& name) {
+  if (name == "binary32") return bvh::NodeLayout::binary32;
+  if (name == "wide4") return bvh::NodeLayout::wide4;
+  throw InputError("--node-layout " + name + ": unknown BVH node layout (choose binary32 or wide4)");
+}
+
+const char* to_string(bvh::NodeLayout l) { return l == bvh::NodeLayout::wide4 ? "wide4" : "binary32"; }
+
 ShadowOffset parse_shadow_offset(const std::string& name) {
   if (name == "normal-bias") return ShadowOffset::normal_bias;
   if (name == "robust") return ShadowOffset::robust;

@@ -16,6 +16,8 @@ enum class GeometryLayout {
 };
 GeometryLayout parse_geometry_layout(const std::string& name);  // throws InputError
 const char* to_string(GeometryLayout g);
+bvh::NodeLayout parse_node_layout(const std::string& name);  // throws InputError
+const char* to_string(bvh::NodeLayout l);
 
 enum class ShadowOffset { normal_bias, robust };
 enum class JitterMode { shared, per_thread };

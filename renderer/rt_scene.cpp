@@ -29,7 +29,9 @@ constexpr VkFormat kTriple = VK_FORMAT_R32G32B32_UINT;  // a vertex, or a triang
 
 RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, GeometryLayout layout, bool shading,
                  bool allow_geometry_texels, bool slot_map, bool bvh_nodes)
-    : layout_(layout), object_leaves_(g.bvh.granularity == bvh::Granularity::object) {
+    : layout_(layout),
+      object_leaves_(g.bvh.granularity == bvh::Granularity::object),
+      wide_nodes_(bvh_nodes && g.node_layout == bvh::NodeLayout::wide4) {
   const auto& leaf = g.leaf;
   const size_t slots = leaf.triangles.size();
   const uint64_t max_range = ctx.properties().limits.maxStorageBufferRange;
@@ -40,19 +42,25 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
                        std::to_string(max_range >> 20) + " MiB");
     }
   };
-  check_range("BVH node", g.bvh.nodes.size() * sizeof(gpu::BvhNode));
-  // The traversal fetches nodes as texels (traversal.glsl says why): two 16-byte texels per node.
+  // The node layout the traversal reads (a specialization constant): the study's binary nodes, or wide4.
+  const bool wide = wide_nodes_;
+  const uint64_t node_bytes =
+      wide ? g.wide.nodes.size() * sizeof(gpu::WideNode) : g.bvh.nodes.size() * sizeof(gpu::BvhNode);
+  check_range("BVH node", node_bytes);
+  // The traversal fetches nodes as texels (traversal.glsl says why): 16 bytes each.
   const uint64_t max_texels = ctx.properties().limits.maxTexelBufferElements;
-  if (g.bvh.nodes.size() * 2 > max_texels) {
-    throw InputError("scene '" + scene.name + "': the BVH's " + std::to_string(g.bvh.nodes.size()) + " nodes need " +
-                     std::to_string(g.bvh.nodes.size() * 2) + " texels, over this device's maxTexelBufferElements of " +
+  if (node_bytes / 16 > max_texels) {
+    const size_t count = wide ? g.wide.nodes.size() : g.bvh.nodes.size();
+    throw InputError("scene '" + scene.name + "': the BVH's " + std::to_string(count) + " nodes need " +
+                     std::to_string(node_bytes / 16) + " texels, over this device's maxTexelBufferElements of " +
                      std::to_string(max_texels));
   }
+  constexpr VkBufferUsageFlags kNodeUsage = kStorage | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT;
   if (bvh_nodes) {
-    uploaded_bytes_ += g.bvh.nodes.size() * sizeof(gpu::BvhNode);
-    nodes_ = vk::upload_vector(ctx, g.bvh.nodes, kStorage | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT);
+    uploaded_bytes_ += node_bytes;
+    nodes_ = wide ? vk::upload_vector(ctx, g.wide.nodes, kNodeUsage) : vk::upload_vector(ctx, g.bvh.nodes, kNodeUsage);
   } else {
-    nodes_ = vk::Buffer(ctx, 48, kStorage | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);  // never read
+    nodes_ = vk::Buffer(ctx, 48, kNodeUsage, false);  // never read
   }
   node_texels_ = vk::BufferView(ctx, nodes_, VK_FORMAT_R32G32B32A32_UINT);
   object_first_ = object_leaves_ ? upload(ctx, leaf.object_first, uploaded_bytes_) : dummy(ctx);
@@ -169,10 +177,14 @@ void RtScene::write_traversal_bindings(vk::DescriptorSet& ds) const {
 }
 
 RtSpecialization::RtSpecialization(const RtScene& scene, uint32_t rt_flags, bool as_remap)
-    : values{scene.layout() == GeometryLayout::soup ? 1u : 0u, scene.object_leaves() ? 1u : 0u,
-             scene.geometry_texels() ? 1u : 0u, rt_flags, as_remap ? 1u : 0u},
-      entries{{0, 0, 4}, {1, 4, 4}, {2, 8, 4}, {3, 12, 4}, {4, 16, 4}},
-      info{5, entries, sizeof(values), values} {}
+    : values{scene.layout() == GeometryLayout::soup ? 1u : 0u,
+             scene.object_leaves() ? 1u : 0u,
+             scene.geometry_texels() ? 1u : 0u,
+             rt_flags,
+             as_remap ? 1u : 0u,
+             scene.wide_nodes() ? 1u : 0u},
+      entries{{0, 0, 4}, {1, 4, 4}, {2, 8, 4}, {3, 12, 4}, {4, 16, 4}, {5, 20, 4}},
+      info{6, entries, sizeof(values), values} {}
 
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
                                 const RtScene& scene, uint32_t rt_flags, bool as_remap) {

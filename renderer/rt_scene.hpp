@@ -28,6 +28,8 @@ class RtScene {
 
   GeometryLayout layout() const { return layout_; }
   bool object_leaves() const { return object_leaves_; }
+  /// The nodes are the wide4 layout (RtGeometry::node_layout; specialization constant 5), not the binary.
+  bool wide_nodes() const { return wide_nodes_; }
   /// The traversal fetches the geometry through texel views (positions(), indices(), soup() seen as
   /// R32G32B32_UINT, a vertex or a triangle's three indices per texel: bindings 29-31) rather than storage
   /// loads. Off where the device cannot read that format as a uniform texel buffer, a buffer exceeds
@@ -48,7 +50,8 @@ class RtScene {
   /// Every binding of shaders/common/rt_bindings.glsl 2..11; a buffer the configuration does not read is
   /// a small dummy (4 bytes, 48 where it is also seen as texels).
   const vk::Buffer& nodes() const { return nodes_; }
-  /// The node buffer as RGBA32UI texels, two per node (binding 26: the traversal's fetches).
+  /// The node buffer as RGBA32UI texels, two per binary node or four per wide node (binding 26: the
+  /// traversal's fetches).
   VkBufferView node_texels() const { return node_texels_.handle(); }
   const vk::Buffer& positions() const { return positions_; }
   const vk::Buffer& indices() const { return indices_; }
@@ -70,6 +73,7 @@ class RtScene {
  private:
   GeometryLayout layout_;
   bool object_leaves_;
+  bool wide_nodes_;
   uint64_t uploaded_bytes_ = 0;
   vk::Buffer nodes_, positions_, indices_, soup_, object_first_, slot_scene_, normals_, soup_normals_, slot_material_,
       materials_, texel_dummy_;
@@ -82,13 +86,14 @@ class RtScene {
 /// The specialization of a ray-tracing shader for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =
 /// soup layout, 1 = object leaves, 2 = geometry fetched as texels), for what a frame records (constant_id 3 =
 /// `rt_flags`, HP_RT_COUNTERS | HP_RT_DUMP_RAYS | HP_RT_REFLECTION_SHADOWS ...) and for the driver traversal's
-/// primitive -> slot table (constant_id 4, common/driver_traversal.glsl). Not copyable: `info` points into it.
+/// primitive -> slot table (constant_id 4, common/driver_traversal.glsl) and for the node layout (constant_id 5 =
+/// wide4 nodes). Not copyable: `info` points into it.
 struct RtSpecialization {
   RtSpecialization(const RtScene& scene, uint32_t rt_flags, bool as_remap);
   RtSpecialization(const RtSpecialization&) = delete;
   RtSpecialization& operator=(const RtSpecialization&) = delete;
-  uint32_t values[5];
-  VkSpecializationMapEntry entries[5];
+  uint32_t values[6];
+  VkSpecializationMapEntry entries[6];
   VkSpecializationInfo info;
 };
 

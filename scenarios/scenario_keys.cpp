@@ -313,6 +313,24 @@ std::vector<ScenarioKey> make_keys() {
                return json(s.frame.bvh.granularity == bvh::Granularity::object ? "object" : "triangle");
              };
            }));
+  k.push_back(with(choice("bvh.node_layout", {"binary32", "wide4"}, "binary32",
+                          "nodes the compute traversal reads: the study's 32-byte binary nodes, or 64-byte 4-wide "
+                          "nodes with quantized child boxes (leaves of at most 15)"),
+                   [&](auto& e) {
+                     e.apply = [](S& s, const json& v, C c) {
+                       s.frame.bvh.node_layout = parse_node_layout(v.get<std::string>());
+                       if (s.frame.bvh.node_layout != bvh::NodeLayout::wide4) return;
+                       if (s.frame.rt.traversal != Traversal::compute) {
+                         c.fail("bvh.node_layout", "wide4 applies to \"traversal\": \"compute\" only");
+                       }
+                       if (s.frame.bvh.max_leaf_size > 15) {
+                         c.fail("bvh.node_layout", "wide4 holds leaves of at most 15 primitives (bvh.leaf_size is " +
+                                                       std::to_string(s.frame.bvh.max_leaf_size) + ")");
+                       }
+                     };
+                     e.canonical = [](const S& s) { return json(to_string(s.frame.bvh.node_layout)); };
+                     e.canonical_when = [](const S& s) { return s.frame.bvh.node_layout != bvh::NodeLayout::binary32; };
+                   }));
   k.push_back(
       with(number("bvh.traversal_cost", 1e-6, 1e6, 0.5, "SAH cost of a traversal step (a test costs 1)"), [](auto& e) {
         e.apply = [](S& s, const json& v, C) { s.frame.bvh.traversal_cost = float(v.get<double>()); };

@@ -29,12 +29,14 @@ float decode(float origin, uint32_t q, float step) { return origin + static_cast
 /// gets bounds in 0..255).
 uint32_t frame_exponent(float lo, float hi) {
   const double extent = static_cast<double>(hi) - static_cast<double>(lo);
-  for (uint32_t e = 1; e < 255; ++e) {
-    if (255.0 * std::ldexp(1.0, static_cast<int>(e) - 127) >= extent && decode(lo, 255, axis_step(e)) >= hi) {
-      return e;
-    }
+  int e = 1;
+  if (extent > 0.0) {
+    int x = 0;
+    std::frexp(extent / 255.0, &x);  // extent / 255 <= 2^x: a step of 2^(x - 1) may do too
+    e = std::clamp(x - 1 + 127, 1, 254);
   }
-  return 254;  // not reached for finite boxes: 255 * 2^127 decodes to +inf
+  while (e < 254 && !(255.0 * std::ldexp(1.0, e - 127) >= extent && decode(lo, 255, axis_step(e)) >= hi)) ++e;
+  return static_cast<uint32_t>(e);
 }
 
 /// Conservative 8-bit bounds of [blo, bhi] in the frame (origin, step): the largest q whose decoded value is

@@ -157,22 +157,20 @@ std::vector<RayBatchTracer::Result> RayBatchTracer::results(vk::Context& ctx) co
   return out;
 }
 
-BatchCheck check_against_reference(const bvh::Bvh& bvh, const bvh::LeafOrderTriangles& tris,
-                                   std::span<const bvh::Ray> rays, bvh::HitMode mode,
+BatchCheck check_against_reference(const RtGeometry& g, std::span<const bvh::Ray> rays, bvh::HitMode mode,
                                    std::span<const RayBatchTracer::Result> gpu, size_t keep) {
   if (gpu.size() != rays.size()) throw std::logic_error("check_against_reference: one GPU answer per ray expected");
   const auto bits = [](float f) { return std::bit_cast<uint32_t>(f); };
   BatchCheck c;
   for (size_t i = 0; i < rays.size(); ++i) {
     bvh::TraversalStats st;
-    const bvh::Hit ref = mode == bvh::HitMode::any ? bvh::intersect_any(bvh, tris, rays[i], &st)
-                                                   : bvh::intersect_closest(bvh, tris, rays[i], &st);
-    const RayBatchTracer::Result& g = gpu[i];
+    const bvh::Hit ref = trace_reference(g, rays[i], mode, &st);
+    const RayBatchTracer::Result& gr = gpu[i];
     ++c.rays;
     c.hits += ref.hit() ? 1 : 0;
-    const bool same = g.hit.prim == ref.prim && bits(g.hit.t) == bits(ref.t) && bits(g.hit.u) == bits(ref.u) &&
-                      bits(g.hit.v) == bits(ref.v) && g.stats.nodes_visited == st.nodes_visited &&
-                      g.stats.triangles_tested == st.triangles_tested;
+    const bool same = gr.hit.prim == ref.prim && bits(gr.hit.t) == bits(ref.t) && bits(gr.hit.u) == bits(ref.u) &&
+                      bits(gr.hit.v) == bits(ref.v) && gr.stats.nodes_visited == st.nodes_visited &&
+                      gr.stats.triangles_tested == st.triangles_tested;
     if (same) continue;
     ++c.differ;
     if (c.first_differences.size() < keep) {
@@ -182,9 +180,9 @@ BatchCheck check_against_reference(const bvh::Bvh& bvh, const bvh::LeafOrderTria
                     "ray %zu: o=(%.9g, %.9g, %.9g) d=(%.9g, %.9g, %.9g) [%.9g, %.9g]: "
                     "gpu prim %d t %.9g u %.9g v %.9g, %llu nodes, %llu triangles; "
                     "reference prim %d t %.9g u %.9g v %.9g, %llu nodes, %llu triangles",
-                    i, r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax, g.hit.prim,
-                    g.hit.t, g.hit.u, g.hit.v, (unsigned long long)g.stats.nodes_visited,
-                    (unsigned long long)g.stats.triangles_tested, ref.prim, ref.t, ref.u, ref.v,
+                    i, r.origin.x, r.origin.y, r.origin.z, r.dir.x, r.dir.y, r.dir.z, r.tmin, r.tmax, gr.hit.prim,
+                    gr.hit.t, gr.hit.u, gr.hit.v, (unsigned long long)gr.stats.nodes_visited,
+                    (unsigned long long)gr.stats.triangles_tested, ref.prim, ref.t, ref.u, ref.v,
                     (unsigned long long)st.nodes_visited, (unsigned long long)st.triangles_tested);
       c.first_differences.push_back(line);
     }

@@ -5,6 +5,7 @@
 
 #include "accel_structure.hpp"
 #include "bvh/traverse.hpp"
+#include "rt_geometry.hpp"
 #include "rt_scene.hpp"
 #include "vk/pipeline.hpp"
 #include "vk/rt_pipeline.hpp"
@@ -61,8 +62,8 @@ struct BatchCheck {
   size_t rays = 0, hits = 0, differ = 0;
   std::vector<std::string> first_differences;  ///< one line per differing ray, the first `keep` of them
 };
-BatchCheck check_against_reference(const bvh::Bvh& bvh, const bvh::LeafOrderTriangles& tris,
-                                   std::span<const bvh::Ray> rays, bvh::HitMode mode,
+/// The reference is trace_reference: the C++ traversal of the node layout the scene was uploaded with.
+BatchCheck check_against_reference(const RtGeometry& g, std::span<const bvh::Ray> rays, bvh::HitMode mode,
                                    std::span<const RayBatchTracer::Result> gpu, size_t keep = 10);
 
 /// A driver traversal's answers against the reference's, where bit equality is not promised: the API

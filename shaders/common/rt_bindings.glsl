@@ -21,6 +21,9 @@ layout(constant_id = 2) const uint HP_GEOMETRY_TEXELS = 0;
 // invocations: the dump stores and counter atomics are loops over the lanes, the reflection hits' shadow ray
 // a second traversal, and both offset (or jitter) modes would be computed.
 layout(constant_id = 3) const uint HP_RT_FLAGS = 0;
+// Node layout of the compute traversal (bvh::NodeLayout): 0 = the study's 32-byte binary nodes (gpu::BvhNode),
+// 1 = wide4 (gpu::WideNode: 4-wide, quantized child boxes; renderer/bvh/wide.hpp).
+layout(constant_id = 5) const uint HP_WIDE_NODES = 0;
 
 layout(set = 0, binding = HP_BIND_RT_FRAME) uniform FrameBlock { FrameUniforms frame; };
 layout(set = 0, binding = HP_BIND_RT_PARAMS) uniform RayBlock { RayParams rt; };

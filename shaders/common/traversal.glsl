@@ -236,11 +236,51 @@ uint hp_pop(inout HpStack st, uint lane) {
   return x;
 }
 
+// Tests leaf primitives [first, last) (object slots where HP_OBJECT_LEAVES) against the ray, keeping the
+// closest hit in `best` (ties to the smallest scene index). Returns true when any_hit and a hit in range was
+// found (`best` holds it).
+bool hp_test_leaf(HpRay r, uint first, uint last, bool any_hit, inout HpHit best, inout float best_t,
+                  inout HpStats stats) {
+  if (HP_OBJECT_LEAVES != 0u && first != last) {
+    HP_REC_LOAD(HP_TBUF_OBJECT_FIRST, first * 4u, 4u);
+    HP_REC_LOAD(HP_TBUF_OBJECT_FIRST, last * 4u, 4u);
+    first = object_first[first];
+    last = object_first[last];
+  }
+  for (uint k = first; k < last; ++k) {
+    stats.tris++;
+    vec3 p0, p1, p2;
+    hp_fetch_triangle(k, p0, p1, p2);
+    float t, u, v;
+    if (!hp_watertight(r, p0, p1, p2, t, u, v)) continue;
+    if (!(t >= r.tmin)) continue;
+    if (any_hit) {
+      if (!(t <= r.tmax)) continue;
+      best.slot = int(k); best.t = t; best.u = u; best.v = v;
+      return true;
+    }
+    // The reference's test is t < best_t || (t == best_t && scene(k) < best_scene), with best_scene =
+    // UINT32_MAX before the first hit; the scene indices are only read on a tie (rare), which spares a
+    // per-lane load per triangle.
+    bool better = t < best_t;
+    if (!better && t == best_t) {
+      HP_REC_LOAD(HP_TBUF_SLOT_SCENE, k * 4u, 4u);
+      if (best.slot >= 0) HP_REC_LOAD(HP_TBUF_SLOT_SCENE, uint(best.slot) * 4u, 4u);
+      better = best.slot < 0 || hp_slot_scene(k) < hp_slot_scene(uint(best.slot));
+    }
+    if (better) {
+      best_t = t;
+      best.slot = int(k); best.t = t; best.u = u; best.v = v;
+    }
+  }
+  return false;
+}
+
 // any_hit: stop at the first hit in [tmin, tmax]; else the closest, ties to the smallest scene index.
 // Loop shape "while-while" (Aila & Laine 2009): an inner loop walks interior nodes until every SIMD lane has
 // found a leaf whose box it hits (or finished), then the lanes test their leaves' triangles together. The
 // order in which each ray visits nodes and triangles is the C++ reference's, node for node.
-HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
+HpHit hp_trace_binary(HpRay r, bool any_hit, inout HpStats stats) {
   HpHit best;
   best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
   float best_t = r.tmax;
@@ -283,44 +323,105 @@ HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
       if (st.sp == 0) { done = true; break; }
       node = hp_pop(st, lane);
     }
-    if (HP_OBJECT_LEAVES != 0u && first != last) {
-      HP_REC_LOAD(HP_TBUF_OBJECT_FIRST, first * 4u, 4u);
-      HP_REC_LOAD(HP_TBUF_OBJECT_FIRST, last * 4u, 4u);
-      first = object_first[first];
-      last = object_first[last];
-    }
-    for (uint k = first; k < last; ++k) {
-      stats.tris++;
-      vec3 p0, p1, p2;
-      hp_fetch_triangle(k, p0, p1, p2);
-      float t, u, v;
-      if (!hp_watertight(r, p0, p1, p2, t, u, v)) continue;
-      if (!(t >= r.tmin)) continue;
-      if (any_hit) {
-        if (!(t <= r.tmax)) continue;
-        best.slot = int(k); best.t = t; best.u = u; best.v = v;
-        return best;
-      }
-      // The reference's test is t < best_t || (t == best_t && scene(k) < best_scene), with best_scene =
-      // UINT32_MAX before the first hit; the scene indices are only read on a tie (rare), which spares a
-      // per-lane load per triangle.
-      bool better = t < best_t;
-      if (!better && t == best_t) {
-        HP_REC_LOAD(HP_TBUF_SLOT_SCENE, k * 4u, 4u);
-        if (best.slot >= 0) HP_REC_LOAD(HP_TBUF_SLOT_SCENE, uint(best.slot) * 4u, 4u);
-        better = best.slot < 0 || hp_slot_scene(k) < hp_slot_scene(uint(best.slot));
-      }
-      if (better) {
-        best_t = t;
-        best.slot = int(k); best.t = t; best.u = u; best.v = v;
-      }
-    }
+    if (hp_test_leaf(r, first, last, any_hit, best, best_t, stats)) return best;
     if (!done) {
       if (st.sp == 0) break;
       node = hp_pop(st, lane);
     }
   }
   return best;
+}
+// One slot of a wide node: its box decoded (origin + q * step, rounded once: `precise` keeps the products
+// out of FMAs, as -ffp-contract=off does in bvh/wide.cpp) and slab-tested against [tmin, t_hi].
+bool hp_wide_slot(HpRay r, vec3 origin, vec3 step, uvec4 t1, uvec4 t2, uint sh, float t_hi) {
+  precise vec3 lo = origin + vec3((uvec3(t1.x, t1.z, t2.x) >> sh) & 255u) * step;
+  precise vec3 hi = origin + vec3((uvec3(t1.y, t1.w, t2.y) >> sh) & 255u) * step;
+  return hp_slab(r, lo, hi, t_hi);
+}
+
+// The same traversal over the wide4 layout (gpu::WideNode), operation for operation the C++ twin in
+// renderer/bvh/wide.cpp: a visited node tests its four child boxes with the closest t so far, the first hit
+// child in the binary order (the ray's signs on the split axes of the node and its two binary children) is
+// visited next and the other hit children are pushed, the last first. Stack entries are child words: a
+// leaf's word carries its primitive range, so a popped leaf is tested without another fetch.
+HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
+  HpHit best;
+  best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
+  float best_t = r.tmax;
+  uint lane = gl_LocalInvocationIndex;
+  HpStack st;
+  st.s0 = 0u; st.s1 = 0u; st.s2 = 0u; st.s3 = 0u; st.s4 = 0u; st.s5 = 0u; st.s6 = 0u; st.s7 = 0u;
+  st.sp = 0;
+  uint entry = 0u;  // the root, an interior node
+  bool done = false;
+  while (!done) {
+    uint first = 0u, last = 0u;
+    for (;;) {
+      if ((entry & HP_WIDE_LEAF) != 0u) {
+        first = entry & HP_WIDE_FIRST_MASK;
+        last = first + ((entry >> HP_WIDE_COUNT_SHIFT) & HP_WIDE_COUNT_MASK);
+        break;
+      }
+      HP_REC_LOAD(HP_TBUF_NODES, entry * 64u, 16u);  // a 64-byte node is four 16-byte loads on a GPU
+      HP_REC_LOAD(HP_TBUF_NODES, entry * 64u + 16u, 16u);
+      HP_REC_LOAD(HP_TBUF_NODES, entry * 64u + 32u, 16u);
+      HP_REC_LOAD(HP_TBUF_NODES, entry * 64u + 48u, 16u);
+      uvec4 t0 = texelFetch(node_texels, int(entry * 4u));
+      uvec4 t1 = texelFetch(node_texels, int(entry * 4u + 1u));
+      uvec4 t2 = texelFetch(node_texels, int(entry * 4u + 2u));
+      uvec4 t3 = texelFetch(node_texels, int(entry * 4u + 3u));
+      stats.nodes++;
+      vec3 origin = uintBitsToFloat(t0.xyz);
+      vec3 step = uintBitsToFloat((uvec3(t0.w, t0.w >> 8u, t0.w >> 16u) & 255u) << 23u);
+      bool h0 = hp_wide_slot(r, origin, step, t1, t2, 0u, best_t) && t3.x != 0u;
+      bool h1 = hp_wide_slot(r, origin, step, t1, t2, 8u, best_t) && t3.y != 0u;
+      bool h2 = hp_wide_slot(r, origin, step, t1, t2, 16u, best_t) && t3.z != 0u;
+      bool h3 = hp_wide_slot(r, origin, step, t1, t2, 24u, best_t) && t3.w != 0u;
+      bool fp = r.neg[(t0.w >> 24u) & 3u] != 0;
+      bool fl = r.neg[(t0.w >> 26u) & 3u] != 0;
+      bool fr = r.neg[(t0.w >> 28u) & 3u] != 0;
+      // Each pair in its own order, then the pairs in the node's.
+      uint la = fl ? t3.y : t3.x, lb = fl ? t3.x : t3.y;
+      bool hla = fl ? h1 : h0, hlb = fl ? h0 : h1;
+      uint ra = fr ? t3.w : t3.z, rb = fr ? t3.z : t3.w;
+      bool hra = fr ? h3 : h2, hrb = fr ? h2 : h3;
+      uint c0 = fp ? ra : la, c1 = fp ? rb : lb, c2 = fp ? la : ra, c3 = fp ? lb : rb;
+      bool y0 = fp ? hra : hla, y1 = fp ? hrb : hlb, y2 = fp ? hla : hra, y3 = fp ? hlb : hrb;
+      // bvh::make_wide bounds the pushes by HP_BVH_STACK_SIZE, so the guards never drop an entry.
+      bool have = y3;
+      uint next = c3;
+      if (y2) {
+        if (have && st.sp < HP_BVH_STACK_SIZE) hp_push(st, next, lane);
+        next = c2; have = true;
+      }
+      if (y1) {
+        if (have && st.sp < HP_BVH_STACK_SIZE) hp_push(st, next, lane);
+        next = c1; have = true;
+      }
+      if (y0) {
+        if (have && st.sp < HP_BVH_STACK_SIZE) hp_push(st, next, lane);
+        next = c0; have = true;
+      }
+      if (have) {
+        entry = next;
+        continue;
+      }
+      if (st.sp == 0) { done = true; break; }
+      entry = hp_pop(st, lane);
+    }
+    if (hp_test_leaf(r, first, last, any_hit, best, best_t, stats)) return best;
+    if (!done) {
+      if (st.sp == 0) break;
+      entry = hp_pop(st, lane);
+    }
+  }
+  return best;
+}
+
+// The compute traversal of the scene's node layout (a specialization constant: the other one is not run).
+HpHit hp_trace(HpRay r, bool any_hit, inout HpStats stats) {
+  if (HP_WIDE_NODES != 0u) return hp_trace_wide(r, any_hit, stats);
+  return hp_trace_binary(r, any_hit, stats);
 }
 #endif  // compute traversal
 

@@ -18,7 +18,9 @@
 //                       the trace buffer into a compact (version 2) trace file; real time per capture.
 //                       untraced_ms: the median GPU time of the same pass untraced (6 frames);
 //                       capture_over_untraced: the mean capture over it.
-// Gpu/* and Trace/* also run through the driver's ray tracing where the device has it: names ending in
+// Gpu/* and Trace/* also run on the wide4 node layout (names ending in /wide4: the same rays, the compute
+// traversal over 64-byte 4-wide nodes, bvh/wide.hpp), and through the driver's ray tracing where the device
+// has it: names ending in
 // /ray-query (ray queries from the same compute shaders) and /pipeline (a ray-tracing pipeline whose
 // ray-generation shaders are the same sources), the driver's acceleration structure built from the compute
 // BVH's leaf order. The label names the device; "as_build_ms" and "as_mib" the structure's build and size.
@@ -110,8 +112,10 @@ void measure_work(Setup& s, const std::vector<gpu::RayDump>& dump, uint32_t widt
   s.tri_lane_use = max_tris ? double(tris) / double(lanes * max_tris) : 0.0;
 }
 
-FrameSettings settings_for(Pass pass, bool dump, Traversal traversal) {
+FrameSettings settings_for(Pass pass, bool dump, Traversal traversal,
+                           bvh::NodeLayout layout = bvh::NodeLayout::binary32) {
   FrameSettings s;
+  s.bvh.node_layout = layout;
   s.width = env_or("HP_BENCH_WIDTH", 1280);
   s.height = env_or("HP_BENCH_HEIGHT", 720);
   s.rt.shadows = pass == Pass::shadows;
@@ -128,19 +132,21 @@ FrameSettings settings_for(Pass pass, bool dump, Traversal traversal) {
 }
 
 // One setup per (scene, pass), built on first use and kept: building a frame compiles pipelines.
-Setup& setup(const std::string& spec, Pass pass, Traversal traversal) {
+Setup& setup(const std::string& spec, Pass pass, Traversal traversal,
+             bvh::NodeLayout layout = bvh::NodeLayout::binary32) {
   // The context first: statics are destroyed in reverse order, so the frames go before their device.
   vk::Context& ctx = context();
-  static std::map<std::tuple<std::string, int, int>, std::unique_ptr<Setup>> cache;
-  auto& slot = cache[{spec, int(pass), int(traversal)}];
+  static std::map<std::tuple<std::string, int, int, int>, std::unique_ptr<Setup>> cache;
+  auto& slot = cache[{spec, int(pass), int(traversal), int(layout)}];
   if (!slot) {
     slot = std::make_unique<Setup>();
     Setup& s = *slot;
     s.scene = load_scene(spec);
-    const FrameSettings fs = settings_for(pass, false, traversal);
+    const FrameSettings fs = settings_for(pass, false, traversal, layout);
     s.camera = s.scene.has_camera ? s.scene.camera : auto_frame(s.scene, float(fs.width) / float(fs.height));
     s.frame = std::make_unique<Frame>(ctx, s.scene, s.camera, fs);
     // The rays: one frame with dumps on (the dump writes cost GPU time, so timed frames run without them).
+    // Every traversal and node layout casts the same rays (the same hits make the same reflection rays).
     Frame dumper(context(), s.scene, s.camera, settings_for(pass, true, Traversal::compute));
     dumper.render();
     const auto dump = pass == Pass::shadows ? dumper.rt_passes()->read_shadow_dump(context())
@@ -163,8 +169,9 @@ void as_counters(benchmark::State& state, const Setup& s) {
   }
 }
 
-void gpu_pass(benchmark::State& state, const std::string& spec, Pass pass, Traversal traversal) {
-  Setup& s = setup(spec, pass, traversal);
+void gpu_pass(benchmark::State& state, const std::string& spec, Pass pass, Traversal traversal,
+              bvh::NodeLayout layout) {
+  Setup& s = setup(spec, pass, traversal, layout);
   const char* name = pass == Pass::shadows ? "shadows" : "reflections";
   for (int i = 0; i < 2; ++i) s.frame->render();  // warm-up (first frames on lavapipe are slower)
   for (auto _ : state) {
@@ -178,8 +185,9 @@ void gpu_pass(benchmark::State& state, const std::string& spec, Pass pass, Trave
   state.SetLabel(context().info().name);
 }
 
-void trace_pass(benchmark::State& state, const std::string& spec, Pass pass, Traversal traversal) {
-  Setup& s = setup(spec, pass, traversal);
+void trace_pass(benchmark::State& state, const std::string& spec, Pass pass, Traversal traversal,
+                bvh::NodeLayout layout) {
+  Setup& s = setup(spec, pass, traversal, layout);
   if (!s.batch) {
     s.batch = std::make_unique<RayBatchTracer>(context(), *s.frame->rt_scene(), s.rays, s.frame->accel_structure(),
                                                traversal);
@@ -273,16 +281,22 @@ const bool registered = [] {
       for (Traversal t : {Traversal::compute, Traversal::ray_query, Traversal::pipeline}) {
         if (t == Traversal::ray_query && !context().ray_query_enabled()) continue;
         if (t == Traversal::pipeline && !context().ray_tracing_pipeline_enabled()) continue;
-        const std::string suffix = t == Traversal::compute ? "" : std::string("/") + to_string(t);
-        benchmark::RegisterBenchmark(("Gpu/" + p + "/" + short_name(spec) + suffix).c_str(), gpu_pass, spec, pass, t)
-            ->UseManualTime()
-            ->Unit(benchmark::kMillisecond)
-            ->Iterations(6);
-        benchmark::RegisterBenchmark(("Trace/" + p + "/" + short_name(spec) + suffix).c_str(), trace_pass, spec, pass,
-                                     t)
-            ->UseManualTime()
-            ->Unit(benchmark::kMillisecond)
-            ->Iterations(6);
+        for (bvh::NodeLayout layout : {bvh::NodeLayout::binary32, bvh::NodeLayout::wide4}) {
+          if (layout != bvh::NodeLayout::binary32 && t != Traversal::compute) continue;  // the driver's own nodes
+          const std::string suffix = t != Traversal::compute               ? std::string("/") + to_string(t)
+                                     : layout != bvh::NodeLayout::binary32 ? std::string("/") + to_string(layout)
+                                                                           : std::string();
+          benchmark::RegisterBenchmark(("Gpu/" + p + "/" + short_name(spec) + suffix).c_str(), gpu_pass, spec, pass, t,
+                                       layout)
+              ->UseManualTime()
+              ->Unit(benchmark::kMillisecond)
+              ->Iterations(6);
+          benchmark::RegisterBenchmark(("Trace/" + p + "/" + short_name(spec) + suffix).c_str(), trace_pass, spec, pass,
+                                       t, layout)
+              ->UseManualTime()
+              ->Unit(benchmark::kMillisecond)
+              ->Iterations(6);
+        }
       }
       benchmark::RegisterBenchmark(("Cpu/" + p + "/" + short_name(spec)).c_str(), cpu_pass, spec, pass)
           ->UseRealTime()

@@ -201,7 +201,7 @@ TEST(Cli, BvhMakesItsOwnRays) {
   EXPECT_EQ(fs::file_size(d / "r.bin"), 1000u * 32u);
   EXPECT_EQ(fs::file_size(d / "h.bin"), 1000u * 16u);
   EXPECT_NE(r.output.find("wrote 1000 camera rays"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("rays: 1000 (closest hit)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("rays: 1000 (closest hit, binary32 nodes)"), std::string::npos) << r.output;
   fs::remove_all(d);
 }
 
@@ -456,7 +456,8 @@ TEST(Cli, BvhGpuCastsTheRaysAndAgreesWithTheReference) {
         << r.output;
     EXPECT_EQ(fs::file_size(hits), 1000u * 16u) << "one hit record (int32 prim, float32 t u v) per ray";
   }
-  for (const char* extra : {"--validate", "--any-hit --geometry soup", "--granularity object"}) {
+  for (const char* extra : {"--validate", "--any-hit --geometry soup", "--granularity object",
+                            "--node-layout wide4 --validate", "--node-layout wide4 --any-hit --granularity object"}) {
     const CmdResult r = run("bvh --scene builtin:cornell --rays " + rays.string() + " --hits " +
                             (dir / "hits.bin").string() + " --gpu " + extra);
     EXPECT_EQ(r.code, 0) << extra << "\n" << r.output;
@@ -465,6 +466,18 @@ TEST(Cli, BvhGpuCastsTheRaysAndAgreesWithTheReference) {
     EXPECT_NE(r.output.find("by timestamps"), std::string::npos) << extra << "\n" << r.output;
   }
   fs::remove_all(dir);
+}
+
+TEST(Cli, NodeLayoutsAreChecked) {
+  expect_bad_input(run("bvh --scene builtin:cornell --node-layout wide8"), "--node-layout");
+  expect_bad_input(run("bvh --scene builtin:cornell --node-layout wide4 --leaf-size 16"),
+                   "bvh: --node-layout wide4 holds leaves of at most 15 primitives: --leaf-size 16");
+  expect_bad_input(
+      run("render --scene builtin:cornell --node-layout wide4 --traversal ray-query --out /tmp/hp_never.png"),
+      "--node-layout wide4 applies to --traversal compute only");
+  expect_bad_input(run("render --scene builtin:cornell --node-layout binary --out /tmp/hp_never.png"),
+                   "--node-layout binary: unknown BVH node layout (choose binary32 or wide4)");
+  EXPECT_FALSE(fs::exists("/tmp/hp_never.png"));
 }
 
 TEST(Cli, BvhGpuOptionsNeedGpu) {

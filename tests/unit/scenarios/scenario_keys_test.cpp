@@ -63,6 +63,8 @@ TEST(ScenarioKeys, CoverTheCanonicalFormAndEveryKeyParses) {
                      "f.json");
   std::set<std::string> canonical;
   leaves(s.canonical(), "", canonical);
+  // The compute traversal's node layout (not with a driver traversal).
+  leaves(parse_scenario(json::parse(R"({"bvh": {"node_layout": "wide4"}})"), "f.json").canonical(), "", canonical);
   for (const std::string& k : canonical) EXPECT_TRUE(table.count(k)) << k << " is canonical but not in the table";
   for (const std::string& k : table) {
     if (k == "name" || k == "trace.keep") continue;  // a label, and where files go: not what runs

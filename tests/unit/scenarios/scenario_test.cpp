@@ -157,6 +157,22 @@ TEST(Scenario, TraversalKeys) {
             std::string::npos);
 }
 
+TEST(Scenario, NodeLayoutKeepsTheStudysIdsAndIsChecked) {
+  const Scenario d = parse_scenario(json::object(), "d.json");
+  EXPECT_EQ(d.frame.bvh.node_layout, bvh::NodeLayout::binary32);
+  EXPECT_FALSE(d.canonical()["bvh"].contains("node_layout"));
+  EXPECT_EQ(parse_scenario(json::parse(R"({"bvh": {"node_layout": "binary32"}})"), "b.json").id(), d.id());
+  const Scenario w = parse_scenario(json::parse(R"({"bvh": {"node_layout": "wide4"}})"), "w.json");
+  EXPECT_EQ(w.frame.bvh.node_layout, bvh::NodeLayout::wide4);
+  EXPECT_NE(w.id(), d.id());
+  EXPECT_NE(error_of(json::parse(R"({"traversal": "ray-query", "bvh": {"node_layout": "wide4"}})"))
+                .find("bvh.node_layout: wide4 applies to \"traversal\": \"compute\" only"),
+            std::string::npos);
+  EXPECT_NE(error_of(json::parse(R"({"bvh": {"node_layout": "wide4", "leaf_size": 16}})"))
+                .find("bvh.node_layout: wide4 holds leaves of at most 15 primitives (bvh.leaf_size is 16)"),
+            std::string::npos);
+}
+
 TEST(Scenario, IdIsStableAndDependsOnConfigOnly) {
   const Scenario a = parse_scenario(json::parse(R"({"name": "x", "seed": 3})"), "a.json");
   const Scenario b = parse_scenario(json::parse(R"({"seed": 3, "name": "y", "geometry": "indexed"})"), "b.json");
