@@ -5,6 +5,8 @@
 #include "bvh/traverse_detail.hpp"
 #include "error.hpp"
 
+#include <emmintrin.h>
+
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -16,7 +18,6 @@ namespace {
 
 using detail::prepare;
 using detail::PreparedRay;
-using detail::slab;
 using detail::watertight;
 
 /// The step of an axis with biased exponent e (1..254): 2^(e - 127), a normal float.
@@ -158,6 +159,41 @@ class Converter {
 
 inline bool neg(const PreparedRay& r, uint32_t axis) { return r.near_at[axis] >= 4; }
 
+/// Four 8-bit bounds (byte i = slot i) as floats.
+inline __m128 bytes4(uint32_t w) {
+  const __m128i zero = _mm_setzero_si128();
+  const __m128i v = _mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(static_cast<int>(w)), zero), zero);
+  return _mm_cvtepi32_ps(v);
+}
+
+/// wide_child_box and detail::slab on the four slots at once: the scalar operations in the same order per
+/// lane (_mm_max_ps(a, b) is "a > b ? a : b", _mm_min_ps(a, b) "a < b ? a : b", the slab test's
+/// NaN-discarding selects). Returns the mask of slots whose box the ray's [tmin, t_hi] meets.
+inline int slab4(const PreparedRay& r, const gpu::WideNode& n, float t_hi) {
+  const uint32_t meta = n.w[0].w;
+  __m128 tn = _mm_set1_ps(r.tmin);
+  __m128 tf = _mm_set1_ps(detail::kInf);
+  for (int a = 0; a < 3; ++a) {
+    const __m128 origin = _mm_set1_ps(std::bit_cast<float>(n.w[0][a]));
+    const __m128 step = _mm_set1_ps(axis_step((meta >> (8 * a)) & 255u));
+    const int word = 2 * a;
+    const __m128 lo = _mm_add_ps(origin, _mm_mul_ps(bytes4(n.w[1 + word / 4][word % 4]), step));
+    const __m128 hi = _mm_add_ps(origin, _mm_mul_ps(bytes4(n.w[1 + (word + 1) / 4][(word + 1) % 4]), step));
+    const __m128 org = _mm_set1_ps(r.org[a]);
+    const __m128 inv = _mm_set1_ps(r.inv[a]);
+    const bool negative = r.near_at[a] >= 4;
+    const __m128 t0 = _mm_mul_ps(_mm_sub_ps(negative ? hi : lo, org), inv);
+    const __m128 t1 = _mm_mul_ps(_mm_sub_ps(negative ? lo : hi, org), inv);
+    tn = _mm_max_ps(t0, tn);
+    tf = _mm_min_ps(t1, tf);
+  }
+  tf = _mm_min_ps(_mm_set1_ps(t_hi), tf);
+  const __m128 nonneg = _mm_cmpge_ps(tf, _mm_setzero_ps());
+  tf = _mm_or_ps(_mm_and_ps(nonneg, _mm_mul_ps(tf, _mm_set1_ps(detail::kFarUp))),
+                 _mm_andnot_ps(nonneg, _mm_mul_ps(tf, _mm_set1_ps(detail::kFarDown))));
+  return _mm_movemask_ps(_mm_cmple_ps(tn, tf));
+}
+
 template <bool kAny>
 Hit traverse(const WideBvh& bvh, const LeafOrderTriangles& lt, const Ray& ray, TraversalStats* stats) {
   Hit best;
@@ -203,14 +239,9 @@ Hit traverse(const WideBvh& bvh, const LeafOrderTriangles& lt, const Ray& ray, T
     } else {
       const gpu::WideNode& n = nodes[entry];
       ++visited;
+      const int mask = slab4(r, n, best_t);
       bool hit[4];
-      for (int k = 0; k < 4; ++k) {
-        glm::vec3 lo, hi;
-        wide_child_box(n, k, lo, hi);
-        const float box[8] = {lo.x, lo.y, lo.z, 0.0f, hi.x, hi.y, hi.z, 0.0f};
-        float tn, tf;
-        hit[k] = n.w[3][k] != 0 && slab(r, box, best_t, tn, tf);
-      }
+      for (int k = 0; k < 4; ++k) hit[k] = n.w[3][k] != 0 && ((mask >> k) & 1) != 0;
       // The binary order: the pair on the near side of P's split first, each pair by its own split axis.
       const uint32_t meta = n.w[0].w;
       const int l0 = neg(r, (meta >> 26) & 3) ? 1 : 0;
