@@ -10,6 +10,7 @@
 #include "scene/load.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstring>
@@ -252,6 +253,57 @@ TEST(Capture, SoupLayoutReadsTheSoupOnly) {
   EXPECT_TRUE(buffers.count(HP_TBUF_SOUP_NORMALS)) << "reflection hits shade with the soup's normals";
   EXPECT_TRUE(buffers.count(HP_TBUF_REFLECTION));
   fs::remove(c.file);
+}
+
+// With the wide4 node layout the frame renders the binary layout's image, and the trace holds the wide
+// nodes' real accesses: four 16-byte loads per visited 64-byte node, inside the uploaded node array (the
+// buffer the header declares), fewer node visits than the binary nodes' two 16-byte loads each.
+TEST(Capture, Wide4NodesAreTracedAtTheirOwnAddresses) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = small(96, 64);
+  const Captured binary = capture(*ctx, scene, s, CaptureOptions{}, "binary_nodes");
+  s.bvh.node_layout = bvh::NodeLayout::wide4;
+  const Captured wide = capture(*ctx, scene, s, CaptureOptions{}, "wide_nodes");
+  EXPECT_EQ(std::memcmp(wide.image.rgba.data(), binary.image.rgba.data(), binary.image.rgba.size() * 4), 0)
+      << "the wide nodes must render the same image";
+  Frame frame(*ctx, scene, scene.camera, s);
+  const size_t wide_nodes = frame.rt_geometry()->wide.nodes.size();
+  ASSERT_GT(wide_nodes, 1u);
+  const auto node_loads = [](const fs::path& file, uint64_t& declared) {
+    trace::TraceReader r(file);
+    const auto* b = r.header().find_buffer(HP_TBUF_NODES);
+    declared = b ? b->size_bytes : 0;
+    std::map<uint32_t, uint32_t> per_size;
+    std::vector<uint32_t> offsets;
+    for (uint32_t p = 0; p < r.passes().size(); ++p) {
+      for (const auto& rec : r.read_pass(p)) {
+        if (gpu::trace_buffer(rec.info) != HP_TBUF_NODES) continue;
+        per_size[gpu::trace_size(rec.info)]++;
+        offsets.push_back(rec.offset);
+      }
+    }
+    return std::make_pair(per_size, offsets);
+  };
+  uint64_t declared_binary = 0, declared_wide = 0;
+  const auto [binary_sizes, binary_offsets] = node_loads(binary.file, declared_binary);
+  const auto [wide_sizes, wide_offsets] = node_loads(wide.file, declared_wide);
+  EXPECT_EQ(declared_wide, wide_nodes * sizeof(gpu::WideNode));
+  EXPECT_EQ(declared_binary, frame.rt_geometry()->bvh.nodes.size() * sizeof(gpu::BvhNode));
+  ASSERT_EQ(wide_sizes.size(), 1u);
+  EXPECT_EQ(wide_sizes.begin()->first, 16u);
+  std::array<uint64_t, 4> quarter{};
+  for (uint32_t off : wide_offsets) {
+    ASSERT_LT(off, declared_wide);
+    quarter[(off % 64) / 16]++;
+  }
+  EXPECT_EQ(quarter[0], quarter[1]);
+  EXPECT_EQ(quarter[0], quarter[2]);
+  EXPECT_EQ(quarter[0], quarter[3]);
+  // Visits: a binary node is two loads, a wide node four; the wide tree visits far fewer nodes.
+  EXPECT_LT(quarter[0] * 2, binary_offsets.size() / 2);
+  fs::remove(binary.file);
+  fs::remove(wide.file);
 }
 
 // Slices are written on a worker thread while the device runs the next one: the sink still sees one call
