@@ -157,6 +157,30 @@ TEST(Scenario, TraversalKeys) {
             std::string::npos);
 }
 
+// Every matrix shipped in scenarios/ parses (its keys, values and combinations), the node-layout comparison
+// among them with both layouts.
+TEST(Scenario, EveryShippedMatrixParses) {
+  size_t files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(std::filesystem::path(HP_SOURCE_DIR) / "scenarios")) {
+    if (e.path().extension() != ".json") continue;
+    std::ifstream in(e.path());
+    const json doc = json::parse(in);
+    if (!doc.contains("axes") && !doc.contains("base")) continue;  // not a matrix (e.g. cache presets)
+    try {
+      const Matrix m = parse_matrix(doc, e.path().string());
+      EXPECT_FALSE(m.cells.empty()) << e.path();
+      if (e.path().filename() == "node_layout.json") {
+        ASSERT_EQ(m.cells.size(), 2u);
+        EXPECT_NE(m.cells[0].frame.bvh.node_layout, m.cells[1].frame.bvh.node_layout);
+      }
+    } catch (const InputError& err) {
+      ADD_FAILURE() << err.what();
+    }
+    ++files;
+  }
+  EXPECT_GE(files, 10u);
+}
+
 TEST(Scenario, NodeLayoutKeepsTheStudysIdsAndIsChecked) {
   const Scenario d = parse_scenario(json::object(), "d.json");
   EXPECT_EQ(d.frame.bvh.node_layout, bvh::NodeLayout::binary32);
