@@ -6,7 +6,8 @@
 // Same answers as the binary reference (traverse.hpp): the slab test and the watertight test are the
 // reference's operations lane for lane, the boxes are the binary tree's boxes, and a box is pruned only when
 // the reference's own test with the current closest t would prune it. Closest hit: the smallest t, ties to
-// the smallest scene index, so the hit (prim, t, u, v) is bit for bit the reference's. Any hit: a miss
+// the smallest scene index, so the hit (prim, t, u, v) is bit for bit the reference's (up to the coplanar
+// ties of traverse.hpp, where the visiting order decides). Any hit: a miss
 // exactly when the reference misses; when both hit, some hit in range, not necessarily the reference's
 // triangle (the first found depends on the visiting order).
 //

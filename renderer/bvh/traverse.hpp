@@ -2,8 +2,11 @@
 //
 // Semantics (the GLSL side follows them exactly):
 //  - A hit is accepted for ray.tmin <= t <= ray.tmax. Closest hit: smallest t, ties to the smallest scene
-//    index, so the answer does not depend on the tree or the traversal order. Any hit: the first accepted
-//    hit found, which is some hit in range, not necessarily the closest.
+//    index, so the answer does not depend on the tree or the traversal order — except between triangles
+//    that overlap in one plane, whose computed t can differ by more than a box's rounding: a box entered
+//    just after the closest t so far is pruned though it holds a triangle whose computed t is a little
+//    smaller, so which of the two is returned depends on the visiting order (docs/bvh.md). Any hit: the
+//    first accepted hit found, which is some hit in range, not necessarily the closest.
 //  - Nodes are visited depth-first from a fixed stack of HP_BVH_STACK_SIZE entries; each visited node's box
 //    is tested (the root's too, which is how an empty tree ends at once); at an interior node the child on
 //    the near side of the split axis (by the sign of the ray direction on that axis) is visited first, the

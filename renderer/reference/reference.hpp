@@ -51,7 +51,8 @@ struct ReferenceImage {
 
 /// Renders the reference of `scene` seen by `camera` (light and sky from the scene). The BVH is built with
 /// the default binned SAH (the answer does not depend on the tree: the traversal's hit semantics are
-/// tree-independent). Throws hp::InputError for an absurd size or zero samples.
+/// tree-independent up to the coplanar ties of bvh/traverse.hpp). Throws hp::InputError for an absurd size
+/// or zero samples.
 ReferenceImage render_reference(const Scene& scene, const Camera& camera, const ReferenceSettings& settings);
 
 /// The cache key of a reference: 16 hex digits hashing everything the image depends on (scene spec, camera,
