@@ -25,10 +25,7 @@ Hit traverse(const Bvh& bvh, const LeafOrderTriangles& lt, const Ray& ray, Trave
   Hit best;
   PreparedRay r;
   if (bvh.nodes.empty() || !prepare(ray, r)) return best;
-  const bool objects = !lt.object_first.empty();
   const gpu::BvhNode* nodes = bvh.nodes.data();
-  const Triangle* tris = lt.triangles.data();
-  const uint32_t* scene = lt.scene_index.data();
 
   float best_t = r.tmax;
   uint32_t best_scene = UINT32_MAX;
@@ -58,30 +55,9 @@ Hit traverse(const Bvh& bvh, const LeafOrderTriangles& lt, const Ray& ray, Trave
         node = near_child;
         continue;
       }
-      uint32_t first = static_cast<uint32_t>(n.offset);
-      uint32_t last = first + count;
-      if (objects) {
-        first = lt.object_first[first];
-        last = lt.object_first[last];
-      }
-      for (uint32_t k = first; k < last; ++k) {
-        ++tested;
-        float t, u, v;
-        if (!watertight(r, tris[k], t, u, v)) continue;
-        if (!(t >= r.tmin)) continue;
-        if constexpr (kAny) {
-          if (!(t <= r.tmax)) continue;
-          best = Hit{static_cast<int32_t>(scene[k]), t, u, v};
-          sp = 0;  // occluded: nothing else matters
-          break;
-        } else {
-          if (t < best_t || (t == best_t && scene[k] < best_scene)) {
-            best_t = t;
-            best_scene = scene[k];
-            best = Hit{static_cast<int32_t>(scene[k]), t, u, v};
-          }
-        }
-      }
+      const uint32_t first = static_cast<uint32_t>(n.offset);
+      // Any hit: occluded, nothing else matters.
+      if (detail::test_leaf<kAny>(r, lt, first, first + count, best, best_t, best_scene, tested)) sp = 0;
     }
     if (sp == 0) break;
     node = stack[--sp];
@@ -125,13 +101,8 @@ Hit intersect_any(const Bvh& bvh, const LeafOrderTriangles& tris, const Ray& ray
 
 std::vector<Hit> cast_rays(const Bvh& bvh, const LeafOrderTriangles& tris, std::span<const Ray> rays, HitMode mode,
                            int threads, TraversalStats* stats) {
-  if (mode == HitMode::closest) {
-    return detail::cast_parallel(rays, threads, stats, [&](const Ray& ray, TraversalStats* local) {
-      return traverse<false>(bvh, tris, ray, local);
-    });
-  }
-  return detail::cast_parallel(rays, threads, stats, [&](const Ray& ray, TraversalStats* local) {
-    return traverse<true>(bvh, tris, ray, local);
+  return detail::cast_mode(rays, mode, threads, stats, [&](auto any, const Ray& ray, TraversalStats* local) {
+    return traverse<decltype(any)::value>(bvh, tris, ray, local);
   });
 }
 

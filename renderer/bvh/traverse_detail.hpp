@@ -15,6 +15,7 @@
 #include <mutex>
 #include <span>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 namespace hp::bvh::detail {
@@ -138,6 +139,39 @@ inline bool watertight(const PreparedRay& r, const Triangle& tri, float& t, floa
   return true;
 }
 
+/// Tests the primitives of one leaf, [first, last) in leaf order (object slots, mapped through
+/// lt.object_first, where the tree holds objects), counting each test in `tested`. Closest hit: keeps the
+/// smallest t in `best` (ties to the smallest scene index, `best_scene`), pruning bound `best_t`. Any hit:
+/// returns true at the first hit in [tmin, tmax], in `best`.
+template <bool kAny>
+inline bool test_leaf(const PreparedRay& r, const LeafOrderTriangles& lt, uint32_t first, uint32_t last, Hit& best,
+                      float& best_t, uint32_t& best_scene, uint64_t& tested) {
+  if (!lt.object_first.empty()) {
+    first = lt.object_first[first];
+    last = lt.object_first[last];
+  }
+  const Triangle* tris = lt.triangles.data();
+  const uint32_t* scene = lt.scene_index.data();
+  for (uint32_t k = first; k < last; ++k) {
+    ++tested;
+    float t, u, v;
+    if (!watertight(r, tris[k], t, u, v)) continue;
+    if (!(t >= r.tmin)) continue;
+    if constexpr (kAny) {
+      if (!(t <= r.tmax)) continue;
+      best = Hit{static_cast<int32_t>(scene[k]), t, u, v};
+      return true;
+    } else {
+      if (t < best_t || (t == best_t && scene[k] < best_scene)) {
+        best_t = t;
+        best_scene = scene[k];
+        best = Hit{static_cast<int32_t>(scene[k]), t, u, v};
+      }
+    }
+  }
+  return false;
+}
+
 /// Casts `rays` on `threads` workers (0 = all cores) with `trace(ray, stats) -> Hit`; hit i belongs to rays[i],
 /// `stats` (optional) receives the sum over all rays. Rays are handed out in blocks from a shared counter, so
 /// a slow region does not idle the other workers; the first exception a worker throws is rethrown.
@@ -180,6 +214,17 @@ std::vector<Hit> cast_parallel(std::span<const Ray> rays, int threads, Traversal
     for (const auto& p : partial) *stats += p;
   }
   return hits;
+}
+
+/// cast_parallel for a hit mode: `trace(std::bool_constant<any>, ray, stats) -> Hit`, instantiated for both.
+template <typename Trace>
+std::vector<Hit> cast_mode(std::span<const Ray> rays, HitMode mode, int threads, TraversalStats* stats, Trace trace) {
+  if (mode == HitMode::closest) {
+    return cast_parallel(rays, threads, stats,
+                         [&](const Ray& ray, TraversalStats* local) { return trace(std::false_type{}, ray, local); });
+  }
+  return cast_parallel(rays, threads, stats,
+                       [&](const Ray& ray, TraversalStats* local) { return trace(std::true_type{}, ray, local); });
 }
 
 }  // namespace hp::bvh::detail

@@ -18,7 +18,6 @@ namespace {
 
 using detail::prepare;
 using detail::PreparedRay;
-using detail::watertight;
 
 /// The step of an axis with biased exponent e (1..254): 2^(e - 127), a normal float.
 float axis_step(uint32_t e) { return std::bit_cast<float>(e << 23); }
@@ -199,10 +198,7 @@ Hit traverse(const WideBvh& bvh, const LeafOrderTriangles& lt, const Ray& ray, T
   Hit best;
   PreparedRay r;
   if (bvh.nodes.empty() || !prepare(ray, r)) return best;
-  const bool objects = !lt.object_first.empty();
   const gpu::WideNode* nodes = bvh.nodes.data();
-  const Triangle* tris = lt.triangles.data();
-  const uint32_t* scene = lt.scene_index.data();
 
   float best_t = r.tmax;
   uint32_t best_scene = UINT32_MAX;
@@ -212,30 +208,10 @@ Hit traverse(const WideBvh& bvh, const LeafOrderTriangles& lt, const Ray& ray, T
   uint32_t entry = 0;  // the root, an interior node
   for (;;) {
     if ((entry & HP_WIDE_LEAF) != 0) {
-      uint32_t first = entry & HP_WIDE_FIRST_MASK;
-      uint32_t last = first + ((entry >> HP_WIDE_COUNT_SHIFT) & HP_WIDE_COUNT_MASK);
-      if (objects) {
-        first = lt.object_first[first];
-        last = lt.object_first[last];
-      }
-      for (uint32_t k = first; k < last; ++k) {
-        ++tested;
-        float t, u, v;
-        if (!watertight(r, tris[k], t, u, v)) continue;
-        if (!(t >= r.tmin)) continue;
-        if constexpr (kAny) {
-          if (!(t <= r.tmax)) continue;
-          best = Hit{static_cast<int32_t>(scene[k]), t, u, v};
-          sp = 0;  // occluded: nothing else matters
-          break;
-        } else {
-          if (t < best_t || (t == best_t && scene[k] < best_scene)) {
-            best_t = t;
-            best_scene = scene[k];
-            best = Hit{static_cast<int32_t>(scene[k]), t, u, v};
-          }
-        }
-      }
+      const uint32_t first = entry & HP_WIDE_FIRST_MASK;
+      const uint32_t last = first + ((entry >> HP_WIDE_COUNT_SHIFT) & HP_WIDE_COUNT_MASK);
+      // Any hit: occluded, nothing else matters.
+      if (detail::test_leaf<kAny>(r, lt, first, last, best, best_t, best_scene, tested)) sp = 0;
     } else {
       const gpu::WideNode& n = nodes[entry];
       ++visited;
@@ -307,13 +283,8 @@ Hit intersect_any(const WideBvh& bvh, const LeafOrderTriangles& tris, const Ray&
 
 std::vector<Hit> cast_rays(const WideBvh& bvh, const LeafOrderTriangles& tris, std::span<const Ray> rays, HitMode mode,
                            int threads, TraversalStats* stats) {
-  if (mode == HitMode::closest) {
-    return detail::cast_parallel(rays, threads, stats, [&](const Ray& ray, TraversalStats* local) {
-      return traverse<false>(bvh, tris, ray, local);
-    });
-  }
-  return detail::cast_parallel(rays, threads, stats, [&](const Ray& ray, TraversalStats* local) {
-    return traverse<true>(bvh, tris, ray, local);
+  return detail::cast_mode(rays, mode, threads, stats, [&](auto any, const Ray& ray, TraversalStats* local) {
+    return traverse<decltype(any)::value>(bvh, tris, ray, local);
   });
 }
 

@@ -220,6 +220,13 @@ struct HpStack {
   int sp;
 };
 
+HpStack hp_stack_empty() {
+  HpStack st;
+  st.s0 = 0u; st.s1 = 0u; st.s2 = 0u; st.s3 = 0u; st.s4 = 0u; st.s5 = 0u; st.s6 = 0u; st.s7 = 0u;
+  st.sp = 0;
+  return st;
+}
+
 void hp_push(inout HpStack st, uint x, uint lane) {
   if (st.sp >= 8) hp_stack[uint(st.sp - 8) * HP_TRAVERSAL_MAX_GROUP + lane] = st.s7;
   st.s7 = st.s6; st.s6 = st.s5; st.s5 = st.s4; st.s4 = st.s3;
@@ -285,9 +292,7 @@ HpHit hp_trace_binary(HpRay r, bool any_hit, inout HpStats stats) {
   best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
   float best_t = r.tmax;
   uint lane = gl_LocalInvocationIndex;
-  HpStack st;
-  st.s0 = 0u; st.s1 = 0u; st.s2 = 0u; st.s3 = 0u; st.s4 = 0u; st.s5 = 0u; st.s6 = 0u; st.s7 = 0u;
-  st.sp = 0;
+  HpStack st = hp_stack_empty();
   uint node = 0u;
   bool done = false;
   while (!done) {
@@ -349,9 +354,7 @@ HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
   best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
   float best_t = r.tmax;
   uint lane = gl_LocalInvocationIndex;
-  HpStack st;
-  st.s0 = 0u; st.s1 = 0u; st.s2 = 0u; st.s3 = 0u; st.s4 = 0u; st.s5 = 0u; st.s6 = 0u; st.s7 = 0u;
-  st.sp = 0;
+  HpStack st = hp_stack_empty();
   uint entry = 0u;  // the root, an interior node
   bool done = false;
   while (!done) {
