@@ -82,7 +82,11 @@ struct CaptureOptions {
   /// workgroups, the plain every-k-th sampling).
   uint32_t sample_block = 1;
   uint64_t buffer_bytes = 0;  ///< trace buffer size; 0 = min(64 MiB, maxStorageBufferRange)
-  bool tiled_images = true;   ///< G-buffer and outputs laid out in 8x8-texel tiles (else linear rows)
+  /// Workgroup units (rows, or groups of a 1D pass) of a pass's first slice; 0 = one unit, a probe whose
+  /// count sizes the next slices (a pass that overflows the buffer in its first slice runs once more for
+  /// nothing: the whole pass first would cost a wasted instrumented run of the pass whenever it does not fit).
+  uint32_t first_slice_units = 0;
+  bool tiled_images = true;  ///< G-buffer and outputs laid out in 8x8-texel tiles (else linear rows)
   /// Also run the enabled passes that are not traced, then accumulate and composite, so that the frame's
   /// image is whole (`trace --image`). Off: only the G-buffer and the traced passes run.
   bool final_image = true;

@@ -77,6 +77,7 @@ TEST(Capture, TracedImageEqualsUntracedAndRecordsAreComplete) {
   // until they fit, and the records are the same.
   const uint64_t least = std::min(big.passes[0].records, big.passes[1].records);
   o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (least * 3 / 4);
+  o.first_slice_units = UINT32_MAX;  // the whole pass first: it overflows, so the re-run path runs
   const Captured tiny = capture(*ctx, scene, s, o, "tiny");
   ASSERT_EQ(tiny.passes.size(), 2u);
   for (size_t i = 0; i < 2; ++i) {
@@ -107,6 +108,7 @@ TEST(Capture, TracedImageEqualsUntracedAndRecordsAreComplete) {
 
 // A slice that overflows the buffer still counts every record it made, so the rerun is sized from that
 // count: one overflow of the whole pass, not a halving series that runs the pass's work about twice more.
+// By default a probe comes first instead, and nothing overflows but where the density jumps.
 TEST(Capture, AnOverflowSizesTheRerunFromItsCount) {
   HP_REQUIRE_VULKAN(ctx);
   const Scene scene = load_scene("builtin:pica");
@@ -116,6 +118,7 @@ TEST(Capture, AnOverflowSizesTheRerunFromItsCount) {
   ASSERT_EQ(big.passes.size(), 2u);
   const uint64_t least = std::min(big.passes[0].records, big.passes[1].records);
   o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (least / 6);
+  o.first_slice_units = UINT32_MAX;
   const Captured small_buffer = capture(*ctx, scene, s, o, "sixth");
   for (size_t i = 0; i < 2; ++i) {
     const CapturedPass& p = small_buffer.passes[i];
@@ -124,8 +127,30 @@ TEST(Capture, AnOverflowSizesTheRerunFromItsCount) {
     // Halving would take 56 -> 28 -> 14 -> 7 rows: three reruns at least.
     EXPECT_LE(p.reruns, 2u) << p.pass << ": the whole pass overflowed, then at most one more slice";
   }
+  // By default a one-row probe comes first and sizes the rest: the same records, and no whole-pass run
+  // for nothing (at most one slice re-run where the density jumps past twice the largest seen).
+  o.first_slice_units = 0;
+  const Captured probed = capture(*ctx, scene, s, o, "probed");
+  for (size_t i = 0; i < 2; ++i) {
+    const CapturedPass& p = probed.passes[i];
+    EXPECT_EQ(p.records, big.passes[i].records) << p.pass;
+    EXPECT_GE(p.slices, 6u) << p.pass;
+    EXPECT_LE(p.reruns, 1u) << p.pass;
+  }
+  trace::TraceReader a(small_buffer.file), b(probed.file);
+  for (uint32_t p = 0; p < 2; ++p) {
+    auto ra = a.read_pass(p), rb = b.read_pass(p);
+    const auto key = [](const gpu::TraceRecord& r) { return std::tuple(r.invocation, r.seq, r.info, r.offset); };
+    std::vector<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>> ka, kb;
+    for (const auto& r : ra) ka.push_back(key(r));
+    for (const auto& r : rb) kb.push_back(key(r));
+    std::sort(ka.begin(), ka.end());
+    std::sort(kb.begin(), kb.end());
+    EXPECT_TRUE(ka == kb) << "pass " << p << ": the probed capture's records differ";
+  }
   fs::remove(big.file);
   fs::remove(small_buffer.file);
+  fs::remove(probed.file);
 }
 
 // Audit find (2026-11-30): a capture ran every enabled pass and the composite even when only one pass was
@@ -418,6 +443,7 @@ TEST(Capture, CompactionSubPassesAreTracedWithoutLosingRays) {
   CaptureOptions o;
   const uint64_t least = std::min(big.passes[0].records, consume.records);
   o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (least * 3 / 4);
+  o.first_slice_units = UINT32_MAX;  // the whole pass first: it overflows, so the re-run path runs
   const Captured tiny = capture(*ctx, scene, s, o, "compact_tiny");
   ASSERT_EQ(tiny.passes.size(), big.passes.size());
   EXPECT_GT(tiny.passes[0].reruns, 0u) << "the compaction's first slice must overflow";
