@@ -82,9 +82,9 @@ struct CaptureOptions {
   /// workgroups, the plain every-k-th sampling).
   uint32_t sample_block = 1;
   uint64_t buffer_bytes = 0;  ///< trace buffer size; 0 = min(64 MiB, maxStorageBufferRange)
-  /// Workgroup units (rows, or groups of a 1D pass) of a pass's first slice; 0 = one unit, a probe whose
-  /// count sizes the next slices (a pass that overflows the buffer in its first slice runs once more for
-  /// nothing: the whole pass first would cost a wasted instrumented run of the pass whenever it does not fit).
+  /// Workgroup units (rows, or groups of a 1D pass) of a pass's first slice. 0 = automatic: the whole pass
+  /// where 32 records per traced invocation would fit the buffer, else one unit, a probe whose count sizes
+  /// the next slices (a first slice that overflows runs once for nothing but its count).
   uint32_t first_slice_units = 0;
   bool tiled_images = true;  ///< G-buffer and outputs laid out in 8x8-texel tiles (else linear rows)
   /// Also run the enabled passes that are not traced, then accumulate and composite, so that the frame's
