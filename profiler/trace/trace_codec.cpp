@@ -29,32 +29,92 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
                           uint64_t per_group, std::vector<uint8_t>& out) {
   const uint64_t groups = end_workgroup - first_workgroup;
   const uint64_t first_invocation = first_workgroup * per_group;
-  // Records by workgroup (counting sort, stable; copied, so that each workgroup's records lie together in
-  // the host's caches while they are coded), then each workgroup's by (seq, lane, position).
   const int shift = std::has_single_bit(per_group) ? std::countr_zero(per_group) : -1;
   const auto group_of = [&](uint32_t invocation) {
     const uint64_t i = invocation - first_invocation;
     return uint32_t(shift >= 0 ? i >> shift : i / per_group);
   };
+  // Per workgroup: its record count and largest seq (one pass over the records, which also refuses what the
+  // coding cannot hold rather than writing it as something else; a version-1 file stores such records as
+  // given, and its reader rejects them).
   group_begin.assign(groups + 1, 0);
-  gid.resize(records.size());
+  max_seq.assign(groups, 0);
+  // Plain pointers into the scratch arrays here and below: through the members the compiler reloads each
+  // array's address at every store.
+  uint32_t* const counts = group_begin.data() + 1;
+  uint32_t* const seq_max = max_seq.data();
   for (size_t i = 0; i < records.size(); ++i) {
     const TraceRecord& r = records[i];
-    // What the coding cannot hold is refused here rather than written as something else (a version-1
-    // file stores such records as given, and its reader rejects them).
     if (r.invocation < first_invocation || r.invocation - first_invocation >= groups * per_group)
       throw InputError("trace writer: record " + std::to_string(i) + ": invocation " + std::to_string(r.invocation) +
                        " outside its slice's workgroups [" + std::to_string(first_workgroup) + ", " +
                        std::to_string(end_workgroup) + ")");
     if (r.info > 0xFFFF) throw InputError("trace writer: record " + std::to_string(i) + ": reserved info bits set");
-    gid[i] = group_of(r.invocation);
-    ++group_begin[gid[i] + 1];
+    const uint32_t g = group_of(r.invocation);
+    ++counts[g];
+    seq_max[g] = std::max(seq_max[g], r.seq);
+  }
+  // Each workgroup's records are ordered by (seq, lane, position). A GPU capture numbers each invocation's
+  // records 0, 1, 2, ... so the keys are distinct and dense: every workgroup gets a table of (largest seq + 1)
+  // x per_group slots in one array, each record's index is placed into its slot (one pass over the records,
+  // in the order they come), and the tables are read back in order (linear time, no copy of the records). A
+  // key that repeats (the format allows it), or a table much larger than the workgroup's records, takes a
+  // comparison sort of that workgroup's keys instead; both give the same order.
+  table_begin.resize(groups);
+  placed.assign(groups, 0);
+  uint64_t cells = 0;
+  bool any_sorted = false;
+  for (uint64_t g = 0; g < groups; ++g) {
+    const uint64_t n = group_begin[g + 1];
+    const uint64_t range = (uint64_t(max_seq[g]) + 1) * per_group;
+    table_begin[g] = cells;
+    if (n > 0 && range <= 8 * n + 4096) {
+      placed[g] = 1;
+      cells += range;
+    } else {
+      any_sorted |= n > 0;
+    }
+  }
+  slot.assign(cells, kEmpty);
+  {
+    uint8_t* const is_placed = placed.data();
+    const uint64_t* const begin = table_begin.data();
+    uint32_t* const table = slot.data();
+    for (size_t i = 0; i < records.size(); ++i) {
+      const TraceRecord& r = records[i];
+      const uint32_t g = group_of(r.invocation);
+      if (!is_placed[g]) continue;
+      uint32_t& at = table[begin[g] + uint64_t(r.seq) * per_group + (r.invocation - first_invocation - g * per_group)];
+      if (at != kEmpty) {
+        // A repeated key: this workgroup is sorted instead (its table is left unread).
+        is_placed[g] = 0;
+        any_sorted = true;
+        continue;
+      }
+      at = uint32_t(i);
+    }
   }
   for (uint64_t g = 0; g < groups; ++g) group_begin[g + 1] += group_begin[g];
-  grouped.resize(records.size());
-  {
-    std::vector<uint32_t> at(group_begin.begin(), group_begin.end() - 1);
-    for (size_t i = 0; i < records.size(); ++i) grouped[at[gid[i]]++] = records[i];
+  // The sorted workgroups' keys: (seq << 32 | lane, position), sorted per workgroup (positions break ties:
+  // stable).
+  keys.clear();
+  sorted_begin.assign(groups + 1, 0);
+  if (any_sorted) {
+    for (size_t i = 0; i < records.size(); ++i) {
+      const uint32_t g = group_of(records[i].invocation);
+      if (placed[g]) continue;
+      ++sorted_begin[g + 1];
+    }
+    for (uint64_t g = 0; g < groups; ++g) sorted_begin[g + 1] += sorted_begin[g];
+    keys.resize(sorted_begin[groups]);
+    std::vector<uint32_t> fill(sorted_begin.begin(), sorted_begin.end() - 1);
+    for (size_t i = 0; i < records.size(); ++i) {
+      const TraceRecord& r = records[i];
+      const uint32_t g = group_of(r.invocation);
+      if (placed[g]) continue;
+      keys[fill[g]++] = {uint64_t(r.seq) << 32 | (r.invocation - first_invocation - g * per_group), uint32_t(i)};
+    }
+    for (uint64_t g = 0; g < groups; ++g) std::sort(keys.begin() + sorted_begin[g], keys.begin() + sorted_begin[g + 1]);
   }
   // Coded into scratch room, then appended. Its bound: at most 5 + 5 bytes a workgroup and a step,
   // 1 + 5 + 2 + 4 a record, and a slice has no more steps than records. Left uninitialised: zeroing the
@@ -67,80 +127,73 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
   uint8_t* p = room.get();
   uint64_t next_g = 0;
   uint32_t prev_info = 0, prev_offset = 0;
-  for (uint64_t g = 0; g < groups; ++g) {
-    const uint32_t b = group_begin[g], e = group_begin[g + 1];
-    if (b == e) continue;
-    const uint64_t base = first_invocation + g * per_group;
-    // Order by (seq, lane). A GPU capture numbers each invocation's records 0, 1, 2, ... so the keys are
-    // distinct and dense: placed straight into a table of (largest seq + 1) x per_group slots and read back
-    // in order (linear time). A key that repeats (the format allows it), or a table much larger than the
-    // workgroup's records, takes a comparison sort instead; both give the same order.
-    keys.clear();
-    uint32_t max_seq = 0;
-    for (uint32_t k = b; k < e; ++k) max_seq = std::max(max_seq, grouped[k].seq);
-    const uint64_t range = (uint64_t(max_seq) + 1) * per_group;
-    bool placed = range <= 8 * uint64_t(e - b) + 4096;
-    if (placed) {
-      slot.assign(range, kEmpty);
-      for (uint32_t k = b; k < e && placed; ++k) {
-        const TraceRecord& r = grouped[k];
-        uint32_t& at = slot[uint64_t(r.seq) * per_group + (r.invocation - base)];
-        placed = at == kEmpty;
-        at = k;
-      }
+  int64_t prev_lane = -1;
+  // One record of the current step.
+  const auto put_record = [&](const TraceRecord& r, int64_t lane) {
+    const uint64_t d = uint64_t(lane - prev_lane);
+    prev_lane = lane;
+    uint8_t control = uint8_t(std::min<uint64_t>(d, 7));
+    const uint32_t info = r.info;
+    if (info != prev_info) control |= 8;
+    const uint32_t zz = zigzag(int64_t(r.offset) - int64_t(prev_offset));
+    const uint32_t mode = zz == 0 ? 0 : zz < (1u << 8) ? 1 : zz < (1u << 16) ? 2 : zz < (1u << 24) ? 3 : 4;
+    control |= uint8_t(mode << 4);
+    *p++ = control;
+    if (d >= 7) put_varint(p, d - 7);
+    if (info != prev_info) {
+      *p++ = uint8_t(info);
+      *p++ = uint8_t(info >> 8);
+      prev_info = info;
     }
-    if (placed) {
-      const uint32_t* at = slot.data();
-      for (uint64_t seq = 0; seq <= max_seq; ++seq) {
-        for (uint64_t lane = 0; lane < per_group; ++lane, ++at) {
-          if (*at != kEmpty) keys.emplace_back(seq << 32 | lane, *at);
+    const uint32_t v = mode == 4 ? r.offset : zz;
+    std::memcpy(p, &v, 4);  // little-endian; only the first `bytes` count
+    p += mode == 4 ? 4u : mode;
+    prev_offset = r.offset;
+  };
+  for (uint64_t g = 0; g < groups; ++g) {
+    if (group_begin[g] == group_begin[g + 1]) continue;
+    put_varint(p, g - next_g);
+    next_g = g + 1;
+    uint64_t prev_seq = 0;
+    bool first_step = true;
+    const auto put_step_header = [&](uint64_t seq, uint64_t n) {
+      put_varint(p, first_step ? seq : seq - prev_seq - 1);
+      put_varint(p, n - 1);
+      first_step = false;
+      prev_seq = seq;
+      prev_lane = -1;
+    };
+    if (placed[g]) {
+      const uint32_t* row = slot.data() + table_begin[g];
+      const uint64_t rows = max_seq[g] + 1;
+      uint64_t steps = 0;
+      for (uint64_t k = 0; k < rows * per_group; k += per_group) {
+        bool any = false;
+        for (uint64_t lane = 0; lane < per_group && !any; ++lane) any = row[k + lane] != kEmpty;
+        steps += any;
+      }
+      put_varint(p, steps);
+      for (uint64_t seq = 0; seq < rows; ++seq, row += per_group) {
+        uint64_t n = 0;
+        for (uint64_t lane = 0; lane < per_group; ++lane) n += row[lane] != kEmpty;
+        if (n == 0) continue;
+        put_step_header(seq, n);
+        for (uint64_t lane = 0; lane < per_group; ++lane) {
+          if (row[lane] != kEmpty) put_record(records[row[lane]], int64_t(lane));
         }
       }
     } else {
-      for (uint32_t k = b; k < e; ++k) {
-        const TraceRecord& r = grouped[k];
-        keys.emplace_back(uint64_t(r.seq) << 32 | (r.invocation - base), k);
-      }
-      std::sort(keys.begin(), keys.end());  // positions break ties: stable
-    }
-    put_varint(p, g - next_g);
-    next_g = g + 1;
-    uint64_t steps = 1;
-    for (size_t k = 1; k < keys.size(); ++k) steps += (keys[k].first >> 32) != (keys[k - 1].first >> 32);
-    put_varint(p, steps);
-    uint64_t prev_seq = 0;
-    bool first_step = true;
-    for (size_t k = 0; k < keys.size();) {
-      const uint64_t seq = keys[k].first >> 32;
-      size_t j = k;
-      while (j < keys.size() && (keys[j].first >> 32) == seq) ++j;
-      put_varint(p, first_step ? seq : seq - prev_seq - 1);
-      put_varint(p, j - k - 1);
-      first_step = false;
-      prev_seq = seq;
-      int64_t prev_lane = -1;
-      for (; k < j; ++k) {
-        const TraceRecord& r = grouped[keys[k].second];
-        const int64_t lane = int64_t(r.invocation - base);
-        const uint64_t d = uint64_t(lane - prev_lane);
-        prev_lane = lane;
-        uint8_t control = uint8_t(std::min<uint64_t>(d, 7));
-        const uint32_t info = r.info;
-        if (info != prev_info) control |= 8;
-        const uint32_t zz = zigzag(int64_t(r.offset) - int64_t(prev_offset));
-        const uint32_t mode = zz == 0 ? 0 : zz < (1u << 8) ? 1 : zz < (1u << 16) ? 2 : zz < (1u << 24) ? 3 : 4;
-        control |= uint8_t(mode << 4);
-        *p++ = control;
-        if (d >= 7) put_varint(p, d - 7);
-        if (info != prev_info) {
-          *p++ = uint8_t(info);
-          *p++ = uint8_t(info >> 8);
-          prev_info = info;
-        }
-        const uint32_t v = mode == 4 ? r.offset : zz;
-        std::memcpy(p, &v, 4);  // little-endian; only the first `bytes` count
-        p += mode == 4 ? 4u : mode;
-        prev_offset = r.offset;
+      const auto* k0 = keys.data() + sorted_begin[g];
+      const auto* k1 = keys.data() + sorted_begin[g + 1];
+      uint64_t steps = 1;
+      for (const auto* k = k0 + 1; k < k1; ++k) steps += (k->first >> 32) != ((k - 1)->first >> 32);
+      put_varint(p, steps);
+      for (const auto* k = k0; k < k1;) {
+        const uint64_t seq = k->first >> 32;
+        const auto* j = k;
+        while (j < k1 && (j->first >> 32) == seq) ++j;
+        put_step_header(seq, uint64_t(j - k));
+        for (; k < j; ++k) put_record(records[k->second], int64_t(k->first & 0xFFFFFFFFu));
       }
     }
   }

@@ -422,6 +422,37 @@ TEST(TraceFile, CompactCodingDoesNotDependOnTheRecordsOrder) {
   EXPECT_EQ(x, y);
 }
 
+// A workgroup whose seqs are dense but where one key repeats (the format allows it, a capture never makes
+// it): its records are placed into the slot table until the repeat shows, then it is sorted instead,
+// keeping the repeated key's records in the order they came; the other workgroups keep the table.
+TEST(TraceFile, ARepeatedKeyFallsBackToSortingItsWorkgroupOnly) {
+  std::vector<TraceRecord> in;
+  for (uint32_t g = 0; g < 3; ++g) {
+    for (uint32_t lane = 0; lane < 64; ++lane) {
+      for (uint32_t seq = 0; seq < 4; ++seq) {
+        in.push_back({g * 64 + lane, seq, HP_TRACE_INFO(0u, HP_TRACE_LOAD, 4u), (g * 1000 + lane * 10 + seq) * 4});
+      }
+    }
+  }
+  in.push_back({64 + 7, 2, HP_TRACE_INFO(1u, HP_TRACE_STORE, 4u), 12345});  // workgroup 1, lane 7, seq 2 again
+  SliceEncoder e;
+  std::vector<uint8_t> coded;
+  e.encode(in, 0, 3, 64, coded);
+  std::vector<TraceRecord> back(in.size());
+  decode_slice(coded, in.size(), 0, 3, 64, back.data(), "test", [](const TraceRecord*, uint64_t, uint64_t) {});
+  // Canonical order: by workgroup, seq, lane; the repeated key's two records in the order they came.
+  std::vector<TraceRecord> want = in;
+  std::stable_sort(want.begin(), want.end(), [](const TraceRecord& a, const TraceRecord& b) {
+    return std::tuple(a.invocation / 64, a.seq, a.invocation) < std::tuple(b.invocation / 64, b.seq, b.invocation);
+  });
+  ASSERT_EQ(back.size(), want.size());
+  for (size_t i = 0; i < want.size(); ++i) {
+    EXPECT_TRUE(std::tie(back[i].invocation, back[i].seq, back[i].info, back[i].offset) ==
+                std::tie(want[i].invocation, want[i].seq, want[i].info, want[i].offset))
+        << "record " << i;
+  }
+}
+
 TEST(TraceFile, CorruptCompactRecordsGiveOneLineErrorsNamingTheFile) {
   const auto good = tmp("compact_good.hptrace"), bad = tmp("compact_bad.hptrace");
   write_trace(good, sample());
