@@ -61,25 +61,31 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
   // key that repeats (the format allows it), or a table much larger than the workgroup's records, takes a
   // comparison sort of that workgroup's keys instead; both give the same order.
   table_begin.resize(groups);
+  row_begin.resize(groups);
   placed.assign(groups, 0);
-  uint64_t cells = 0;
+  uint64_t cells = 0, rows = 0;
   bool any_sorted = false;
   for (uint64_t g = 0; g < groups; ++g) {
     const uint64_t n = group_begin[g + 1];
     const uint64_t range = (uint64_t(max_seq[g]) + 1) * per_group;
     table_begin[g] = cells;
+    row_begin[g] = rows;
     if (n > 0 && range <= 8 * n + 4096) {
       placed[g] = 1;
       cells += range;
+      rows += uint64_t(max_seq[g]) + 1;
     } else {
       any_sorted |= n > 0;
     }
   }
   slot.assign(cells, kEmpty);
+  row_count.assign(rows, 0);  // records per (workgroup, seq): a step's size, without scanning its row
   {
     uint8_t* const is_placed = placed.data();
     const uint64_t* const begin = table_begin.data();
+    const uint64_t* const first_row = row_begin.data();
     uint32_t* const table = slot.data();
+    uint32_t* const in_row = row_count.data();
     for (size_t i = 0; i < records.size(); ++i) {
       const TraceRecord& r = records[i];
       const uint32_t g = group_of(r.invocation);
@@ -92,6 +98,7 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
         continue;
       }
       at = uint32_t(i);
+      ++in_row[first_row[g] + r.seq];
     }
   }
   for (uint64_t g = 0; g < groups; ++g) group_begin[g + 1] += group_begin[g];
@@ -165,21 +172,18 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
     };
     if (placed[g]) {
       const uint32_t* row = slot.data() + table_begin[g];
-      const uint64_t rows = max_seq[g] + 1;
+      const uint32_t* count = row_count.data() + row_begin[g];
+      const uint64_t seqs = uint64_t(max_seq[g]) + 1;
       uint64_t steps = 0;
-      for (uint64_t k = 0; k < rows * per_group; k += per_group) {
-        bool any = false;
-        for (uint64_t lane = 0; lane < per_group && !any; ++lane) any = row[k + lane] != kEmpty;
-        steps += any;
-      }
+      for (uint64_t seq = 0; seq < seqs; ++seq) steps += count[seq] != 0;
       put_varint(p, steps);
-      for (uint64_t seq = 0; seq < rows; ++seq, row += per_group) {
-        uint64_t n = 0;
-        for (uint64_t lane = 0; lane < per_group; ++lane) n += row[lane] != kEmpty;
-        if (n == 0) continue;
-        put_step_header(seq, n);
-        for (uint64_t lane = 0; lane < per_group; ++lane) {
-          if (row[lane] != kEmpty) put_record(records[row[lane]], int64_t(lane));
+      for (uint64_t seq = 0; seq < seqs; ++seq, row += per_group) {
+        if (count[seq] == 0) continue;
+        put_step_header(seq, count[seq]);
+        for (uint64_t lane = 0, left = count[seq]; left > 0; ++lane) {
+          if (row[lane] == kEmpty) continue;
+          put_record(records[row[lane]], int64_t(lane));
+          --left;
         }
       }
     } else {

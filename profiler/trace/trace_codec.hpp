@@ -41,8 +41,8 @@ namespace hp::trace {
 
 // Scratch kept between slices by an encoder (no allocation per slice once warm).
 struct SliceEncoder {
-  std::vector<uint32_t> group_begin, max_seq, sorted_begin, slot;
-  std::vector<uint64_t> table_begin;
+  std::vector<uint32_t> group_begin, max_seq, sorted_begin, slot, row_count;
+  std::vector<uint64_t> table_begin, row_begin;
   std::vector<uint8_t> placed;
   static constexpr uint32_t kEmpty = 0xFFFFFFFFu;
   std::unique_ptr<uint8_t[]> room;  // the coding's room, of room_size bytes
