@@ -117,7 +117,7 @@ class Converter {
     if (stack_here > HP_BVH_STACK_SIZE) {
       throw InputError("node layout wide4: the tree needs " + std::to_string(stack_here) +
                        " traversal stack entries, over HP_BVH_STACK_SIZE (" + std::to_string(HP_BVH_STACK_SIZE) +
-                       "); lower the BVH's depth bound (max_depth)");
+                       "); the binary32 layout traces this tree");
     }
     out_.stack_need = std::max(out_.stack_need, stack_here);
     gpu::WideNode w{};

@@ -336,6 +336,7 @@ HpHit hp_trace_binary(HpRay r, bool any_hit, inout HpStats stats) {
   }
   return best;
 }
+
 // One slot of a wide node: its box decoded (origin + q * step, rounded once: `precise` keeps the products
 // out of FMAs, as -ffp-contract=off does in bvh/wide.cpp) and slab-tested against [tmin, t_hi].
 bool hp_wide_slot(HpRay r, vec3 origin, vec3 step, uvec4 t1, uvec4 t2, uint sh, float t_hi) {
