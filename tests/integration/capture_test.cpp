@@ -55,6 +55,16 @@ Captured capture(vk::Context& ctx, const Scene& scene, const FrameSettings& s, c
   return c;
 }
 
+// A pass's records as (invocation, seq, info, offset), sorted: what two captures of it must share, whatever
+// their slicing.
+std::vector<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>> sorted_keys(const std::vector<gpu::TraceRecord>& rs) {
+  std::vector<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>> k;
+  k.reserve(rs.size());
+  for (const auto& r : rs) k.emplace_back(r.invocation, r.seq, r.info, r.offset);
+  std::sort(k.begin(), k.end());
+  return k;
+}
+
 TEST(Capture, TracedImageEqualsUntracedAndRecordsAreComplete) {
   HP_REQUIRE_VULKAN(ctx);
   const Scene scene = load_scene("builtin:pica");
@@ -87,13 +97,7 @@ TEST(Capture, TracedImageEqualsUntracedAndRecordsAreComplete) {
   }
   trace::TraceReader a(big.file), b(tiny.file);
   for (uint32_t p = 0; p < 2; ++p) {
-    auto ra = a.read_pass(p), rb = b.read_pass(p);
-    auto key = [](const gpu::TraceRecord& r) { return std::tuple(r.invocation, r.seq, r.info, r.offset); };
-    std::vector<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>> ka, kb;
-    for (const auto& r : ra) ka.push_back(key(r));
-    for (const auto& r : rb) kb.push_back(key(r));
-    std::sort(ka.begin(), ka.end());
-    std::sort(kb.begin(), kb.end());
+    const auto ka = sorted_keys(a.read_pass(p)), kb = sorted_keys(b.read_pass(p));
     EXPECT_TRUE(ka == kb) << "pass " << p << ": sliced capture differs from the whole-pass capture";
     // Every invocation numbers its accesses 0, 1, 2, ... without gaps.
     std::map<uint32_t, uint32_t> next;
@@ -139,14 +143,8 @@ TEST(Capture, AnOverflowSizesTheRerunFromItsCount) {
   }
   trace::TraceReader a(small_buffer.file), b(probed.file);
   for (uint32_t p = 0; p < 2; ++p) {
-    auto ra = a.read_pass(p), rb = b.read_pass(p);
-    const auto key = [](const gpu::TraceRecord& r) { return std::tuple(r.invocation, r.seq, r.info, r.offset); };
-    std::vector<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>> ka, kb;
-    for (const auto& r : ra) ka.push_back(key(r));
-    for (const auto& r : rb) kb.push_back(key(r));
-    std::sort(ka.begin(), ka.end());
-    std::sort(kb.begin(), kb.end());
-    EXPECT_TRUE(ka == kb) << "pass " << p << ": the probed capture's records differ";
+    EXPECT_TRUE(sorted_keys(a.read_pass(p)) == sorted_keys(b.read_pass(p)))
+        << "pass " << p << ": the probed capture's records differ";
   }
   fs::remove(big.file);
   fs::remove(small_buffer.file);
