@@ -98,15 +98,53 @@ std::vector<bvh::Ray> test_rays(const RtGeometry& g, size_t random_count) {
   return rays;
 }
 
+// `gpu` (optional) receives the device's answers.
 BatchCheck compare_batch(vk::Context& ctx, const RtGeometry& g, const RtScene& rts, const std::vector<bvh::Ray>& rays,
-                         bvh::HitMode mode, const std::string& what) {
+                         bvh::HitMode mode, const std::string& what,
+                         std::vector<RayBatchTracer::Result>* gpu = nullptr) {
   RayBatchTracer tracer(ctx, rts, rays);
   EXPECT_EQ(tracer.size(), rays.size());
   tracer.trace(ctx, mode);
-  const BatchCheck c = check_against_reference(g, rays, mode, tracer.results(ctx));
+  const std::vector<RayBatchTracer::Result> results = tracer.results(ctx);
+  const BatchCheck c = check_against_reference(g, rays, mode, results);
+  if (gpu) *gpu = results;
   for (const std::string& d : c.first_differences) std::printf("  %s: %s\n", what.c_str(), d.c_str());
   std::printf("%s: %zu rays (%zu hit), %zu differ\n", what.c_str(), c.rays, c.hits, c.differ);
   return c;
+}
+
+// The wide traversal's answers on the device against the binary tree's.
+// The wide traversal's closest hits are the binary tree's, bit for bit, but for the documented tie rule
+// (docs/bvh.md): where two coplanar triangles overlap, their computed t can differ by more than a box's
+// rounding, so which one survives pruning depends on the visiting order; the two answers are then both
+// real hits within 1e-4 of each other in t (relative to max(1, t)). Any hit: hit or miss agree.
+void expect_binary_hits(const RtGeometry& g, const std::vector<bvh::Ray>& rays, bvh::HitMode mode,
+                        const std::vector<RayBatchTracer::Result>& gpu, const std::string& what) {
+  size_t differ = 0, ties = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const bvh::Hit want = mode == bvh::HitMode::closest ? bvh::intersect_closest(g.bvh, g.leaf, rays[i])
+                                                        : bvh::intersect_any(g.bvh, g.leaf, rays[i]);
+    const bvh::Hit& got = gpu[i].hit;
+    const auto bits = [](float f) { return std::bit_cast<uint32_t>(f); };
+    if (mode == bvh::HitMode::any ? want.hit() == got.hit()
+                                  : want.prim == got.prim && bits(want.t) == bits(got.t) &&
+                                        bits(want.u) == bits(got.u) && bits(want.v) == bits(got.v)) {
+      continue;
+    }
+    if (mode == bvh::HitMode::closest && want.hit() && got.hit() &&
+        std::abs(double(got.t) - double(want.t)) <= 1e-4 * std::max(1.0, std::abs(double(want.t)))) {
+      ++ties;
+      continue;
+    }
+    ++differ;
+    if (differ <= 3) {
+      std::printf("  ray %zu: binary prim %d t %.9g, wide4 prim %d t %.9g\n", i, want.prim, want.t, got.prim, got.t);
+    }
+  }
+  std::printf("%s: wide4 on the device against the binary reference: %zu differ, %zu coplanar ties\n", what.c_str(),
+              differ, ties);
+  EXPECT_EQ(differ, 0u) << what;
+  EXPECT_LE(ties * 1000, rays.size()) << what << ": ties beyond 0.1% of the rays";
 }
 
 // `texels`: let the scene fetch its geometry as texels where the device can (the default), or force the
@@ -131,45 +169,11 @@ void check_scene(const std::string& spec, GeometryLayout layout, bvh::Granularit
                            (rts.geometry_texels() ? ", geometry as texels" : ", geometry by storage loads");
   for (bvh::HitMode mode : {bvh::HitMode::closest, bvh::HitMode::any}) {
     const std::string what = name + (mode == bvh::HitMode::any ? ", any hit" : ", closest hit");
-    const BatchCheck t = compare_batch(*ctx, g, rts, rays, mode, what);
+    std::vector<RayBatchTracer::Result> gpu;
+    const BatchCheck t = compare_batch(*ctx, g, rts, rays, mode, what, &gpu);
     EXPECT_EQ(t.differ, 0u) << what;
     EXPECT_GT(t.hits, rays.size() / 10) << what << ": too few hits to prove anything";
-  }
-  if (nodes == bvh::NodeLayout::binary32) return;
-  // The wide traversal's closest hits are the binary tree's, bit for bit, but for the documented tie rule
-  // (docs/bvh.md): where two coplanar triangles overlap, their computed t can differ by more than a box's
-  // rounding, so which one survives pruning depends on the visiting order; the two answers are then both
-  // real hits within 1e-4 of each other in t (relative to max(1, t)). Any hit: hit or miss agree.
-  RayBatchTracer tracer(*ctx, rts, rays);
-  for (bvh::HitMode mode : {bvh::HitMode::closest, bvh::HitMode::any}) {
-    tracer.trace(*ctx, mode);
-    const auto gpu = tracer.results(*ctx);
-    size_t differ = 0, ties = 0;
-    for (size_t i = 0; i < rays.size(); ++i) {
-      const bvh::Hit want = mode == bvh::HitMode::closest ? bvh::intersect_closest(g.bvh, g.leaf, rays[i])
-                                                          : bvh::intersect_any(g.bvh, g.leaf, rays[i]);
-      const bvh::Hit& got = gpu[i].hit;
-      const auto bits = [](float f) { return std::bit_cast<uint32_t>(f); };
-      if (mode == bvh::HitMode::any ? want.hit() == got.hit()
-                                    : want.prim == got.prim && bits(want.t) == bits(got.t) &&
-                                          bits(want.u) == bits(got.u) && bits(want.v) == bits(got.v)) {
-        continue;
-      }
-      if (mode == bvh::HitMode::closest && want.hit() && got.hit() &&
-          std::abs(double(got.t) - double(want.t)) <= 1e-4 * std::max(1.0, std::abs(double(want.t)))) {
-        ++ties;
-        continue;
-      }
-      ++differ;
-      if (differ <= 3) {
-        std::printf("  ray %zu: binary prim %d t %.9g, wide4 prim %d t %.9g\n", i, want.prim, want.t, got.prim, got.t);
-      }
-    }
-    const std::string what = name + (mode == bvh::HitMode::any ? ", any hit" : ", closest hit");
-    std::printf("%s: wide4 on the device against the binary reference: %zu differ, %zu coplanar ties\n", what.c_str(),
-                differ, ties);
-    EXPECT_EQ(differ, 0u) << what;
-    EXPECT_LE(ties * 1000, rays.size()) << what << ": ties beyond 0.1% of the rays";
+    if (nodes == bvh::NodeLayout::wide4) expect_binary_hits(g, rays, mode, gpu, what);
   }
 }
 
