@@ -113,8 +113,8 @@ BatchCheck compare_batch(vk::Context& ctx, const RtGeometry& g, const RtScene& r
   return c;
 }
 
-// The wide traversal's answers on the device against the binary tree's.
-// The wide traversal's closest hits are the binary tree's, bit for bit, but for the documented tie rule
+// The wide traversal's answers on the device against the binary tree's: its closest hits are the binary
+// tree's, bit for bit, but for the documented tie rule
 // (docs/bvh.md): where two coplanar triangles overlap, their computed t can differ by more than a box's
 // rounding, so which one survives pruning depends on the visiting order; the two answers are then both
 // real hits within 1e-4 of each other in t (relative to max(1, t)). Any hit: hit or miss agree.
