@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cstring>
+#include <stdexcept>
 
 #include "error.hpp"
 
@@ -26,7 +27,9 @@ uint32_t zigzag(int64_t d) { return uint32_t((uint64_t(d) << 1) ^ uint64_t(d >> 
 }  // namespace
 
 void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup,
-                          uint64_t per_group, std::vector<uint8_t>& out) {
+                          uint64_t per_group, std::vector<uint8_t>& out, uint32_t coding) {
+  if (coding != kCodingDeltaVarint && coding != kCodingSizedGroups)
+    throw std::logic_error("SliceEncoder::encode: unknown coding " + std::to_string(coding));
   const uint64_t groups = end_workgroup - first_workgroup;
   const uint64_t first_invocation = first_workgroup * per_group;
   const int shift = std::has_single_bit(per_group) ? std::countr_zero(per_group) : -1;
@@ -123,10 +126,10 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
     }
     for (uint64_t g = 0; g < groups; ++g) std::sort(keys.begin() + sorted_begin[g], keys.begin() + sorted_begin[g + 1]);
   }
-  // Coded into scratch room, then appended. Its bound: at most 5 + 5 bytes a workgroup and a step,
+  // Coded into scratch room, then appended. Its bound: at most 5 + 4 + 5 bytes a workgroup, 5 + 5 a step,
   // 1 + 5 + 2 + 4 a record, and a slice has no more steps than records. Left uninitialised: zeroing the
   // bound would cost more than the coding.
-  const size_t bound = 22 * records.size() + 10 * groups + 16;
+  const size_t bound = 22 * records.size() + 14 * groups + 16;
   if (room_size < bound) {
     room = std::make_unique_for_overwrite<uint8_t[]>(bound);
     room_size = bound;
@@ -161,6 +164,12 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
     if (group_begin[g] == group_begin[g + 1]) continue;
     put_varint(p, g - next_g);
     next_g = g + 1;
+    uint8_t* body_bytes = nullptr;  // coding 2: where the body's size goes once it is known
+    if (coding == kCodingSizedGroups) {
+      body_bytes = p;
+      p += 4;
+      prev_info = prev_offset = 0;
+    }
     uint64_t prev_seq = 0;
     bool first_step = true;
     const auto put_step_header = [&](uint64_t seq, uint64_t n) {
@@ -200,6 +209,12 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
         for (; k < j; ++k) put_record(records[k->second], int64_t(k->first & 0xFFFFFFFFu));
       }
     }
+    if (body_bytes) {
+      const uint64_t size = uint64_t(p - body_bytes - 4);
+      if (size > 0xFFFFFFFFu) throw InputError("trace writer: a workgroup's records code to 4 GiB or more");
+      const uint32_t v = uint32_t(size);
+      std::memcpy(body_bytes, &v, 4);
+    }
   }
   out.insert(out.end(), room.get(), p);
 }
@@ -231,12 +246,12 @@ struct Stream {
 
 void decode_slice(std::span<const uint8_t> in, uint64_t count, uint64_t first_workgroup, uint64_t end_workgroup,
                   uint64_t per_group, TraceRecord* out, const std::string& where, const DecodeCheck& check,
-                  uint32_t* group_begin) {
+                  uint32_t* group_begin, uint32_t coding) {
   Stream s{in.data(), in.data(), in.data() + in.size(), where};
   const uint64_t groups = end_workgroup - first_workgroup;
   if (group_begin && count > 0xFFFFFFFFu) s.fail("more than 2^32 - 1 records in one slice");
   uint64_t next_g = 0, n_out = 0, checked = 0;
-  uint32_t prev_info = 0, prev_offset = 0;
+  CodedState state;
   constexpr uint64_t kCheckRun = 1 << 14;
   while (s.p != s.end) {
     const uint64_t g = next_g + s.varint();
@@ -245,6 +260,18 @@ void decode_slice(std::span<const uint8_t> in, uint64_t count, uint64_t first_wo
       for (uint64_t e = next_g; e <= g; ++e) group_begin[e] = uint32_t(n_out);  // g and the empty ones before it
     }
     next_g = g + 1;
+    const uint8_t* body_end = nullptr;  // coding 2: where the workgroup's body must end
+    if (coding == kCodingSizedGroups) {
+      if (s.end - s.p < 4) s.fail("truncated");
+      uint32_t size;
+      std::memcpy(&size, s.p, 4);
+      s.p += 4;
+      if (size > uint64_t(s.end - s.p))
+        s.fail("workgroup " + std::to_string(first_workgroup + g) + ": body of " + std::to_string(size) +
+               " bytes past the end of the slice");
+      body_end = s.p + size;
+      state = CodedState{};
+    }
     const uint64_t base = (first_workgroup + g) * per_group;
     const uint64_t steps = s.varint();
     if (steps == 0) s.fail("a workgroup without steps");
@@ -257,51 +284,28 @@ void decode_slice(std::span<const uint8_t> in, uint64_t count, uint64_t first_wo
       if (n > count - n_out) s.fail("more records than the chunk's count of " + std::to_string(count));
       int64_t lane = -1;
       for (uint64_t k = 0; k < n; ++k) {
-        // Fast path, 16 bytes or more left (every record but the last few of a slice): one unaligned
-        // load for the offset and table lookups instead of a branch per field; the same checks.
-        // A bad control byte takes the careful path, which names the error.
-        if (s.end - s.p >= 16 && (s.p[0] >> 4) <= 4) {
-          const uint8_t c = s.p[0];
-          const uint32_t mode = c >> 4;
-          const uint8_t* q = s.p + 1;
-          uint64_t d = c & 7;
-          if (d == 7) {
+        // Fast path, kRecordReadBytes or more left (every record but the last few of a slice); a defect
+        // takes the careful path, which names it.
+        uint64_t d;
+        if (s.end - s.p >= int64_t(kRecordReadBytes)) {
+          if (const uint8_t* q = decode_record(s.p, state, d)) {
+            lane += int64_t(d);
+            if (uint64_t(lane) >= per_group) s.fail("lane " + std::to_string(lane) + " outside the workgroup");
             s.p = q;
-            d += s.varint();
-            q = s.p;
+            out[n_out++] = TraceRecord{uint32_t(base + uint64_t(lane)), uint32_t(seq), state.info, state.offset};
+            continue;
           }
-          lane += int64_t(d);
-          if (uint64_t(lane) >= per_group) s.fail("lane " + std::to_string(lane) + " outside the workgroup");
-          if (c & 8) {
-            prev_info = uint32_t(q[0]) | uint32_t(q[1]) << 8;
-            q += 2;
-          }
-          static constexpr uint32_t kMask[5] = {0, 0xFF, 0xFFFF, 0xFFFFFF, 0xFFFFFFFF};
-          static constexpr uint8_t kBytes[5] = {0, 1, 2, 3, 4};
-          uint32_t v;
-          std::memcpy(&v, q, 4);
-          v &= kMask[mode];
-          q += kBytes[mode];
-          const int64_t off = mode == 4 ? int64_t(v) : int64_t(prev_offset) + (int64_t(v >> 1) ^ -int64_t(v & 1));
-          if (off < 0 || off > 0xFFFFFFFFll) {
-            s.p = q;
-            s.fail("offset outside 32 bits");
-          }
-          prev_offset = uint32_t(off);
-          s.p = q;
-          out[n_out++] = TraceRecord{uint32_t(base + uint64_t(lane)), uint32_t(seq), prev_info, prev_offset};
-          continue;
         }
         if (s.p == s.end) s.fail("truncated");
         const uint8_t c = *s.p++;
         if (c & 0x80) s.fail("reserved control bit set");
-        uint64_t d = c & 7;
+        d = c & 7;
         if (d == 7) d += s.varint();
         lane += int64_t(d);
         if (uint64_t(lane) >= per_group) s.fail("lane " + std::to_string(lane) + " outside the workgroup");
         if (c & 8) {
           if (s.end - s.p < 2) s.fail("truncated");
-          prev_info = uint32_t(s.p[0]) | uint32_t(s.p[1]) << 8;
+          state.info = uint32_t(s.p[0]) | uint32_t(s.p[1]) << 8;
           s.p += 2;
         }
         const uint32_t mode = c >> 4;
@@ -312,16 +316,19 @@ void decode_slice(std::span<const uint8_t> in, uint64_t count, uint64_t first_wo
         for (uint32_t b = 0; b < bytes; ++b) v |= uint32_t(s.p[b]) << (8 * b);
         s.p += bytes;
         if (mode == 4) {
-          prev_offset = v;
+          state.offset = v;
         } else {
           const int64_t diff = int64_t(v >> 1) ^ -int64_t(v & 1);
-          const int64_t off = int64_t(prev_offset) + diff;
+          const int64_t off = int64_t(state.offset) + diff;
           if (off < 0 || off > 0xFFFFFFFFll) s.fail("offset outside 32 bits");
-          prev_offset = uint32_t(off);
+          state.offset = uint32_t(off);
         }
-        out[n_out++] = TraceRecord{uint32_t(base + uint64_t(lane)), uint32_t(seq), prev_info, prev_offset};
+        out[n_out++] = TraceRecord{uint32_t(base + uint64_t(lane)), uint32_t(seq), state.info, state.offset};
       }
     }
+    if (body_end && s.p != body_end)
+      s.fail("workgroup " + std::to_string(first_workgroup + g) + ": its body ends " + std::to_string(s.p - body_end) +
+             " bytes from the size it states");
     if (n_out - checked >= kCheckRun) {
       check(out + checked, checked, n_out - checked);
       checked = n_out;
@@ -333,6 +340,38 @@ void decode_slice(std::span<const uint8_t> in, uint64_t count, uint64_t first_wo
     for (uint64_t e = next_g; e <= groups; ++e) group_begin[e] = uint32_t(n_out);
   }
   if (n_out > checked) check(out + checked, checked, n_out - checked);
+}
+
+bool index_workgroups(std::span<const uint8_t> in, uint64_t first_workgroup, uint64_t end_workgroup,
+                      std::vector<std::pair<uint64_t, uint64_t>>& bodies) {
+  const uint64_t groups = end_workgroup - first_workgroup;
+  bodies.assign(groups, {0, 0});
+  const uint8_t* const begin = in.data();
+  const uint8_t* p = begin;
+  const uint8_t* const end = begin + in.size();
+  uint64_t next_g = 0;
+  while (p != end) {
+    uint64_t delta = 0;
+    bool done = false;
+    for (int shift = 0; shift < 35 && p != end; shift += 7) {
+      const uint8_t b = *p++;
+      delta |= uint64_t(b & 0x7F) << shift;
+      if (!(b & 0x80)) {
+        done = true;
+        break;
+      }
+    }
+    if (!done || delta >= groups - next_g || end - p < 4) return false;
+    const uint64_t g = next_g + delta;
+    uint32_t size;
+    std::memcpy(&size, p, 4);
+    p += 4;
+    if (size == 0 || size > uint64_t(end - p)) return false;
+    bodies[g] = {uint64_t(p - begin), uint64_t(p - begin) + size};
+    p += size;
+    next_g = g + 1;
+  }
+  return true;
 }
 
 }  // namespace hp::trace

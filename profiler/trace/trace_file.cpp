@@ -32,7 +32,6 @@ constexpr uint32_t kTagBuffers = tag('B', 'U', 'F', 'S');
 constexpr uint32_t kTagPass = tag('P', 'A', 'S', 'S');
 constexpr uint32_t kTagRecords = tag('R', 'E', 'C', 'S');
 constexpr uint32_t kTagCoded = tag('R', 'E', 'C', 'V');
-constexpr uint32_t kCodingDeltaVarint = 1;
 constexpr uint32_t kTagEnd = tag('E', 'N', 'D', ' ');
 
 struct FileHeader {
@@ -121,10 +120,13 @@ struct CloseOnThrow {
 };
 }  // namespace
 
-TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header, uint32_t version)
-    : out_(std::move(path)), version_(version) {
+TraceWriter::TraceWriter(std::filesystem::path path, const TraceHeader& header, uint32_t version, uint32_t coding)
+    : out_(std::move(path)), version_(version), coding_(coding) {
   if (version != kTraceVersion && version != kTraceVersionRaw)
     throw InputError(out_.path().string() + ": trace format version " + std::to_string(version) +
+                     " cannot be written (1 or 2)");
+  if (coding != kCodingDeltaVarint && coding != kCodingSizedGroups)
+    throw InputError(out_.path().string() + ": record coding " + std::to_string(coding) +
                      " cannot be written (1 or 2)");
   file_ = std::fopen(out_.temp_path().c_str(), "wb");
   if (!file_) throw InputError(out_.path().string() + ": cannot create trace file: " + std::strerror(errno));
@@ -195,8 +197,8 @@ void TraceWriter::write_records(uint32_t pass, std::span<const TraceRecord> reco
     put(records.data(), records.size_bytes());
   } else {
     coded_.clear();
-    encoder_.encode(records, first_workgroup, end_workgroup, per_group_.at(pass), coded_);
-    CodedEntry e{pass, kCodingDeltaVarint, first_workgroup, end_workgroup, records.size(), coded_.size()};
+    encoder_.encode(records, first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_);
+    CodedEntry e{pass, coding_, first_workgroup, end_workgroup, records.size(), coded_.size()};
     const size_t pad = pad8(coded_.size());
     put_chunk_header(kTagCoded, sizeof e + coded_.size() + pad);
     put(&e, sizeof e);
@@ -360,12 +362,13 @@ TraceReader::TraceReader(std::filesystem::path path) : path_(std::move(path)) {
       CodedEntry e{};
       if (ch.payload_bytes < sizeof e || std::fread(&e, sizeof e, 1, file_) != 1) fail("malformed RECV" + at);
       if (e.pass >= passes_.size()) fail("RECV" + at + " names pass " + std::to_string(e.pass) + " before its PASS");
-      if (e.coding != kCodingDeltaVarint) fail("RECV" + at + ": unknown coding " + std::to_string(e.coding));
+      if (e.coding != kCodingDeltaVarint && e.coding != kCodingSizedGroups)
+        fail("RECV" + at + ": unknown coding " + std::to_string(e.coding));
       // A record takes at least one byte: a count beyond the bytes is corruption, not an allocation to make.
       if (e.coded_bytes > ch.payload_bytes - sizeof e || e.count > e.coded_bytes ||
           ch.payload_bytes - sizeof e - e.coded_bytes != pad8(e.coded_bytes))
         fail("malformed RECV" + at + ": record count or coded size does not match the chunk size");
-      add_chunk("RECV", {e.pass, pos + sizeof e, e.count, e.first_workgroup, e.end_workgroup, e.coded_bytes});
+      add_chunk("RECV", {e.pass, pos + sizeof e, e.count, e.first_workgroup, e.end_workgroup, e.coded_bytes, e.coding});
     } else {
       std::vector<char> payload(ch.payload_bytes);
       if (!payload.empty() && std::fread(payload.data(), 1, payload.size(), file_) != payload.size())
@@ -427,7 +430,7 @@ void TraceReader::read_chunk(const Chunk& c, TraceRecord* out, uint32_t* group_b
           validate_records(where, header_, pass, std::span<const TraceRecord>(r, n), c.first_workgroup, c.end_workgroup,
                            first);
         },
-        group_begin);
+        group_begin, c.coding);
     return;
   }
   // Block by block, each validated while it is still in the host's caches (one pass over memory, not two).
@@ -577,8 +580,8 @@ void validate_records(const std::string& where, const TraceHeader& header, const
   }
 }
 
-void write_trace(const std::filesystem::path& path, const Trace& trace, uint32_t version) {
-  TraceWriter w(path, trace.header, version);
+void write_trace(const std::filesystem::path& path, const Trace& trace, uint32_t version, uint32_t coding) {
+  TraceWriter w(path, trace.header, version, coding);
   for (size_t p = 0; p < trace.passes.size(); ++p) {
     uint32_t index = w.begin_pass(trace.passes[p]);
     if (p < trace.records.size()) w.write_records(index, trace.records[p], 0, trace.passes[p].dispatch.workgroups());

@@ -15,7 +15,7 @@
 //   'RECS'  u32 pass index, u32 reserved, u64 first_workgroup, u64 end_workgroup, u64 count,
 //           count * 16-byte hp::gpu::TraceRecord (any order). One chunk per streamed slice: the
 //           workgroup range says which workgroups the slice dispatched, records need not be sorted.
-//   'RECV'  (version 2 only) the same slice coded compactly: u32 pass index, u32 coding (1), u64
+//   'RECV'  (version 2 only) the same slice coded compactly: u32 pass index, u32 coding (1 or 2), u64
 //           first_workgroup, u64 end_workgroup, u64 count, u64 coded_bytes, then coded_bytes bytes of
 //           the coding in trace_codec.hpp (about 3 bytes a record instead of 16), padded to 8 bytes.
 //   'END '  u64 total records, u32 pass count, u32 reserved. A file without it is reported as
@@ -55,10 +55,12 @@ struct Trace {
 // Streams a trace file: header and buffer table at construction, then passes and record slices.
 // Writes through an AtomicFile, renamed to PATH in finish(), so a crashed capture never leaves a file that
 // looks complete; destroying an unfinished writer removes the temporary file. `version` 2 codes each slice
-// compactly (SliceEncoder: records reordered by workgroup, seq and invocation), 1 stores them as given.
+// compactly (SliceEncoder: records reordered by workgroup, seq and invocation; `coding` 2, or the older 1),
+// 1 stores them as given.
 class TraceWriter final : public TraceSink {
  public:
-  TraceWriter(std::filesystem::path path, const TraceHeader& header, uint32_t version = kTraceVersion);
+  TraceWriter(std::filesystem::path path, const TraceHeader& header, uint32_t version = kTraceVersion,
+              uint32_t coding = kCodingSizedGroups);
   ~TraceWriter() override;
   TraceWriter(const TraceWriter&) = delete;
   TraceWriter& operator=(const TraceWriter&) = delete;
@@ -79,6 +81,7 @@ class TraceWriter final : public TraceSink {
   uint64_t total_records_ = 0;
   uint64_t bytes_written_ = 0;
   uint32_t version_;
+  uint32_t coding_;
   std::vector<uint64_t> per_group_;  // by pass: invocations per workgroup (the coding needs them)
   SliceEncoder encoder_;
   std::vector<uint8_t> coded_;
@@ -120,6 +123,7 @@ class TraceReader {
     uint64_t count;
     uint64_t first_workgroup, end_workgroup;
     uint64_t coded_bytes = 0;  // 'RECV' chunks: the coding's size (0: 16-byte records)
+    uint32_t coding = 0;       // 'RECV' chunks: kCodingDeltaVarint or kCodingSizedGroups
   };
   // c.count records to `out`, validated; `group_begin` (room for the chunk's workgroups + 1), if set, gets
   // where each workgroup's records start, for a 'RECV' chunk.
@@ -138,7 +142,8 @@ class TraceReader {
   mutable std::vector<uint8_t> coded_;  // read_chunk's scratch for a 'RECV' chunk's bytes
 };
 
-void write_trace(const std::filesystem::path& path, const Trace& trace, uint32_t version = kTraceVersion);
+void write_trace(const std::filesystem::path& path, const Trace& trace, uint32_t version = kTraceVersion,
+                 uint32_t coding = kCodingSizedGroups);
 Trace read_trace(const std::filesystem::path& path);
 
 // Checks one pass's records against the header and dispatch (and, when given, the slice of workgroups

@@ -355,32 +355,38 @@ TEST(TraceFile, CompactRecordsKeepEveryInvocationsRecordsInIssueOrder) {
   t.records[0].push_back({0, 0xFFFFFFFF, HP_TRACE_INFO(7u, HP_TRACE_LOAD, 8u), 8});
   const auto raw = tmp("compact_raw.hptrace"), compact = tmp("compact.hptrace");
   write_trace(raw, t, kTraceVersionRaw);
-  write_trace(compact, t);
-  EXPECT_EQ(TraceReader(compact).version(), 2u);
-  EXPECT_LT(fs::file_size(compact) * 3, fs::file_size(raw));
-  const Trace r = read_trace(compact);
-  for (size_t p = 0; p < t.passes.size(); ++p) {
-    ASSERT_EQ(r.records[p].size(), t.records[p].size());
-    const uint64_t per_group = t.passes[p].dispatch.invocations_per_workgroup();
-    for (size_t i = 1; i < r.records[p].size(); ++i) {
-      const TraceRecord &a = r.records[p][i - 1], &b = r.records[p][i];
-      const auto key = [&](const TraceRecord& x) { return std::tuple(x.invocation / per_group, x.seq, x.invocation); };
-      EXPECT_LE(key(a), key(b)) << i;
+  // Both codings (2 is written by default; files of coding 1 are still read).
+  for (const uint32_t coding : {kCodingSizedGroups, kCodingDeltaVarint}) {
+    SCOPED_TRACE("coding " + std::to_string(coding));
+    write_trace(compact, t, kTraceVersion, coding);
+    EXPECT_EQ(TraceReader(compact).version(), 2u);
+    EXPECT_LT(fs::file_size(compact) * 3, fs::file_size(raw));
+    const Trace r = read_trace(compact);
+    for (size_t p = 0; p < t.passes.size(); ++p) {
+      ASSERT_EQ(r.records[p].size(), t.records[p].size());
+      const uint64_t per_group = t.passes[p].dispatch.invocations_per_workgroup();
+      for (size_t i = 1; i < r.records[p].size(); ++i) {
+        const TraceRecord &a = r.records[p][i - 1], &b = r.records[p][i];
+        const auto key = [&](const TraceRecord& x) {
+          return std::tuple(x.invocation / per_group, x.seq, x.invocation);
+        };
+        EXPECT_LE(key(a), key(b)) << i;
+      }
+      // Per invocation, the same records in the same order.
+      auto by_invocation = [](const std::vector<TraceRecord>& recs) {
+        std::map<uint32_t, std::vector<std::tuple<uint32_t, uint32_t, uint32_t>>> m;
+        for (const TraceRecord& x : recs) m[x.invocation].emplace_back(x.seq, x.info, x.offset);
+        return m;
+      };
+      EXPECT_EQ(by_invocation(r.records[p]), by_invocation(t.records[p]));
     }
-    // Per invocation, the same records in the same order.
-    auto by_invocation = [](const std::vector<TraceRecord>& recs) {
-      std::map<uint32_t, std::vector<std::tuple<uint32_t, uint32_t, uint32_t>>> m;
-      for (const TraceRecord& x : recs) m[x.invocation].emplace_back(x.seq, x.info, x.offset);
-      return m;
-    };
-    EXPECT_EQ(by_invocation(r.records[p]), by_invocation(t.records[p]));
+    // Invocation 5's two seq-1 records keep their order (the store first, as written).
+    const auto it = std::find_if(r.records[0].begin(), r.records[0].end(),
+                                 [](const TraceRecord& x) { return x.invocation == 5 && x.seq == 1; });
+    ASSERT_NE(it, r.records[0].end());
+    EXPECT_EQ(it->offset, 40u);
+    EXPECT_EQ((it + 1)->offset, 4000u);
   }
-  // Invocation 5's two seq-1 records keep their order (the store first, as written).
-  const auto it = std::find_if(r.records[0].begin(), r.records[0].end(),
-                               [](const TraceRecord& x) { return x.invocation == 5 && x.seq == 1; });
-  ASSERT_NE(it, r.records[0].end());
-  EXPECT_EQ(it->offset, 40u);
-  EXPECT_EQ((it + 1)->offset, 4000u);
 }
 
 // The coding does not depend on the order the records come in: records appended by workgroup in runs
@@ -490,15 +496,45 @@ TEST(TraceFile, CorruptCompactRecordsGiveOneLineErrorsNamingTheFile) {
   write_bytes(bad, c);
   EXPECT_NE(error_reading(bad).find("malformed RECV"), std::string::npos) << error_reading(bad);
 
-  // The first record's control byte (after the workgroup, step count, seq and record count varints).
+  // The first record's control byte (after the workgroup varint, the body's u32 size, the step count, seq
+  // and record count varints).
   c = bytes;
+  c[coded + 8] = char(uint8_t(c[coded + 8]) | 0x80);
+  write_bytes(bad, c);
+  EXPECT_NE(error_reading(bad).find(bad.string() +
+                                    ": pass 'shadows': compact records, byte 9: reserved control bit set"),
+            std::string::npos)
+      << error_reading(bad);
+  EXPECT_EQ(error_reading(bad).find('\n'), std::string::npos);
+
+  // A body size that does not match the body, one byte short of it and past the slice's end.
+  uint32_t body = 0;
+  std::memcpy(&body, bytes.data() + coded + 1, 4);
+  c = bytes;
+  const uint32_t shorter = body - 1;
+  std::memcpy(c.data() + coded + 1, &shorter, 4);
+  write_bytes(bad, c);
+  EXPECT_NE(error_reading(bad).find(": pass 'shadows': compact records, byte "), std::string::npos)
+      << error_reading(bad);
+  EXPECT_NE(error_reading(bad).find("workgroup 0: its body ends 1 bytes from the size it states"), std::string::npos)
+      << error_reading(bad);
+  c = bytes;
+  const uint32_t huge = 0x7FFFFFFF;
+  std::memcpy(c.data() + coded + 1, &huge, 4);
+  write_bytes(bad, c);
+  EXPECT_NE(error_reading(bad).find("workgroup 0: body of 2147483647 bytes past the end of the slice"),
+            std::string::npos)
+      << error_reading(bad);
+
+  // A coding-1 file: the same control byte comes four bytes earlier (no body size).
+  write_trace(good, sample(), kTraceVersion, kCodingDeltaVarint);
+  c = bytes_of(good);
   c[coded + 4] = char(uint8_t(c[coded + 4]) | 0x80);
   write_bytes(bad, c);
   EXPECT_NE(error_reading(bad).find(bad.string() +
                                     ": pass 'shadows': compact records, byte 5: reserved control bit set"),
             std::string::npos)
       << error_reading(bad);
-  EXPECT_EQ(error_reading(bad).find('\n'), std::string::npos);
 
   // A writer refuses what the coding cannot hold, and leaves no file.
   const auto refused = tmp("compact_refused.hptrace");
