@@ -256,6 +256,23 @@ class Buckets {
     mode_ = Mode::in_place;
     return true;
   }
+  // A coding-2 slice (Simulator::feed_coded): each workgroup's body, decoded by the builders.
+  void fill_coded(const trace::CodedSlice& slice, uint64_t first_group, uint64_t per_group) {
+    per_group_ = per_group;
+    first_group_ = first_group;
+    coded_ = slice.bytes.data();
+    bodies_ = slice.bodies.data();
+    mode_ = Mode::coded;
+  }
+  bool coded() const { return mode_ == Mode::coded; }
+  // Group g's body in the coded slice.
+  std::pair<const uint8_t*, const uint8_t*> body(uint64_t g) const {
+    return {coded_ + bodies_[g].first, coded_ + bodies_[g].second};
+  }
+  // About how many records group g has, to size the pieces (a coded record takes about 2 bytes).
+  uint64_t weight(uint64_t g) const {
+    return mode_ == Mode::coded ? (bodies_[g].second - bodies_[g].first) / 2 : records(g);
+  }
   uint64_t records(uint64_t g) const { return begin_[g + 1] - begin_[g]; }
   // Calls f(pointer, count) for each run of group g's records, in record order.
   template <typename F>
@@ -278,8 +295,10 @@ class Buckets {
   struct Run {
     uint64_t first, count, group;
   };
-  enum class Mode : uint8_t { in_place, runs, copied };
+  enum class Mode : uint8_t { in_place, runs, copied, coded };
   const trace::BufferInfo* const* buffers_;
+  const uint8_t* coded_ = nullptr;
+  const std::pair<uint64_t, uint64_t>* bodies_ = nullptr;
   uint64_t per_group_ = 1, first_group_ = 0;
   const trace::TraceRecord* data_ = nullptr;
   Mode mode_ = Mode::in_place;
@@ -303,16 +322,77 @@ class Builder {
 
   // Workgroup first_group + g's requests (null: no accesses).
   std::unique_ptr<GroupRequests> build(const Buckets& buckets, uint64_t g) {
-    const uint64_t n = buckets.records(g);
-    if (n == 0) return nullptr;
     const uint64_t per_group = buckets.per_group();
     const uint64_t first_invocation = (buckets.first_group() + g) * per_group;
+    if (buckets.coded()) {
+      const auto [p, end] = buckets.body(g);
+      return build_coded(p, end, first_invocation, per_group);
+    }
+    const uint64_t n = buckets.records(g);
+    if (n == 0) return nullptr;
     if (const trace::TraceRecord* in = buckets.single_run(g); in && in_issue_order(in, n))
       return build_in_order(in, n, first_invocation, per_group);
+    return build_general([&](auto&& f) { buckets.for_each_run(g, f); }, n, first_invocation, per_group);
+  }
+
+  // A workgroup's requests from its coding-2 body [p, end) (trace_codec.hpp; kRecordReadBytes readable past
+  // `end`), every record checked as TraceReader checks a decoded one: known buffer, access kind, reserved
+  // bits, offset + size inside the buffer, lane inside the workgroup, seq below 2^32. A defect throws
+  // CodedSliceRejected (the caller reads the slice again the careful way for the error's words). Where a
+  // workgroup is one wavefront and no lane comes twice in a step (as a capture writes), each coded step is
+  // a wave step, coalesced as it is decoded: no record is stored. Otherwise the body is decoded into
+  // records first and built as records are.
+  std::unique_ptr<GroupRequests> build_coded(const uint8_t* p, const uint8_t* end, uint64_t first_invocation,
+                                             uint64_t per_group) {
+    if (p == end) return nullptr;
+    if (per_group <= width_) {
+      std::unique_ptr<GroupRequests> ga = pool_.take();
+      ga->requests.reserve(size_t(end - p) / 2 + 8);
+      const bool whole = walk_coded(
+          p, end, per_group, true, [&] { co_.begin(); },
+          [&](uint32_t lane, uint32_t, uint32_t info, uint64_t address, uint32_t) {
+            co_.add(address, info, uint32_t(first_invocation + lane), lane, per_inv_);
+          },
+          [&](uint64_t n) {
+            ga->records += n;
+            end_step(*ga, pending_.data(), pending_touched_.data());
+          });
+      // The workgroup's lookups count once it is whole (a lane twice in a step: none of them).
+      for (size_t w = 0; w < pending_touched_.size(); ++w) {
+        for (uint64_t m = pending_touched_[w]; m; m &= m - 1) {
+          const size_t b = w * 64 + size_t(std::countr_zero(m));
+          if (whole) lookups[b].add(pending_[b]);
+          pending_[b] = L1Lookups{};
+        }
+        pending_touched_[w] = 0;
+      }
+      if (whole) {
+        ga->wave_steps_end.push_back(uint32_t(ga->step_end.size()));
+        return ga;
+      }
+      pool_.give(std::move(ga));
+    }
+    scratch_.clear();
+    walk_coded(
+        p, end, per_group, false, [] {},
+        [&](uint32_t lane, uint32_t seq, uint32_t info, uint64_t, uint32_t offset) {
+          scratch_.push_back(trace::TraceRecord{uint32_t(first_invocation + lane), seq, info, offset});
+        },
+        [](uint64_t) {});
+    const trace::TraceRecord* in = scratch_.data();
+    const uint64_t n = scratch_.size();
+    if (in_issue_order(in, n)) return build_in_order(in, n, first_invocation, per_group);
+    return build_general([&](auto&& f) { f(in, n); }, n, first_invocation, per_group);
+  }
+
+  // The general build: `for_each_run(f)` calls f(pointer, count) on each run of the workgroup's n records.
+  template <typename ForEachRun>
+  std::unique_ptr<GroupRequests> build_general(ForEachRun&& for_each_run, uint64_t n, uint64_t first_invocation,
+                                               uint64_t per_group) {
     // This workgroup's records by invocation (stable: one invocation's keep their order), each
     // invocation's sorted by seq where needed (GPU atomics usually hand out indices in program order).
     at_.assign(per_group + 1, 0);
-    buckets.for_each_run(g, [&](const trace::TraceRecord* in, uint64_t count) {
+    for_each_run([&](const trace::TraceRecord* in, uint64_t count) {
       for (uint64_t k = 0; k < count; ++k) ++at_[in[k].invocation - first_invocation + 1];
     });
     for (uint64_t i = 0; i < per_group; ++i) at_[i + 1] += at_[i];
@@ -320,7 +400,7 @@ class Builder {
     // their declared layout.
     recs_.resize(n);
     cursor32_.assign(at_.begin(), at_.end() - 1);
-    buckets.for_each_run(g, [&](const trace::TraceRecord* in, uint64_t count) {
+    for_each_run([&](const trace::TraceRecord* in, uint64_t count) {
       for (uint64_t k = 0; k < count; ++k) {
         const trace::TraceRecord& r = in[k];
         const trace::BufferInfo& b = *buffers_[gpu::trace_buffer(r.info)];
@@ -478,13 +558,16 @@ class Builder {
   }
 
   // Closes the coalescer's current step: appends its requests (and lane entries) to `ga` and counts its
-  // L1 lookups under every HitCounting (they do not depend on the caches' state).
-  void end_step(GroupRequests& ga) {
+  // L1 lookups under every HitCounting (they do not depend on the caches' state) into `into` (by buffer;
+  // null: `lookups`), marking each buffer counted in `touched` (a bit per buffer) when given.
+  void end_step(GroupRequests& ga, L1Lookups* into = nullptr, uint64_t* touched = nullptr) {
+    if (!into) into = lookups.data();
     const uint32_t base = uint32_t(ga.requests.size());
     for (size_t k = 0; k < co_.requests.size(); ++k) {
       const Request& q = co_.requests[k];
       if (q.kind != AccessKind::load) continue;  // stores and atomics do not look the L1 up
-      L1Lookups& l = lookups[q.buffer];
+      if (touched) touched[q.buffer >> 6] |= uint64_t(1) << (q.buffer & 63);
+      L1Lookups& l = into[q.buffer];
       ++l.request;
       l.quarter_wave += count_bits(uint32_t(co_.quarters[k]));
       l.lane += co_.lanes[k];
@@ -495,6 +578,61 @@ class Builder {
       for (const auto& [inv, req] : co_.lane_request) ga.lanes.emplace_back(inv, base + req);
       ga.step_lanes_end.push_back(uint32_t(ga.lanes.size()));
     }
+  }
+
+  // Walks a coding-2 workgroup body [p, end): begin_step() at each step, record(lane, seq, info, address,
+  // offset) for each record, checked, in coded order, end_step(records of the step) after it. With
+  // `stop_at_repeat`, returns false as soon as a lane comes twice in a step (the walk is then incomplete);
+  // true once the whole body is walked. Throws CodedSliceRejected on any defect.
+  template <typename BeginStep, typename Record, typename EndStep>
+  bool walk_coded(const uint8_t* p, const uint8_t* end, uint64_t per_group, bool stop_at_repeat, BeginStep&& begin_step,
+                  Record&& record, EndStep&& end_step) {
+    const auto reject = [] { throw CodedSliceRejected(); };
+    uint64_t steps = 0;
+    p = trace::read_varint(p, steps);
+    if (!p || p > end || steps == 0) reject();
+    trace::CodedState state;
+    // The info word last checked, and what it names: its buffer, the largest offset a record may have
+    // (offset + size inside the buffer; -1: none), whether offsets map to addresses directly.
+    uint32_t info = ~0u;
+    const trace::BufferInfo* buffer = nullptr;
+    int64_t last_offset = -1;
+    bool plain = true;
+    uint64_t seq = 0;
+    for (uint64_t st = 0; st < steps; ++st) {
+      uint64_t delta = 0, n = 0;
+      p = trace::read_varint(p, delta);
+      if (p) p = trace::read_varint(p, n);
+      if (!p || p > end) reject();
+      seq = st == 0 ? delta : seq + delta + 1;
+      if (seq > 0xFFFFFFFFu) reject();
+      ++n;
+      begin_step();
+      int64_t lane = -1;
+      for (uint64_t k = 0; k < n; ++k) {
+        uint64_t d = 0;
+        p = trace::decode_record(p, state, d);
+        if (!p) reject();
+        if (d == 0 && k > 0 && stop_at_repeat) return false;
+        lane += int64_t(d);
+        if (uint64_t(lane) >= per_group) reject();
+        if (state.info != info) {
+          info = state.info;
+          if ((info & HP_TRACE_RESERVED_MASK) || gpu::trace_kind(info) > HP_TRACE_ATOMIC) reject();
+          buffer = buffers_[gpu::trace_buffer(info)];
+          if (!buffer) reject();
+          last_offset = int64_t(buffer->size_bytes) - int64_t(gpu::trace_size(info));
+          plain = buffer->kind == trace::BufferKind::buffer;
+        }
+        if (int64_t(state.offset) > last_offset) reject();
+        record(uint32_t(lane), uint32_t(seq), info,
+               plain ? buffer->base_address + state.offset : buffer->address(state.offset), state.offset);
+        if (p > end) reject();
+      }
+      end_step(n);
+    }
+    if (p != end) reject();
+    return true;
   }
 
   GroupPool& pool_;
@@ -509,6 +647,9 @@ class Builder {
   std::vector<LaneAccess> recs_, step_recs_;
   std::vector<uint32_t> at_, cursor32_, end_, seq_count_, seq_cursor_, seq_start_;
   std::vector<uint8_t> strict_;
+  std::vector<trace::TraceRecord> scratch_;  // a coded workgroup decoded (build_coded's general way)
+  std::array<L1Lookups, 256> pending_{};     // a coded workgroup's lookups until it is whole
+  std::array<uint64_t, 4> pending_touched_{};
 };
 
 // A resident wavefront. It reads its workgroup's arrays (laid out in issue order and not changed once
@@ -573,6 +714,7 @@ struct Simulator::PassState {
   std::vector<std::unique_ptr<Piece>> built;
   size_t next_job = 0, published = 0, jobs_done = 0;
   uint64_t feed_records = 0;
+  uint64_t built_records = 0;   // lane accesses of the slice's workgroups built so far
   uint64_t job_generation = 0;  // bumped per slice: wakes the helper
   std::exception_ptr build_error;
   bool stop_helper = false;
@@ -621,9 +763,13 @@ struct Simulator::PassState {
       p->end_group = first + g1;
       p->first_of_feed = k == 0;
       p->feed_records = k == 0 ? feed_records : 0;
+      uint64_t records = 0;
       try {
         p->groups.reserve(g1 - g0);
-        for (uint64_t g = g0; g < g1; ++g) p->groups.push_back(b.build(buckets, g));
+        for (uint64_t g = g0; g < g1; ++g) {
+          p->groups.push_back(b.build(buckets, g));
+          if (p->groups.back()) records += p->groups.back()->records;
+        }
       } catch (...) {  // out of memory: feed() rethrows it once every job of the slice has ended
         lk.lock();
         if (!build_error) build_error = std::current_exception();
@@ -631,6 +777,7 @@ struct Simulator::PassState {
         continue;
       }
       lk.lock();
+      built_records += records;
       built[k] = std::move(p);
       while (published < built.size() && built[published]) publish_locked(std::move(built[published++]));
       if (++jobs_done == jobs.size()) cv_built.notify_all();
@@ -767,6 +914,30 @@ void Simulator::begin_pass(const trace::PassInfo& pass) {
 
 void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup,
                      const uint32_t* group_begin) {
+  feed_slice(first_workgroup, end_workgroup, records.size(), [&](PassState& ps) {
+    const bool filled =
+        group_begin ? ps.buckets.fill_indexed(records, first_workgroup, end_workgroup, ps.per_group, group_begin)
+                    : ps.buckets.fill(records, first_workgroup, end_workgroup, ps.per_group);
+    if (!filled)
+      throw InputError("pass '" + ps.info.name + "': record outside its slice's workgroups or the buffer table");
+  });
+}
+
+void Simulator::feed_coded(const trace::CodedSlice& slice, uint64_t first_workgroup, uint64_t end_workgroup) {
+  if (slice.bodies.size() != end_workgroup - first_workgroup)
+    throw std::logic_error("Simulator::feed_coded: the slice's index does not match its workgroups");
+  feed_slice(first_workgroup, end_workgroup, slice.count,
+             [&](PassState& ps) { ps.buckets.fill_coded(slice, first_workgroup, ps.per_group); });
+  // Every record of the slice was built, no more and no fewer (a record count the coding does not hold
+  // is a defect like any other).
+  if (pass_->built_records != slice.count) {
+    pass_->build_error = std::make_exception_ptr(CodedSliceRejected());
+    throw CodedSliceRejected();
+  }
+}
+
+template <typename Fill>
+void Simulator::feed_slice(uint64_t first_workgroup, uint64_t end_workgroup, uint64_t count, Fill&& fill) {
   if (!pass_ || pass_->ended) throw std::logic_error("Simulator::feed outside begin_pass / end_pass");
   PassState& ps = *pass_;
   const std::string& name = ps.info.name;
@@ -778,8 +949,7 @@ void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first
                      std::to_string(end_workgroup) + ") overlaps or precedes workgroup " + std::to_string(ps.fed_end) +
                      " (slices must come in dispatch order)");
   if (end_workgroup == first_workgroup) {
-    if (!records.empty())
-      throw InputError("pass '" + name + "': record outside its slice's workgroups or the buffer table");
+    if (count != 0) throw InputError("pass '" + name + "': record outside its slice's workgroups or the buffer table");
     // Nothing fed, but the workgroups before it are known to be empty now.
     ps.fed_end = end_workgroup;
     auto p = std::make_unique<Piece>();
@@ -788,13 +958,10 @@ void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first
     ps.publish_locked(std::move(p));
     return;
   }
-  const bool filled = group_begin
-                          ? ps.buckets.fill_indexed(records, first_workgroup, end_workgroup, ps.per_group, group_begin)
-                          : ps.buckets.fill(records, first_workgroup, end_workgroup, ps.per_group);
-  if (!filled) throw InputError("pass '" + name + "': record outside its slice's workgroups or the buffer table");
+  fill(ps);
   ps.fed_end = end_workgroup;
-  ps.lane_accesses += records.size();
-  ps.slices += !records.empty();
+  ps.lane_accesses += count;
+  ps.slices += count != 0;
   // Pieces of about kPieceRecords records (and at least one workgroup); the last ends at the slice's end
   // so that the workgroups after its records become known too.
   const uint64_t groups = end_workgroup - first_workgroup;
@@ -805,13 +972,14 @@ void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first
   for (uint64_t g = 0; g < groups;) {
     const uint64_t g0 = g;
     uint64_t taken = 0;
-    while (g < groups && (taken < kPieceRecords || g == g0)) taken += ps.buckets.records(g++);
+    while (g < groups && (taken < kPieceRecords || g == g0)) taken += ps.buckets.weight(g++);
     ps.jobs.emplace_back(g0, g);
   }
   ps.built.clear();
   ps.built.resize(ps.jobs.size());
   ps.next_job = ps.published = ps.jobs_done = 0;
-  ps.feed_records = records.size();
+  ps.built_records = 0;
+  ps.feed_records = count;
   ++ps.job_generation;
   lk.unlock();
   ps.cv_jobs.notify_all();
@@ -975,12 +1143,47 @@ void Simulator::schedule() {
   }
 }
 
+bool Simulator::buffers_match(const std::vector<trace::BufferInfo>& buffers) const {
+  if (buffers.size() != buffer_storage_.size()) return false;
+  for (const trace::BufferInfo& b : buffers) {
+    if (b.id >= 256 || !buffers_[b.id]) return false;
+    const trace::BufferInfo& o = *buffers_[b.id];
+    if (o.base_address != b.base_address || o.size_bytes != b.size_bytes || o.kind != b.kind ||
+        o.texel_bytes != b.texel_bytes || o.width != b.width || o.height != b.height ||
+        o.row_pitch_bytes != b.row_pitch_bytes || o.tile_width != b.tile_width || o.tile_height != b.tile_height)
+      return false;
+  }
+  return true;
+}
+
 void feed_slices(Simulator& sim, const trace::TraceReader& reader, uint32_t pass,
                  const std::function<void(uint64_t records_done)>& on_slice) {
   uint64_t done = 0;
-  // The reader validates each record against its header's buffer table; the simulator trusts that only
-  // where it knows every buffer of that table, and then takes a version-2 slice's workgroup index as
-  // decoded instead of scanning the records again.
+  // The reader validates each record against its header's buffer table. Where the simulator's table is the
+  // same, the simulator checks records itself: it takes a coding-2 slice as coded (built straight from the
+  // coding, checked as it is decoded) and a decoded version-2 slice with its workgroup index instead of
+  // scanning the records again.
+  if (sim.buffers_match(reader.header().buffers)) {
+    try {
+      reader.read_slices_coded(pass, [&](std::span<const trace::TraceRecord> records, const trace::CodedSlice* coded,
+                                         uint64_t first, uint64_t end, const uint32_t* group_begin) {
+        if (coded) {
+          sim.feed_coded(*coded, first, end);
+          done += coded->count;
+        } else {
+          sim.feed(records, first, end, group_begin);
+          done += records.size();
+        }
+        if (on_slice) on_slice(done);
+      });
+    } catch (const CodedSliceRejected&) {
+      // The careful read of the pass names the first defect (and throws it).
+      reader.read_slices(pass, [](std::span<const trace::TraceRecord>, uint64_t, uint64_t) {});
+      throw std::logic_error("a coded slice of pass " + std::to_string(pass) +
+                             " was rejected, but reads without error when decoded");
+    }
+    return;
+  }
   const bool trusted = std::all_of(reader.header().buffers.begin(), reader.header().buffers.end(),
                                    [&](const trace::BufferInfo& b) { return sim.knows_buffer(b.id); });
   reader.read_slices_indexed(pass, [&](std::span<const trace::TraceRecord> records, uint64_t first, uint64_t end,

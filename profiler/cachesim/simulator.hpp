@@ -20,6 +20,7 @@
 #include <functional>
 #include <memory>
 #include <span>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,11 @@ struct PassResult {
   MissRatioCurve l1_curve, l2_curve;   // filled when requested
 };
 
+// What Simulator::feed_coded throws on a defect in a coded slice.
+struct CodedSliceRejected : std::runtime_error {
+  CodedSliceRejected() : std::runtime_error("a defect in a coded slice of records") {}
+};
+
 class Simulator {
  public:
   // Throws InputError when the preset and trace cannot work together.
@@ -102,6 +108,13 @@ class Simulator {
   void feed(std::span<const trace::TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup,
             const uint32_t* group_begin = nullptr);
   PassResult end_pass();
+  // A coding-2 slice straight from a trace file (TraceReader::read_slices_coded), built from its coding
+  // without decoding it to records first; the results are feed()'s of the decoded records. Each record is
+  // checked against this simulator's buffer table as TraceReader checks it against its header's (the
+  // caller makes sure the two tables are the same: buffers_match). Throws CodedSliceRejected on any defect,
+  // without words: the caller reads the slice again the careful way to name it. The pass gives no result
+  // after that.
+  void feed_coded(const trace::CodedSlice& slice, uint64_t first_workgroup, uint64_t end_workgroup);
 
   // End of the frame: dirty L2 sectors written back, in bytes.
   uint64_t finish();
@@ -114,6 +127,8 @@ class Simulator {
   const Preset& preset() const { return preset_; }
   // Whether the trace header this simulator was made with has a buffer of this id.
   bool knows_buffer(uint32_t id) const { return id < 256 && buffers_[id] != nullptr; }
+  // Whether this simulator's buffer table is `buffers`: the same ids, kinds, addresses, sizes and layouts.
+  bool buffers_match(const std::vector<trace::BufferInfo>& buffers) const;
 
  private:
   struct PassState;
@@ -121,6 +136,9 @@ class Simulator {
   void schedule();
   // Ends a pass in flight without finishing it (destructor, a new begin_pass).
   void stop();
+  // feed()'s and feed_coded()'s common part; `fill(PassState&)` hands the slice to the builders.
+  template <typename Fill>
+  void feed_slice(uint64_t first_workgroup, uint64_t end_workgroup, uint64_t count, Fill&& fill);
   // Issues the queued requests to the hierarchy and adds their misses to per-invocation counts.
   void issue_batch();
   Preset preset_;

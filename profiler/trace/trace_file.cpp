@@ -502,6 +502,16 @@ uint64_t TraceReader::read_slices(uint32_t pass, const SliceFn& consume) const {
 }
 
 uint64_t TraceReader::read_slices_indexed(uint32_t pass, const IndexedSliceFn& consume) const {
+  return read_slices_impl(pass, false,
+                          [&](std::span<const TraceRecord> records, const CodedSlice*, uint64_t first, uint64_t end,
+                              const uint32_t* group_begin) { consume(records, first, end, group_begin); });
+}
+
+uint64_t TraceReader::read_slices_coded(uint32_t pass, const CodedSliceFn& consume) const {
+  return read_slices_impl(pass, true, consume);
+}
+
+uint64_t TraceReader::read_slices_impl(uint32_t pass, bool coded, const CodedSliceFn& consume) const {
   if (pass >= passes_.size()) fail("no pass " + std::to_string(pass));
   std::vector<const Chunk*> order;
   for (const Chunk& c : chunks_)
@@ -509,22 +519,52 @@ uint64_t TraceReader::read_slices_indexed(uint32_t pass, const IndexedSliceFn& c
   // Chunks never overlap (checked at open); a writer may still have appended them out of order.
   std::stable_sort(order.begin(), order.end(),
                    [](const Chunk* a, const Chunk* b) { return a->first_workgroup < b->first_workgroup; });
-  uint64_t largest = 0;
-  for (const Chunk* c : order) largest = std::max<uint64_t>(largest, c->count);
+  const auto comes_coded = [&](const Chunk& c) { return coded && c.coding == kCodingSizedGroups; };
+  uint64_t largest = 0, largest_decoded = 0, largest_coded = 0;
+  for (const Chunk* c : order) {
+    largest = std::max<uint64_t>(largest, c->count);
+    if (comes_coded(*c))
+      largest_coded = std::max<uint64_t>(largest_coded, c->coded_bytes);
+    else
+      largest_decoded = std::max<uint64_t>(largest_decoded, c->count);
+  }
   // Two buffers, reused for every slice: a thread reads and validates the next slice while `consume`
   // works on the current one. (Mapping the slice from the page cache instead of reading it was measured
   // 2-5x slower on the VM, whose page-table updates are expensive: reading 512 KiB blocks is the
   // cheapest way in.)
   RecordBuffer buffers[2];
   std::vector<uint32_t> group_begin[2];  // per buffer, for a 'RECV' slice: where each workgroup's records start
+  // Per buffer, for a slice that comes coded: its bytes (and kRecordReadBytes more) and its workgroups' bodies.
+  std::vector<uint8_t> coded_bytes[2];
+  std::vector<std::pair<uint64_t, uint64_t>> bodies[2];
+  bool is_coded[2] = {false, false};
   // Sized once for the largest slice: growing with the slices (which get larger past a frame's sky rows)
   // mapped fresh memory at each step, and the kernel's zeroing of it cost about 8% of a replay.
-  buffers[0].reserve(largest);
-  if (order.size() > 1) buffers[1].reserve(largest);
+  if (largest_decoded > 0) {
+    buffers[0].reserve(largest_decoded);
+    if (order.size() > 1) buffers[1].reserve(largest_decoded);
+  }
+  if (largest_coded > 0) {
+    coded_bytes[0].resize(largest_coded + kRecordReadBytes);
+    if (order.size() > 1) coded_bytes[1].resize(largest_coded + kRecordReadBytes);
+  }
   std::exception_ptr read_error;
   auto read_into = [&](size_t k, size_t slot) {
     try {
       const Chunk& c = *order[k];
+      is_coded[slot] = false;
+      if (comes_coded(c)) {
+        std::vector<uint8_t>& bytes = coded_bytes[slot];
+        if (bytes.size() < c.coded_bytes + kRecordReadBytes) bytes.resize(c.coded_bytes + kRecordReadBytes);
+        std::fseek(file_, long(c.file_offset), SEEK_SET);
+        if (std::fread(bytes.data(), 1, c.coded_bytes, file_) != c.coded_bytes)
+          fail("truncated records of pass " + std::to_string(c.pass));
+        std::memset(bytes.data() + c.coded_bytes, 0, kRecordReadBytes);
+        // Headers that do not index the bytes: the careful decode below names the defect.
+        is_coded[slot] = index_workgroups(std::span<const uint8_t>(bytes.data(), c.coded_bytes), c.first_workgroup,
+                                          c.end_workgroup, bodies[slot]);
+        if (is_coded[slot]) return;
+      }
       std::vector<uint32_t>& index = group_begin[slot];
       index.resize(c.coded_bytes > 0 ? c.end_workgroup - c.first_workgroup + 1 : 0);
       read_chunk(c, buffers[slot].reserve(c.count), index.empty() ? nullptr : index.data());
@@ -538,9 +578,17 @@ uint64_t TraceReader::read_slices_indexed(uint32_t pass, const IndexedSliceFn& c
     std::thread next;
     if (k + 1 < order.size()) next = std::thread(read_into, k + 1, (k + 1) % 2);
     try {
-      const std::vector<uint32_t>& index = group_begin[k % 2];
-      consume(std::span<const TraceRecord>(buffers[k % 2].reserve(0), order[k]->count), order[k]->first_workgroup,
-              order[k]->end_workgroup, index.empty() ? nullptr : index.data());
+      const size_t slot = k % 2;
+      const Chunk& c = *order[k];
+      if (is_coded[slot]) {
+        const CodedSlice slice{std::span<const uint8_t>(coded_bytes[slot].data(), c.coded_bytes), bodies[slot],
+                               c.count};
+        consume({}, &slice, c.first_workgroup, c.end_workgroup, nullptr);
+      } else {
+        const std::vector<uint32_t>& index = group_begin[slot];
+        consume(std::span<const TraceRecord>(buffers[slot].reserve(0), c.count), nullptr, c.first_workgroup,
+                c.end_workgroup, index.empty() ? nullptr : index.data());
+      }
     } catch (...) {
       if (next.joinable()) next.join();
       throw;

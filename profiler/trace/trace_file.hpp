@@ -87,6 +87,15 @@ class TraceWriter final : public TraceSink {
   std::vector<uint8_t> coded_;
 };
 
+// A coding-2 slice as stored (TraceReader::read_slices_coded): its bytes, with kRecordReadBytes more
+// readable past their end, and where each workgroup's body lies in them (index_workgroups; begin == end:
+// none). Its records are not checked yet: the consumer decodes and checks them.
+struct CodedSlice {
+  std::span<const uint8_t> bytes;
+  std::span<const std::pair<uint64_t, uint64_t>> bodies;  // by workgroup - first_workgroup
+  uint64_t count = 0;                                     // records the chunk declares
+};
+
 // Reads a trace file's directory (header, buffers, passes, where each pass's record chunks lie) at
 // open, and a pass's records on demand. Every defect is an hp::InputError of one line naming the file.
 class TraceReader {
@@ -115,6 +124,14 @@ class TraceReader {
   using IndexedSliceFn = std::function<void(std::span<const TraceRecord> records, uint64_t first_workgroup,
                                             uint64_t end_workgroup, const uint32_t* group_begin)>;
   uint64_t read_slices_indexed(uint32_t pass, const IndexedSliceFn& consume) const;
+  // The same, but a slice of coding 2 comes as its coding (`coded` set, `records` empty, `group_begin`
+  // null) for a consumer that decodes and checks it itself: cachesim's coded feed. Other slices come as
+  // read_slices_indexed gives them (`coded` null). Memory: two of the largest coded slice's bytes (and
+  // two of the largest other slice's records).
+  using CodedSliceFn =
+      std::function<void(std::span<const TraceRecord> records, const CodedSlice* coded, uint64_t first_workgroup,
+                         uint64_t end_workgroup, const uint32_t* group_begin)>;
+  uint64_t read_slices_coded(uint32_t pass, const CodedSliceFn& consume) const;
 
  private:
   struct Chunk {
@@ -128,6 +145,8 @@ class TraceReader {
   // c.count records to `out`, validated; `group_begin` (room for the chunk's workgroups + 1), if set, gets
   // where each workgroup's records start, for a 'RECV' chunk.
   void read_chunk(const Chunk& c, TraceRecord* out, uint32_t* group_begin = nullptr) const;
+  // read_slices_indexed and read_slices_coded: `coded` says whether coding-2 slices come coded.
+  uint64_t read_slices_impl(uint32_t pass, bool coded, const CodedSliceFn& consume) const;
   [[noreturn]] void fail(const std::string& what) const;
   // Parts of the constructor's directory read; `at` names the chunk in errors.
   void read_buffer_table(const std::vector<char>& payload, const std::string& at);
