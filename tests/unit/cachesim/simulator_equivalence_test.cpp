@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <random>
 
@@ -13,6 +15,7 @@
 #include "cachesim/preset.hpp"
 #include "cachesim/simulator.hpp"
 #include "cachesim/synthetic.hpp"
+#include "error.hpp"
 
 namespace hp::cachesim {
 namespace {
@@ -288,9 +291,30 @@ TEST(SimulatorEquivalence, RecordsAlreadyInWorkgroupOrderAndOneRecordSlices) {
   expect_same_replays(preset_named("ga102"), t, so, cuts, 0);
 }
 
-// A trace written to a file and read back, in either format version: the file's records (version 2
-// gives them back reordered by workgroup, seq and invocation, which the grouping takes without sorting)
-// replay exactly as the original records do through the former single-threaded replay.
+// The trace with a lane of every third workgroup accessing twice at its third step (the coding keeps both;
+// a capture never writes that): workgroups with and without repeated lanes, one after the other.
+trace::Trace with_some_repeats(trace::Trace t) {
+  for (size_t p = 0; p < t.passes.size(); ++p) {
+    const uint64_t per_group = t.passes[p].dispatch.invocations_per_workgroup();
+    const size_t n = t.records[p].size();
+    for (size_t i = 0; i < n; ++i) {
+      const TraceRecord r = t.records[p][i];
+      if ((r.invocation / per_group) % 3 == 1 && r.invocation % per_group == 5 && r.seq == 2) {
+        TraceRecord again = r;
+        again.offset = r.offset >= 64 ? r.offset - 64 : r.offset + 64;
+        t.records[p].push_back(again);
+      }
+    }
+  }
+  return t;
+}
+
+// A trace written to a file and read back, in either format version and either coding of version 2: the
+// file's records (version 2 gives them back reordered by workgroup, seq and invocation, which the grouping
+// takes without sorting) replay exactly as the original records do through the former single-threaded
+// replay. Streamed from the file, a coding-2 slice is built straight from its coding: a wavefront per
+// workgroup coalesced as it is decoded (vega56, h100), several per workgroup and lanes repeated in a step
+// (the awkward traces) decoded to records first.
 TEST(SimulatorEquivalence, TraceFilesOfBothVersionsReplayLikeTheirRecords) {
   SyntheticBvhOptions o;
   o.width = 48;
@@ -303,12 +327,18 @@ TEST(SimulatorEquivalence, TraceFilesOfBothVersionsReplayLikeTheirRecords) {
   Preset narrow = preset_named("ga102");  // wave32, and 16: several wavefronts per workgroup
   narrow.compute_units = 5;
   narrow.wave_width = 16;
+  Preset wide = preset_named("vega56");  // wave128: every workgroup of the awkward traces one wavefront
+  wide.compute_units = 4;
+  wide.wave_width = 128;
   const auto path = std::filesystem::temp_directory_path() / "hp_equivalence_trace_file.hptrace";
-  for (const trace::Trace& t : {make_bvh_like_trace(o), awkward_trace(6), awkward_trace(7)}) {
-    for (uint32_t version : {trace::kTraceVersionRaw, trace::kTraceVersion}) {
+  for (const trace::Trace& t :
+       {make_bvh_like_trace(o), with_some_repeats(make_bvh_like_trace(o)), awkward_trace(6), awkward_trace(7)}) {
+    for (const auto [version, coding] : {std::pair{trace::kTraceVersionRaw, trace::kCodingSizedGroups},
+                                         std::pair{trace::kTraceVersion, trace::kCodingDeltaVarint},
+                                         std::pair{trace::kTraceVersion, trace::kCodingSizedGroups}}) {
       {
         // Three slices per pass, as a capture streams them.
-        trace::TraceWriter w(path, t.header, version);
+        trace::TraceWriter w(path, t.header, version, coding);
         for (size_t p = 0; p < t.passes.size(); ++p) {
           const uint32_t index = w.begin_pass(t.passes[p]);
           const uint64_t groups = t.passes[p].dispatch.workgroups(),
@@ -325,8 +355,8 @@ TEST(SimulatorEquivalence, TraceFilesOfBothVersionsReplayLikeTheirRecords) {
       }
       const trace::Trace read = trace::read_trace(path);
       EXPECT_EQ(trace::TraceReader(path).version(), version);
-      for (const Preset& p : {small, narrow, preset_named("h100")}) {
-        SCOPED_TRACE(p.name + " version " + std::to_string(version));
+      for (const Preset& p : {small, narrow, wide, preset_named("h100")}) {
+        SCOPED_TRACE(p.name + " version " + std::to_string(version) + " coding " + std::to_string(coding));
         SimOptions so;
         so.per_invocation = true;
         so.l2_mrc = true;
@@ -346,8 +376,96 @@ TEST(SimulatorEquivalence, TraceFilesOfBothVersionsReplayLikeTheirRecords) {
         const auto sliced = replay<baseline::BaselineSimulator>(p, t, so, file_cuts, 0);
         ASSERT_EQ(streamed.size(), sliced.size());
         for (size_t i = 0; i < sliced.size(); ++i) expect_equal(streamed[i], sliced[i]);
+        // The L1 lookups under every counting (the baseline has none): as the records' replay counts them.
+        for (size_t i = 0; i < sliced.size(); ++i) {
+          const auto same = [](const L1Lookups& a, const L1Lookups& b) {
+            return a.request == b.request && a.quarter_wave == b.quarter_wave && a.lane == b.lane;
+          };
+          EXPECT_TRUE(same(streamed[i].result.l1_lookups, from_file[i].result.l1_lookups)) << "pass " << i;
+          for (size_t b = 0; b < streamed[i].result.buffer_l1_lookups.size(); ++b)
+            EXPECT_TRUE(same(streamed[i].result.buffer_l1_lookups[b], from_file[i].result.buffer_l1_lookups[b]))
+                << "pass " << i << " buffer " << b;
+        }
       }
     }
+  }
+  std::filesystem::remove(path);
+}
+
+// A coding-2 slice is checked as the simulator builds it from its coding; a defect there ends the replay
+// with the very error a careful read of the file gives (the same words, naming the file, pass and record).
+TEST(SimulatorEquivalence, DefectsInCodedSlicesAreNamedAsTheReaderNamesThem) {
+  const auto path = std::filesystem::temp_directory_path() / "hp_equivalence_coded_defect.hptrace";
+  // Workgroups of several wavefronts (decoded to records first) and of one (coalesced as decoded).
+  Preset wide = preset_named("vega56");
+  wide.wave_width = 128;
+  for (const Preset& p : {preset_named("vega56"), wide}) {
+    SCOPED_TRACE("wave" + std::to_string(p.wave_width));
+    const trace::Trace good = awkward_trace(3);
+    // The careful reader's error, and the replay's.
+    auto errors = [&](const std::filesystem::path& file) {
+      std::string read, replayed;
+      try {
+        trace::read_trace(file);
+      } catch (const InputError& e) {
+        read = e.what();
+      }
+      try {
+        replay_file(p, file, SimOptions{});
+      } catch (const InputError& e) {
+        replayed = e.what();
+      }
+      return std::pair{read, replayed};
+    };
+    struct Defect {
+      const char* what;
+      uint32_t info;
+      uint32_t offset;
+    };
+    const uint32_t size = 1u << 20;  // buffer 0's
+    for (const Defect& d : {Defect{"past the end of buffer 'b0'", HP_TRACE_INFO(0u, HP_TRACE_LOAD, 4u), size - 2},
+                            Defect{"unknown buffer id 9", HP_TRACE_INFO(9u, HP_TRACE_LOAD, 4u), 0},
+                            Defect{"unknown access kind", HP_TRACE_INFO(0u, 3u, 4u), 0},
+                            Defect{"reserved info bits set", HP_TRACE_INFO(0u, HP_TRACE_LOAD, 4u) | 0x40u, 0}}) {
+      SCOPED_TRACE(d.what);
+      trace::Trace t = good;
+      // In the second pass (the first replays cleanly first), an invocation's next access.
+      TraceRecord bad = t.records[1][t.records[1].size() / 2];
+      bad.seq += 1000;
+      bad.info = d.info;
+      bad.offset = d.offset;
+      t.records[1].push_back(bad);
+      trace::write_trace(path, t);
+      const auto [read, replayed] = errors(path);
+      EXPECT_NE(read.find(d.what), std::string::npos) << read;
+      EXPECT_NE(read.find(path.string() + ": pass 'pass1': record "), std::string::npos) << read;
+      EXPECT_EQ(replayed, read);
+    }
+    // A chunk that declares one record more than its coding holds (and an END chunk that agrees).
+    trace::write_trace(path, good);
+    std::vector<char> bytes(std::filesystem::file_size(path));
+    {
+      std::FILE* f = std::fopen(path.c_str(), "rb");
+      ASSERT_EQ(std::fread(bytes.data(), 1, bytes.size(), f), bytes.size());
+      std::fclose(f);
+    }
+    const std::string tag = "RECV";
+    const size_t at = size_t(std::search(bytes.begin(), bytes.end(), tag.begin(), tag.end()) - bytes.begin());
+    ASSERT_LT(at, bytes.size());
+    for (const size_t pos : {at + 16 + 24, bytes.size() - 16}) {  // the chunk's count, the END chunk's total
+      uint64_t v = 0;
+      std::memcpy(&v, bytes.data() + pos, 8);
+      ++v;
+      std::memcpy(bytes.data() + pos, &v, 8);
+    }
+    {
+      std::FILE* f = std::fopen(path.c_str(), "wb");
+      ASSERT_EQ(std::fwrite(bytes.data(), 1, bytes.size(), f), bytes.size());
+      std::fclose(f);
+    }
+    const auto [read, replayed] = errors(path);
+    EXPECT_NE(read.find("records, the chunk declares"), std::string::npos) << read;
+    EXPECT_EQ(replayed, read);
   }
   std::filesystem::remove(path);
 }
