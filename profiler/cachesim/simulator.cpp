@@ -592,11 +592,11 @@ class Builder {
     p = trace::read_varint(p, steps);
     if (!p || p > end || steps == 0) reject();
     trace::CodedState state;
-    // The info word last checked, and what it names: its buffer, the largest offset a record may have
-    // (offset + size inside the buffer; -1: none), whether offsets map to addresses directly.
+    // The info word last checked, and what it names: its buffer, the access size, whether offsets map to
+    // addresses directly.
     uint32_t info = ~0u;
     const trace::BufferInfo* buffer = nullptr;
-    int64_t last_offset = -1;
+    uint32_t size = 0;
     bool plain = true;
     uint64_t seq = 0;
     for (uint64_t st = 0; st < steps; ++st) {
@@ -621,10 +621,10 @@ class Builder {
           if ((info & HP_TRACE_RESERVED_MASK) || gpu::trace_kind(info) > HP_TRACE_ATOMIC) reject();
           buffer = buffers_[gpu::trace_buffer(info)];
           if (!buffer) reject();
-          last_offset = int64_t(buffer->size_bytes) - int64_t(gpu::trace_size(info));
+          size = gpu::trace_size(info);
           plain = buffer->kind == trace::BufferKind::buffer;
         }
-        if (int64_t(state.offset) > last_offset) reject();
+        if (uint64_t(state.offset) + size > buffer->size_bytes) reject();  // as the reader compares
         record(uint32_t(lane), uint32_t(seq), info,
                plain ? buffer->base_address + state.offset : buffer->address(state.offset), state.offset);
         if (p > end) reject();

@@ -23,19 +23,23 @@
 //                    miss-ratio curves (what `hybridprof cachesim --mrc` and the run matrix compute).
 // End-to-end paths of the CLI, from files (wall time: they use several threads; items per second are
 // per wall second here):
-//   TraceFileRead/V  reading (and, for format version 2, decoding) and validating a trace file slice by
-//                    slice (TraceReader::read_slices), nothing else: the floor of a replay from the page
-//                    cache. V: the file in format version 1 (16 bytes a record) or 2 (compact).
-//   TraceFileReplay/V  `cachesim TRACE`: the same file replayed (read_slices feeding the Simulator);
-//                    its counters read_ms (the fastest whole read of that file, timed beforehand) and
-//                    replay_over_read (TraceFileReplay's time / read_ms) put the ratio in the same row.
+//   TraceFileRead/F  reading (and, for format version 2, decoding) and validating a trace file slice by
+//                    slice (TraceReader::read_slices), nothing else. F: the file in format version 1
+//                    (16 bytes a record, /1), version 2 with record coding 1 (/2) or coding 2 (/3, what
+//                    `trace` writes: each workgroup's coding stands alone).
+//   TraceFileReplay/F  `cachesim TRACE`: the same file replayed (feed_slices: a coding-2 slice is built
+//                    straight from its coding); its counters read_ms (the fastest TraceFileRead of that
+//                    file, timed beforehand), file_read_ms (the fastest read(2) of its bytes from the page
+//                    cache, nothing decoded) and replay_over_read, replay_over_file_read (the replay's
+//                    time over each) put the ratios in the same row.
 //   DinFileRead      read(2) of a Dinero text file into a 1 MiB buffer: the memory-speed floor.
 //   DinFileReplay    `cachesim --din FILE`: the file streamed through the parser and a 16k:64:4 L1 +
 //                    4m:64:16 L2 (/0), or read whole into memory first and then replayed (/1: what the
 //                    streamed parser saves). items = Dinero records.
-// The files: HP_BENCH_TRACE as above, plus a copy in the other format version (else the generated trace
-// written, in 64-workgroup slices as a capture writes them, to temporary files in both versions) and HP_BENCH_DIN=FILE (else the generated trace's L1
-// request stream, written as Dinero text to a temporary file). Temporary files are removed at exit.
+// The files: HP_BENCH_TRACE as above, copied into the three forms (else the generated trace written, in
+// 64-workgroup slices as a capture writes them, to temporary files in the three forms) and HP_BENCH_DIN=FILE
+// (else the generated trace's L1 request stream, written as Dinero text to a temporary file). Temporary
+// files are removed at exit.
 // Rates are per CPU second (Google Benchmark's default): on a shared VM they are less disturbed by
 // other processes than wall time, not undisturbed. Note the load average printed in the header.
 #include <benchmark/benchmark.h>
@@ -256,10 +260,21 @@ uint64_t read_whole_trace(const std::string& path) {
   return records;
 }
 
-// Copies a trace file into the other format version, slice by slice.
-void convert_trace(const std::string& from, const std::string& to, uint32_t version) {
+// The forms a trace file is benchmarked in (index: the benchmarks' argument): format version and record
+// coding.
+struct TraceForm {
+  uint32_t version, coding;
+  const char* label;
+};
+constexpr TraceForm kForms[4] = {{0, 0, ""},
+                                 {1, hp::trace::kCodingSizedGroups, "version 1 (16-byte records)"},
+                                 {2, hp::trace::kCodingDeltaVarint, "version 2, coding 1"},
+                                 {2, hp::trace::kCodingSizedGroups, "version 2, coding 2"}};
+
+// Copies a trace file into another form, slice by slice.
+void convert_trace(const std::string& from, const std::string& to, const TraceForm& form) {
   hp::trace::TraceReader reader(from);
-  hp::trace::TraceWriter w(to, reader.header(), version);
+  hp::trace::TraceWriter w(to, reader.header(), form.version, form.coding);
   for (uint32_t p = 0; p < reader.passes().size(); ++p) {
     const uint32_t index = w.begin_pass(reader.passes()[p]);
     reader.read_slices(p, [&](std::span<const hp::trace::TraceRecord> r, uint64_t first, uint64_t end) {
@@ -271,8 +286,9 @@ void convert_trace(const std::string& from, const std::string& to, uint32_t vers
 
 // The files the end-to-end benchmarks read, made once (see the header comment).
 struct Files {
-  std::string trace_path[3];    // by format version (1: 16-byte records, 2: compact)
-  double read_seconds[3] = {};  // the fastest of three whole reads of each (TraceFileRead's work)
+  std::string trace_path[4];         // by form (kForms)
+  double read_seconds[4] = {};       // the fastest of three whole reads of each (TraceFileRead's work)
+  double file_read_seconds[4] = {};  // the fastest of three read(2)s of each one's bytes
   std::string din_path;
   std::vector<std::string> remove;
   uint64_t din_records = 0;
@@ -280,18 +296,15 @@ struct Files {
     const Fixture& f = fixture();
     const std::string tmp =
         std::filesystem::temp_directory_path().string() + "/hp_bench_cachesim_" + std::to_string(::getpid());
+    for (uint32_t k = 1; k < 4; ++k) {
+      trace_path[k] = tmp + ".form" + std::to_string(k) + ".trace";
+      remove.push_back(trace_path[k]);
+    }
     if (const char* t = std::getenv("HP_BENCH_TRACE")) {
-      // The given file in its version, and a copy in the other made here.
-      const uint32_t v = hp::trace::TraceReader(t).version(), other = v == 1 ? 2 : 1;
-      trace_path[v] = t;
-      trace_path[other] = tmp + ".v" + std::to_string(other) + ".trace";
-      remove.push_back(trace_path[other]);
-      convert_trace(t, trace_path[other], other);
+      for (uint32_t k = 1; k < 4; ++k) convert_trace(t, trace_path[k], kForms[k]);
     } else {
-      for (uint32_t v : {1u, 2u}) {
-        trace_path[v] = tmp + ".v" + std::to_string(v) + ".trace";
-        remove.push_back(trace_path[v]);
-        hp::trace::TraceWriter w(trace_path[v], f.trace.header, v);
+      for (uint32_t k = 1; k < 4; ++k) {
+        hp::trace::TraceWriter w(trace_path[k], f.trace.header, kForms[k].version, kForms[k].coding);
         const hp::trace::PassInfo& pass = f.trace.passes[0];
         const uint32_t p = w.begin_pass(pass);
         const uint64_t per_group = pass.dispatch.invocations_per_workgroup(), groups = pass.dispatch.workgroups();
@@ -306,13 +319,22 @@ struct Files {
         w.finish();
       }
     }
-    for (uint32_t v : {1u, 2u}) {
-      read_seconds[v] = 1e30;
-      for (int k = 0; k < 3; ++k) {
-        const auto t0 = std::chrono::steady_clock::now();
-        benchmark::DoNotOptimize(read_whole_trace(trace_path[v]));
-        read_seconds[v] =
-            std::min(read_seconds[v], std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    std::unique_ptr<char[]> buf(new char[1 << 20]);
+    for (uint32_t k = 1; k < 4; ++k) {
+      read_seconds[k] = file_read_seconds[k] = 1e30;
+      for (int rep = 0; rep < 3; ++rep) {
+        auto t0 = std::chrono::steady_clock::now();
+        benchmark::DoNotOptimize(read_whole_trace(trace_path[k]));
+        read_seconds[k] =
+            std::min(read_seconds[k], std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+        t0 = std::chrono::steady_clock::now();
+        const int fd = ::open(trace_path[k].c_str(), O_RDONLY);
+        uint64_t bytes = 0;
+        for (ssize_t n; (n = ::read(fd, buf.get(), 1 << 20)) > 0;) bytes += uint64_t(n);
+        ::close(fd);
+        benchmark::DoNotOptimize(bytes);
+        file_read_seconds[k] = std::min(file_read_seconds[k],
+                                        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
       }
     }
     if (const char* d = std::getenv("HP_BENCH_DIN")) {
@@ -338,7 +360,7 @@ Files& files() {
   return f;
 }
 
-// /1, /2: the trace file in format version 1 (16 bytes a record) or 2 (compact).
+// /1, /2, /3: the trace file in each form (kForms).
 void TraceFileRead(benchmark::State& state) {
   const Files& fs = files();
   const std::string& path = fs.trace_path[state.range(0)];
@@ -350,8 +372,9 @@ void TraceFileRead(benchmark::State& state) {
   state.SetItemsProcessed(int64_t(state.iterations() * records));
   state.counters["bytes"] = double(std::filesystem::file_size(path));
   state.counters["bytes_per_lane_access"] = double(std::filesystem::file_size(path)) / double(records);
+  state.SetLabel(kForms[state.range(0)].label);
 }
-BENCHMARK(TraceFileRead)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(TraceFileRead)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // `cachesim TRACE` end to end from the file (items: lane accesses, per wall second). read_ms is the
 // fastest whole read of the same file (TraceFileRead's work, timed when the files were made), so each
@@ -380,11 +403,16 @@ void TraceFileReplay(benchmark::State& state) {
   state.SetItemsProcessed(int64_t(state.iterations() * records));
   state.counters["lane_accesses"] = double(records);
   state.counters["bytes_per_lane_access"] = double(std::filesystem::file_size(path)) / double(records);
-  state.counters["read_ms"] = fs.read_seconds[state.range(0)] * 1e3;
-  // The mean replay over the read (both wall clock; Google Benchmark's rate counters divide by CPU time).
-  state.counters["replay_over_read"] = wall_seconds / double(state.iterations()) / fs.read_seconds[state.range(0)];
+  const size_t k = size_t(state.range(0));
+  state.counters["read_ms"] = fs.read_seconds[k] * 1e3;
+  state.counters["file_read_ms"] = fs.file_read_seconds[k] * 1e3;
+  // The mean replay over each read (all wall clock).
+  const double replay_seconds = wall_seconds / double(state.iterations());
+  state.counters["replay_over_read"] = replay_seconds / fs.read_seconds[k];
+  state.counters["replay_over_file_read"] = replay_seconds / fs.file_read_seconds[k];
+  state.SetLabel(kForms[k].label);
 }
-BENCHMARK(TraceFileReplay)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(TraceFileReplay)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void DinFileRead(benchmark::State& state) {
   const Files& fs = files();
