@@ -57,6 +57,7 @@ class Coalescer {
     const auto kind = AccessKind(gpu::trace_kind(info));
     const uint64_t last_byte = address + size - 1;
     const uint64_t first_line = address >> line_shift_, last_line = last_byte >> line_shift_;
+    last_single_ = first_line == last_line;
     for (uint64_t line = first_line; line <= last_line; ++line) {
       uint32_t mask = full_mask_;
       if (sectors_) {
@@ -104,6 +105,19 @@ class Coalescer {
     }
   }
 
+  // add() of the same access as the previous add() of this step, by another lane: where that access lay in
+  // one line, only the lane is counted into its request (the line, key and sectors are the same).
+  [[gnu::always_inline]] void add_again(uint64_t address, uint32_t info, uint32_t invocation, uint32_t lane,
+                                        bool per_invocation) {
+    if (!last_single_) {
+      add(address, info, invocation, lane, per_invocation);
+      return;
+    }
+    ++lanes[last_req_];
+    quarters[last_req_] |= quarter_bit_[lane];
+    if (per_invocation) lane_request.push_back({invocation, last_req_});
+  }
+
   std::vector<Request> requests;
   // Per request: the lane accesses it serves, and the quarter-waves they are in (a bit each).
   std::vector<uint32_t> lanes;
@@ -117,6 +131,7 @@ class Coalescer {
   uint64_t mask_ = 0;
   uint64_t last_key_ = ~uint64_t(0);  // the previous lane access's key and request, this step
   uint32_t last_req_ = 0;
+  bool last_single_ = false;  // whether the previous lane access lay in one line
   uint32_t gen_ = 0;
   uint32_t line_shift_, sector_shift_, full_mask_;
   bool sectors_;
@@ -350,8 +365,11 @@ class Builder {
       ga->requests.reserve(size_t(end - p) / 2 + 8);
       const bool whole = walk_coded(
           p, end, per_group, true, [&] { co_.begin(); },
-          [&](uint32_t lane, uint32_t, uint32_t info, uint64_t address, uint32_t) {
-            co_.add(address, info, uint32_t(first_invocation + lane), lane, per_inv_);
+          [&](uint32_t lane, uint32_t, uint32_t info, uint64_t address, uint32_t, bool same) {
+            if (same)
+              co_.add_again(address, info, uint32_t(first_invocation + lane), lane, per_inv_);
+            else
+              co_.add(address, info, uint32_t(first_invocation + lane), lane, per_inv_);
           },
           [&](uint64_t n) {
             ga->records += n;
@@ -375,7 +393,7 @@ class Builder {
     scratch_.clear();
     walk_coded(
         p, end, per_group, false, [] {},
-        [&](uint32_t lane, uint32_t seq, uint32_t info, uint64_t, uint32_t offset) {
+        [&](uint32_t lane, uint32_t seq, uint32_t info, uint64_t, uint32_t offset, bool) {
           scratch_.push_back(trace::TraceRecord{uint32_t(first_invocation + lane), seq, info, offset});
         },
         [](uint64_t) {});
@@ -581,7 +599,8 @@ class Builder {
   }
 
   // Walks a coding-2 workgroup body [p, end): begin_step() at each step, record(lane, seq, info, address,
-  // offset) for each record, checked, in coded order, end_step(records of the step) after it. With
+  // offset, same) for each record, checked, in coded order (same: the step's previous record has the same
+  // info word and offset), end_step(records of the step) after it. With
   // `stop_at_repeat`, returns false as soon as a lane comes twice in a step (the walk is then incomplete);
   // true once the whole body is walked. Throws CodedSliceRejected on any defect.
   template <typename BeginStep, typename Record, typename EndStep>
@@ -598,6 +617,9 @@ class Builder {
     const trace::BufferInfo* buffer = nullptr;
     uint32_t size = 0;
     bool plain = true;
+    // The previous record's access (info word, offset) and its address.
+    uint32_t record_info = 0, offset = 0;
+    uint64_t address = 0;
     uint64_t seq = 0;
     for (uint64_t st = 0; st < steps; ++st) {
       uint64_t delta = 0, n = 0;
@@ -624,9 +646,17 @@ class Builder {
           size = gpu::trace_size(info);
           plain = buffer->kind == trace::BufferKind::buffer;
         }
-        if (uint64_t(state.offset) + size > buffer->size_bytes) reject();  // as the reader compares
-        record(uint32_t(lane), uint32_t(seq), info,
-               plain ? buffer->base_address + state.offset : buffer->address(state.offset), state.offset);
+        // A record repeating the previous one's access (another lane reading the same bytes, the usual case
+        // in a coherent step) was checked and mapped with it.
+        if (k == 0 || state.offset != offset || state.info != record_info) {
+          if (uint64_t(state.offset) + size > buffer->size_bytes) reject();  // as the reader compares
+          offset = state.offset;
+          record_info = info;
+          address = plain ? buffer->base_address + offset : buffer->address(offset);
+          record(uint32_t(lane), uint32_t(seq), info, address, offset, false);
+        } else {
+          record(uint32_t(lane), uint32_t(seq), info, address, offset, true);
+        }
         if (p > end) reject();
       }
       end_step(n);
