@@ -105,17 +105,16 @@ class Coalescer {
     }
   }
 
-  // add() of the same access as the previous add() of this step, by another lane: where that access lay in
-  // one line, only the lane is counted into its request (the line, key and sectors are the same).
-  [[gnu::always_inline]] void add_again(uint64_t address, uint32_t info, uint32_t invocation, uint32_t lane,
-                                        bool per_invocation) {
-    if (!last_single_) {
-      add(address, info, invocation, lane, per_invocation);
-      return;
-    }
-    ++lanes[last_req_];
-    quarters[last_req_] |= quarter_bit_[lane];
-    if (per_invocation) lane_request.push_back({invocation, last_req_});
+  // The same access as the previous add() of this step, by other lanes: where that access lay in one line
+  // (last_single()), adding it again changes only its request's lane count and quarter-waves, so a caller
+  // may count such lanes itself (quarter_of each, note_lane each when per_invocation) and add them with
+  // count_again(lanes, their quarter-waves) before the next add() or the step's end.
+  bool last_single() const { return last_single_; }
+  uint8_t quarter_of(uint32_t lane) const { return quarter_bit_[lane]; }
+  void note_lane(uint32_t invocation) { lane_request.push_back({invocation, last_req_}); }
+  void count_again(uint32_t n, uint8_t quarter_mask) {
+    lanes[last_req_] += n;
+    quarters[last_req_] |= quarter_mask;
   }
 
   std::vector<Request> requests;
@@ -363,15 +362,29 @@ class Builder {
     if (per_group <= width_) {
       std::unique_ptr<GroupRequests> ga = pool_.take();
       ga->requests.reserve(size_t(end - p) / 2 + 8);
+      // Lanes repeating the previous access, counted here (in registers) and into its request at once.
+      uint32_t again = 0;
+      uint8_t again_quarters = 0;
+      const auto flush_again = [&] {
+        co_.count_again(again, again_quarters);
+        again = 0;
+        again_quarters = 0;
+      };
       const bool whole = walk_coded(
           p, end, per_group, true, [&] { co_.begin(); },
           [&](uint32_t lane, uint32_t, uint32_t info, uint64_t address, uint32_t, bool same) {
-            if (same)
-              co_.add_again(address, info, uint32_t(first_invocation + lane), lane, per_inv_);
-            else
-              co_.add(address, info, uint32_t(first_invocation + lane), lane, per_inv_);
+            const uint32_t invocation = uint32_t(first_invocation + lane);
+            if (same && co_.last_single()) {
+              ++again;
+              again_quarters |= co_.quarter_of(lane);
+              if (per_inv_) co_.note_lane(invocation);
+              return;
+            }
+            if (again) flush_again();
+            co_.add(address, info, invocation, lane, per_inv_);
           },
           [&](uint64_t n) {
+            if (again) flush_again();
             ga->records += n;
             end_step(*ga, pending_.data(), pending_touched_.data());
           });
