@@ -1,5 +1,7 @@
 #include "cachesim/simulator.hpp"
 
+#include "cachesim/address_map.hpp"
+
 #include <algorithm>
 #include <bit>
 #include <condition_variable>
@@ -332,7 +334,9 @@ class Builder {
             preset.coalescing == Coalescing::sector),
         buffers_(buffers),
         width_(preset.wave_width),
-        per_inv_(per_invocation) {}
+        per_inv_(per_invocation) {
+    for (size_t id = 0; id < maps_.size(); ++id) maps_[id] = AddressMap(buffers[id]);
+  }
 
   // Workgroup first_group + g's requests (null: no accesses).
   std::unique_ptr<GroupRequests> build(const Buckets& buckets, uint64_t g) {
@@ -436,8 +440,9 @@ class Builder {
         const trace::TraceRecord& r = in[k];
         const trace::BufferInfo& b = *buffers_[gpu::trace_buffer(r.info)];
         recs_[cursor32_[r.invocation - first_invocation]++] =
-            LaneAccess{b.kind == trace::BufferKind::buffer ? b.base_address + r.offset : b.address(r.offset), r.seq,
-                       r.info};
+            LaneAccess{b.kind == trace::BufferKind::buffer ? b.base_address + r.offset
+                                                           : maps_[gpu::trace_buffer(r.info)](r.offset),
+                       r.seq, r.info};
       }
     });
     auto by_seq = [](const LaneAccess& x, const LaneAccess& y) { return x.seq < y.seq; };
@@ -576,8 +581,8 @@ class Builder {
         for (; k < end && in[k].invocation < lane_end; ++k) {
           const trace::TraceRecord& r = in[k];
           const trace::BufferInfo& b = *buffers_[gpu::trace_buffer(r.info)];
-          const uint64_t address =
-              b.kind == trace::BufferKind::buffer ? b.base_address + r.offset : b.address(r.offset);
+          const uint64_t address = b.kind == trace::BufferKind::buffer ? b.base_address + r.offset
+                                                                       : maps_[gpu::trace_buffer(r.info)](r.offset);
           co_.add(address, r.info, r.invocation, r.invocation - lane_base, per_inv_);
         }
         seq_cursor_[q] = k;
@@ -630,6 +635,7 @@ class Builder {
     const trace::BufferInfo* buffer = nullptr;
     uint32_t size = 0;
     bool plain = true;
+    const AddressMap* map = nullptr;
     // The previous record's access (info word, offset) and its address.
     uint32_t record_info = 0, offset = 0;
     uint64_t address = 0;
@@ -658,6 +664,7 @@ class Builder {
           if (!buffer) reject();
           size = gpu::trace_size(info);
           plain = buffer->kind == trace::BufferKind::buffer;
+          map = &maps_[gpu::trace_buffer(info)];
         }
         // A record repeating the previous one's access (another lane reading the same bytes, the usual case
         // in a coherent step) was checked and mapped with it.
@@ -665,7 +672,7 @@ class Builder {
           if (uint64_t(state.offset) + size > buffer->size_bytes) reject();  // as the reader compares
           offset = state.offset;
           record_info = info;
-          address = plain ? buffer->base_address + offset : buffer->address(offset);
+          address = plain ? buffer->base_address + offset : (*map)(offset);
           record(uint32_t(lane), uint32_t(seq), info, address, offset, false);
         } else {
           record(uint32_t(lane), uint32_t(seq), info, address, offset, true);
@@ -690,6 +697,7 @@ class Builder {
   std::vector<LaneAccess> recs_, step_recs_;
   std::vector<uint32_t> at_, cursor32_, end_, seq_count_, seq_cursor_, seq_start_;
   std::vector<uint8_t> strict_;
+  std::array<AddressMap, 256> maps_;         // by buffer id
   std::vector<trace::TraceRecord> scratch_;  // a coded workgroup decoded (build_coded's general way)
   std::array<L1Lookups, 256> pending_{};     // a coded workgroup's lookups until it is whole
   std::array<uint64_t, 4> pending_touched_{};
