@@ -365,7 +365,7 @@ class Builder {
     if (p == end) return nullptr;
     if (per_group <= width_) {
       std::unique_ptr<GroupRequests> ga = pool_.take();
-      ga->requests.reserve(size_t(end - p) / 2 + 8);
+      ga->requests.reserve(size_t(end - p) / 8 + 8);  // as the records path: a record takes about 2 bytes
       // Lanes repeating the previous access, counted here (in registers) and into its request at once.
       uint32_t again = 0;
       uint8_t again_quarters = 0;
