@@ -37,15 +37,19 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
     const uint64_t i = invocation - first_invocation;
     return uint32_t(shift >= 0 ? i >> shift : i / per_group);
   };
-  // Per workgroup: its record count and largest seq (one pass over the records, which also refuses what the
-  // coding cannot hold rather than writing it as something else; a version-1 file stores such records as
-  // given, and its reader rejects them).
+  // Per workgroup: its record count and largest seq, and the runs of consecutive records of one workgroup
+  // (one pass over the records, which also refuses what the coding cannot hold rather than writing it as
+  // something else; a version-1 file stores such records as given, and its reader rejects them). A capture
+  // writes a workgroup's records in a few runs: the GPU runs a workgroup on one core.
+  if (records.size() > 0xFFFFFFFFu) throw InputError("trace writer: a slice of 2^32 records or more");
   group_begin.assign(groups + 1, 0);
   max_seq.assign(groups, 0);
+  runs.clear();
   // Plain pointers into the scratch arrays here and below: through the members the compiler reloads each
   // array's address at every store.
   uint32_t* const counts = group_begin.data() + 1;
   uint32_t* const seq_max = max_seq.data();
+  uint32_t run_group = kEmpty;
   for (size_t i = 0; i < records.size(); ++i) {
     const TraceRecord& r = records[i];
     if (r.invocation < first_invocation || r.invocation - first_invocation >= groups * per_group)
@@ -56,75 +60,23 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
     const uint32_t g = group_of(r.invocation);
     ++counts[g];
     seq_max[g] = std::max(seq_max[g], r.seq);
-  }
-  // Each workgroup's records are ordered by (seq, lane, position). A GPU capture numbers each invocation's
-  // records 0, 1, 2, ... so the keys are distinct and dense: every workgroup gets a table of (largest seq + 1)
-  // x per_group slots in one array, each record's index is placed into its slot (one pass over the records,
-  // in the order they come), and the tables are read back in order (linear time, no copy of the records). A
-  // key that repeats (the format allows it), or a table much larger than the workgroup's records, takes a
-  // comparison sort of that workgroup's keys instead; both give the same order.
-  table_begin.resize(groups);
-  row_begin.resize(groups);
-  placed.assign(groups, 0);
-  uint64_t cells = 0, rows = 0;
-  bool any_sorted = false;
-  for (uint64_t g = 0; g < groups; ++g) {
-    const uint64_t n = group_begin[g + 1];
-    const uint64_t range = (uint64_t(max_seq[g]) + 1) * per_group;
-    table_begin[g] = cells;
-    row_begin[g] = rows;
-    if (n > 0 && range <= 8 * n + 4096) {
-      placed[g] = 1;
-      cells += range;
-      rows += uint64_t(max_seq[g]) + 1;
-    } else {
-      any_sorted |= n > 0;
+    if (g != run_group) {
+      runs.push_back({uint32_t(i), 0, g});
+      run_group = g;
     }
-  }
-  slot.assign(cells, kEmpty);
-  row_count.assign(rows, 0);  // records per (workgroup, seq): a step's size, without scanning its row
-  {
-    uint8_t* const is_placed = placed.data();
-    const uint64_t* const begin = table_begin.data();
-    const uint64_t* const first_row = row_begin.data();
-    uint32_t* const table = slot.data();
-    uint32_t* const in_row = row_count.data();
-    for (size_t i = 0; i < records.size(); ++i) {
-      const TraceRecord& r = records[i];
-      const uint32_t g = group_of(r.invocation);
-      if (!is_placed[g]) continue;
-      uint32_t& at = table[begin[g] + uint64_t(r.seq) * per_group + (r.invocation - first_invocation - g * per_group)];
-      if (at != kEmpty) {
-        // A repeated key: this workgroup is sorted instead (its table is left unread).
-        is_placed[g] = 0;
-        any_sorted = true;
-        continue;
-      }
-      at = uint32_t(i);
-      ++in_row[first_row[g] + r.seq];
-    }
+    ++runs.back().count;
   }
   for (uint64_t g = 0; g < groups; ++g) group_begin[g + 1] += group_begin[g];
-  // The sorted workgroups' keys: (seq << 32 | lane, position), sorted per workgroup (positions break ties:
-  // stable).
-  keys.clear();
-  sorted_begin.assign(groups + 1, 0);
-  if (any_sorted) {
-    for (size_t i = 0; i < records.size(); ++i) {
-      const uint32_t g = group_of(records[i].invocation);
-      if (placed[g]) continue;
-      ++sorted_begin[g + 1];
-    }
-    for (uint64_t g = 0; g < groups; ++g) sorted_begin[g + 1] += sorted_begin[g];
-    keys.resize(sorted_begin[groups]);
-    std::vector<uint32_t> fill(sorted_begin.begin(), sorted_begin.end() - 1);
-    for (size_t i = 0; i < records.size(); ++i) {
-      const TraceRecord& r = records[i];
-      const uint32_t g = group_of(r.invocation);
-      if (placed[g]) continue;
-      keys[fill[g]++] = {uint64_t(r.seq) << 32 | (r.invocation - first_invocation - g * per_group), uint32_t(i)};
-    }
-    for (uint64_t g = 0; g < groups; ++g) std::sort(keys.begin() + sorted_begin[g], keys.begin() + sorted_begin[g + 1]);
+  // The runs by workgroup, in record order within each: workgroup g's are run_order[run_begin[g] ..
+  // run_begin[g + 1]).
+  run_begin.assign(groups + 1, 0);
+  for (const Run& r : runs) ++run_begin[r.group + 1];
+  for (uint64_t g = 0; g < groups; ++g) run_begin[g + 1] += run_begin[g];
+  run_order.resize(runs.size());
+  {
+    std::vector<uint32_t>& cursor = row_count;  // scratch here; row_count is reset before each use below
+    cursor.assign(run_begin.begin(), run_begin.end() - 1);
+    for (size_t k = 0; k < runs.size(); ++k) run_order[cursor[runs[k].group]++] = uint32_t(k);
   }
   // Coded into scratch room, then appended. Its bound: at most 5 + 4 + 5 bytes a workgroup, 5 + 5 a step,
   // 1 + 5 + 2 + 4 a record, and a slice has no more steps than records. Left uninitialised: zeroing the
@@ -179,10 +131,48 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
       prev_seq = seq;
       prev_lane = -1;
     };
-    if (placed[g]) {
-      const uint32_t* row = slot.data() + table_begin[g];
-      const uint32_t* count = row_count.data() + row_begin[g];
-      const uint64_t seqs = uint64_t(max_seq[g]) + 1;
+    // The workgroup's records in (seq, lane, position) order. A GPU capture numbers each invocation's
+    // records 0, 1, 2, ... so the keys are distinct and dense: a table of (largest seq + 1) x per_group
+    // slots, each record's index placed into its slot (its runs read in order), read back in order (linear
+    // time, and the table small enough to stay in the host's caches while the workgroup is coded). A key
+    // that repeats (the format allows it), or a table much larger than the workgroup's records, takes a
+    // comparison sort of the workgroup's keys instead; both give the same order.
+    const uint64_t n = group_begin[g + 1] - group_begin[g];
+    const uint64_t seqs = uint64_t(max_seq[g]) + 1;
+    const uint64_t lane_base = first_invocation + g * per_group;
+    bool placed = seqs * per_group <= 8 * n + 4096;
+    if (placed) {
+      slot.assign(seqs * per_group, kEmpty);
+      row_count.assign(seqs, 0);  // records per seq: a step's size, without scanning its row
+      uint32_t* const table = slot.data();
+      uint32_t* const in_row = row_count.data();
+      for (uint32_t k = run_begin[g]; k < run_begin[g + 1] && placed; ++k) {
+        const Run& run = runs[run_order[k]];
+        for (uint32_t i = run.first; i < run.first + run.count; ++i) {
+          const TraceRecord& r = records[i];
+          uint32_t& at = table[uint64_t(r.seq) * per_group + (r.invocation - lane_base)];
+          if (at != kEmpty) {
+            placed = false;  // a repeated key: this workgroup is sorted instead
+            break;
+          }
+          at = i;
+          ++in_row[r.seq];
+        }
+      }
+    }
+    if (!placed) {
+      // Keys (seq << 32 | lane, position), sorted (positions break ties: stable).
+      keys.clear();
+      for (uint32_t k = run_begin[g]; k < run_begin[g + 1]; ++k) {
+        const Run& run = runs[run_order[k]];
+        for (uint32_t i = run.first; i < run.first + run.count; ++i)
+          keys.emplace_back(uint64_t(records[i].seq) << 32 | (records[i].invocation - lane_base), i);
+      }
+      std::sort(keys.begin(), keys.end());
+    }
+    if (placed) {
+      const uint32_t* row = slot.data();
+      const uint32_t* count = row_count.data();
       uint64_t steps = 0;
       for (uint64_t seq = 0; seq < seqs; ++seq) steps += count[seq] != 0;
       put_varint(p, steps);
@@ -196,8 +186,8 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
         }
       }
     } else {
-      const auto* k0 = keys.data() + sorted_begin[g];
-      const auto* k1 = keys.data() + sorted_begin[g + 1];
+      const auto* k0 = keys.data();
+      const auto* k1 = keys.data() + keys.size();
       uint64_t steps = 1;
       for (const auto* k = k0 + 1; k < k1; ++k) steps += (k->first >> 32) != ((k - 1)->first >> 32);
       put_varint(p, steps);

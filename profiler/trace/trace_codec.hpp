@@ -53,9 +53,11 @@ inline constexpr uint32_t kCodingSizedGroups = 2;  // each workgroup stands alon
 
 // Scratch kept between slices by an encoder (no allocation per slice once warm).
 struct SliceEncoder {
-  std::vector<uint32_t> group_begin, max_seq, sorted_begin, slot, row_count;
-  std::vector<uint64_t> table_begin, row_begin;
-  std::vector<uint8_t> placed;
+  struct Run {
+    uint32_t first, count, group;  // records [first, first + count) of workgroup `group`
+  };
+  std::vector<Run> runs;
+  std::vector<uint32_t> group_begin, max_seq, run_begin, run_order, slot, row_count;
   static constexpr uint32_t kEmpty = 0xFFFFFFFFu;
   std::unique_ptr<uint8_t[]> room;  // the coding's room, of room_size bytes
   size_t room_size = 0;

@@ -333,7 +333,7 @@ TEST(SimulatorEquivalence, TraceFilesOfBothVersionsReplayLikeTheirRecords) {
   const auto path = std::filesystem::temp_directory_path() / "hp_equivalence_trace_file.hptrace";
   for (const trace::Trace& t :
        {make_bvh_like_trace(o), with_some_repeats(make_bvh_like_trace(o)), awkward_trace(6), awkward_trace(7)}) {
-    for (const auto [version, coding] : {std::pair{trace::kTraceVersionRaw, trace::kCodingSizedGroups},
+    for (const auto& [version, coding] : {std::pair{trace::kTraceVersionRaw, trace::kCodingSizedGroups},
                                          std::pair{trace::kTraceVersion, trace::kCodingDeltaVarint},
                                          std::pair{trace::kTraceVersion, trace::kCodingSizedGroups}}) {
       {
