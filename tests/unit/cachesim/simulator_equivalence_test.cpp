@@ -334,8 +334,8 @@ TEST(SimulatorEquivalence, TraceFilesOfBothVersionsReplayLikeTheirRecords) {
   for (const trace::Trace& t :
        {make_bvh_like_trace(o), with_some_repeats(make_bvh_like_trace(o)), awkward_trace(6), awkward_trace(7)}) {
     for (const auto& [version, coding] : {std::pair{trace::kTraceVersionRaw, trace::kCodingSizedGroups},
-                                         std::pair{trace::kTraceVersion, trace::kCodingDeltaVarint},
-                                         std::pair{trace::kTraceVersion, trace::kCodingSizedGroups}}) {
+                                          std::pair{trace::kTraceVersion, trace::kCodingDeltaVarint},
+                                          std::pair{trace::kTraceVersion, trace::kCodingSizedGroups}}) {
       {
         // Three slices per pass, as a capture streams them.
         trace::TraceWriter w(path, t.header, version, coding);
