@@ -977,6 +977,7 @@ void Simulator::feed(std::span<const trace::TraceRecord> records, uint64_t first
 void Simulator::feed_coded(const trace::CodedSlice& slice, uint64_t first_workgroup, uint64_t end_workgroup) {
   if (slice.bodies.size() != end_workgroup - first_workgroup)
     throw std::logic_error("Simulator::feed_coded: the slice's index does not match its workgroups");
+  if (first_workgroup == end_workgroup && slice.count != 0) throw CodedSliceRejected();
   feed_slice(first_workgroup, end_workgroup, slice.count,
              [&](PassState& ps) { ps.buckets.fill_coded(slice, first_workgroup, ps.per_group); });
   // Every record of the slice was built, no more and no fewer (a record count the coding does not hold
