@@ -41,7 +41,7 @@ bool hp_driver_segment(HpRay r, out float tmin) {
 // What both driver traversals start with: a miss, the segment the API takes, and the ray flags (opaque;
 // any hit: stop at the first hit found). False when the segment is empty (the ray misses untraced).
 bool hp_driver_begin(HpRay r, bool any_hit, out HpHit best, out float tmin, out uint flags) {
-  best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
+  best = hp_no_hit();
   flags = gl_RayFlagsOpaqueEXT | (any_hit ? gl_RayFlagsTerminateOnFirstHitEXT : 0u);
   return hp_driver_segment(r, tmin);
 }

@@ -98,7 +98,7 @@ bool hp_reflection_ray(ivec2 q, uint cell, out vec3 o, out vec3 d) {
 // Traces the reflection ray (o, d) to its closest hit and shades it (material x direct light with an
 // optional shadow ray, plus ambient); the sky on a miss. `was_cast` is false when the ray is invalid.
 vec3 hp_shade_reflection(vec3 o, vec3 d, inout HpStats st, inout uint shadow_rays, out HpHit h, out bool was_cast) {
-  h.slot = -1; h.t = 0.0; h.u = 0.0; h.v = 0.0;
+  h = hp_no_hit();
   was_cast = false;
   vec3 color = frame.sky_color.rgb;
   HpRay r;

@@ -57,6 +57,13 @@ struct HpHit {
   float t, u, v;
 };
 
+// A miss: what every traversal starts from.
+HpHit hp_no_hit() {
+  HpHit h;
+  h.slot = -1; h.t = 0.0; h.u = 0.0; h.v = 0.0;
+  return h;
+}
+
 struct HpStats {
   uint nodes;
   uint tris;
@@ -288,8 +295,7 @@ bool hp_test_leaf(HpRay r, uint first, uint last, bool any_hit, inout HpHit best
 // found a leaf whose box it hits (or finished), then the lanes test their leaves' triangles together. The
 // order in which each ray visits nodes and triangles is the C++ reference's, node for node.
 HpHit hp_trace_binary(HpRay r, bool any_hit, inout HpStats stats) {
-  HpHit best;
-  best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
+  HpHit best = hp_no_hit();
   float best_t = r.tmax;
   uint lane = gl_LocalInvocationIndex;
   HpStack st = hp_stack_empty();
@@ -351,8 +357,7 @@ bool hp_wide_slot(HpRay r, vec3 origin, vec3 step, uvec4 t1, uvec4 t2, uint sh, 
 // visited next and the other hit children are pushed, the last first. Stack entries are child words: a
 // leaf's word carries its primitive range, so a popped leaf is tested without another fetch.
 HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
-  HpHit best;
-  best.slot = -1; best.t = 0.0; best.u = 0.0; best.v = 0.0;
+  HpHit best = hp_no_hit();
   float best_t = r.tmax;
   uint lane = gl_LocalInvocationIndex;
   HpStack st = hp_stack_empty();
