@@ -555,7 +555,6 @@ uint64_t TraceReader::read_slices_impl(uint32_t pass, bool coded, const CodedSli
       is_coded[slot] = false;
       if (comes_coded(c)) {
         std::vector<uint8_t>& bytes = coded_bytes[slot];
-        if (bytes.size() < c.coded_bytes + kRecordReadBytes) bytes.resize(c.coded_bytes + kRecordReadBytes);
         std::fseek(file_, long(c.file_offset), SEEK_SET);
         if (std::fread(bytes.data(), 1, c.coded_bytes, file_) != c.coded_bytes)
           fail("truncated records of pass " + std::to_string(c.pass));
