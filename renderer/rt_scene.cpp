@@ -5,6 +5,8 @@
 #include "gpu/shared_types.h"
 
 #include <algorithm>
+#include <cstdlib>
+#include <thread>
 
 
 namespace hp {
@@ -27,11 +29,25 @@ constexpr VkFormat kTriple = VK_FORMAT_R32G32B32_UINT;  // a vertex, or a triang
 
 }  // namespace
 
+uint32_t dispatch_spread_levels(const vk::Context& ctx) {
+  if (ctx.properties().deviceType != VK_PHYSICAL_DEVICE_TYPE_CPU) return 0;
+  unsigned threads = std::max(1u, std::thread::hardware_concurrency());
+  if (const char* env = std::getenv("LP_NUM_THREADS"); env != nullptr && *env != '\0') {
+    char* end = nullptr;
+    const unsigned long n = std::strtoul(env, &end, 10);
+    if (*end == '\0') threads = static_cast<unsigned>(std::min(n, 1024ul));
+  }
+  uint32_t levels = 0;
+  while ((1u << levels) < threads) ++levels;
+  return levels;
+}
+
 RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, GeometryLayout layout, bool shading,
-                 bool allow_geometry_texels, bool slot_map, bool bvh_nodes)
+                 bool allow_geometry_texels, bool slot_map, bool bvh_nodes, std::optional<uint32_t> spread_levels)
     : layout_(layout),
       object_leaves_(g.bvh.granularity == bvh::Granularity::object),
-      wide_nodes_(bvh_nodes && g.node_layout == bvh::NodeLayout::wide4) {
+      wide_nodes_(bvh_nodes && g.node_layout == bvh::NodeLayout::wide4),
+      spread_levels_(spread_levels ? *spread_levels : dispatch_spread_levels(ctx)) {
   const auto& leaf = g.leaf;
   const size_t slots = leaf.triangles.size();
   const uint64_t max_range = ctx.properties().limits.maxStorageBufferRange;
@@ -182,9 +198,10 @@ RtSpecialization::RtSpecialization(const RtScene& scene, uint32_t rt_flags, bool
              scene.geometry_texels() ? 1u : 0u,
              rt_flags,
              as_remap ? 1u : 0u,
-             scene.wide_nodes() ? 1u : 0u},
-      entries{{0, 0, 4}, {1, 4, 4}, {2, 8, 4}, {3, 12, 4}, {4, 16, 4}, {5, 20, 4}},
-      info{6, entries, sizeof(values), values} {}
+             scene.wide_nodes() ? 1u : 0u,
+             scene.spread_levels()},
+      entries{{0, 0, 4}, {1, 4, 4}, {2, 8, 4}, {3, 12, 4}, {4, 16, 4}, {5, 20, 4}, {6, 24, 4}},
+      info{7, entries, sizeof(values), values} {}
 
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
                                 const RtScene& scene, uint32_t rt_flags, bool as_remap) {

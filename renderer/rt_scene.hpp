@@ -7,6 +7,7 @@
 #include "vk/pipeline.hpp"
 #include "vk/resources.hpp"
 
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -23,13 +24,19 @@ class RtScene {
   /// frame of any-hit shadow rays without dumps leaves it out: 4 bytes a triangle).
   /// `bvh_nodes`: upload the BVH nodes (false for the driver traversals, which read the driver's structure:
   /// the node bindings then hold a small dummy).
+  /// `spread_levels`: the passes' dispatch order (spread_levels()); by default the device's
+  /// (dispatch_spread_levels).
   RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& geometry, GeometryLayout layout, bool shading,
-          bool allow_geometry_texels = true, bool slot_map = true, bool bvh_nodes = true);
+          bool allow_geometry_texels = true, bool slot_map = true, bool bvh_nodes = true,
+          std::optional<uint32_t> spread_levels = std::nullopt);
 
   GeometryLayout layout() const { return layout_; }
   bool object_leaves() const { return object_leaves_; }
   /// The nodes are the wide4 layout (RtGeometry::node_layout; specialization constant 5), not the binary.
   bool wide_nodes() const { return wide_nodes_; }
+  /// Levels of the order in which the traced passes' workgroups take their tiles and rays
+  /// (shaders/common/dispatch_order.glsl; specialization constant 6).
+  uint32_t spread_levels() const { return spread_levels_; }
   /// The traversal fetches the geometry through texel views (positions(), indices(), soup() seen as
   /// R32G32B32_UINT, a vertex or a triangle's three indices per texel: bindings 29-31) rather than storage
   /// loads. Off where the device cannot read that format as a uniform texel buffer, a buffer exceeds
@@ -74,6 +81,7 @@ class RtScene {
   GeometryLayout layout_;
   bool object_leaves_;
   bool wide_nodes_;
+  uint32_t spread_levels_;
   uint64_t uploaded_bytes_ = 0;
   vk::Buffer nodes_, positions_, indices_, soup_, object_first_, slot_scene_, normals_, soup_normals_, slot_material_,
       materials_, texel_dummy_;
@@ -83,17 +91,23 @@ class RtScene {
       slot_material_texels_, material_texels_;
 };
 
+/// How many levels of hp_spread (shaders/common/dispatch_order.glsl) the traced passes of `ctx`'s device use:
+/// on a CPU device, which splits a dispatch into one contiguous block of workgroups per thread (lavapipe:
+/// LP_NUM_THREADS where set, else one thread per online CPU), ceil(log2(threads)), so that every block
+/// covers the whole image; on a GPU 0, the image order.
+uint32_t dispatch_spread_levels(const vk::Context& ctx);
+
 /// The specialization of a ray-tracing shader for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =
 /// soup layout, 1 = object leaves, 2 = geometry fetched as texels), for what a frame records (constant_id 3 =
-/// `rt_flags`, HP_RT_COUNTERS | HP_RT_DUMP_RAYS | HP_RT_REFLECTION_SHADOWS ...) and for the driver traversal's
-/// primitive -> slot table (constant_id 4, common/driver_traversal.glsl) and for the node layout (constant_id 5 =
-/// wide4 nodes). Not copyable: `info` points into it.
+/// `rt_flags`, HP_RT_COUNTERS | HP_RT_DUMP_RAYS | HP_RT_REFLECTION_SHADOWS ...), for the driver traversal's
+/// primitive -> slot table (constant_id 4, common/driver_traversal.glsl), for the node layout (constant_id 5 =
+/// wide4 nodes) and for the dispatch order (constant_id 6 = spread levels). Not copyable: `info` points into it.
 struct RtSpecialization {
   RtSpecialization(const RtScene& scene, uint32_t rt_flags, bool as_remap);
   RtSpecialization(const RtSpecialization&) = delete;
   RtSpecialization& operator=(const RtSpecialization&) = delete;
-  uint32_t values[6];
-  VkSpecializationMapEntry entries[6];
+  uint32_t values[7];
+  VkSpecializationMapEntry entries[7];
   VkSpecializationInfo info;
 };
 

@@ -3,6 +3,7 @@
 // Ray-traced reflections: for each reflective pixel of the (possibly reduced) reflection grid, the view
 // ray reflected about a GGX-sampled microfacet normal, traced to the closest hit and shaded there.
 #include "common/reflection_common.glsl"
+#include "common/dispatch_order.glsl"
 
 // Compiled as a compute shader (BVH traversal, or HP_RAY_QUERY) and as a ray-generation shader
 // (HP_RT_PIPELINE), as shadows.comp is.
@@ -14,8 +15,9 @@ void main() {
 #ifdef HP_RT_PIPELINE
   ivec2 q = ivec2(gl_LaunchIDEXT.xy);  // launched over exactly the reflection grid
 #else
-  // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise).
-  uvec2 wg = gl_WorkGroupID.xy + uvec2(0u, rt.frame.z);
+  // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise); the
+  // rows are taken in spread order (dispatch_order.glsl).
+  uvec2 wg = uvec2(gl_WorkGroupID.x, rt.frame.z + hp_spread(gl_WorkGroupID.y, gl_NumWorkGroups.y));
   ivec2 q = ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy);
 #endif
   if (q.x >= int(rt.grid.x) || q.y >= int(rt.grid.y)) return;

@@ -2,6 +2,7 @@
 #extension GL_GOOGLE_include_directive : require
 // Ray-traced shadows of the directional light: one any-hit ray per G-buffer pixel.
 #include "common/traversal.glsl"
+#include "common/dispatch_order.glsl"
 #include "common/ray_offset.glsl"
 
 // Compiled three ways (shaders/CMakeLists.txt): a compute shader walking the BVH (the default), the same
@@ -17,8 +18,9 @@ void main() {
 #ifdef HP_RT_PIPELINE
   ivec2 p = ivec2(gl_LaunchIDEXT.xy);  // launched over exactly the image
 #else
-  // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise).
-  uvec2 wg = gl_WorkGroupID.xy + uvec2(0u, rt.frame.z);
+  // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise); the
+  // rows are taken in spread order (dispatch_order.glsl).
+  uvec2 wg = uvec2(gl_WorkGroupID.x, rt.frame.z + hp_spread(gl_WorkGroupID.y, gl_NumWorkGroups.y));
   ivec2 p = ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy);
 #endif
   // A ragged edge is covered by rounding the dispatch up and skipping here (the study truncated it).

@@ -4,6 +4,7 @@
 // generation and no shading. Tests check it against the C++ reference on arbitrary rays (hard cases
 // included); the frame benchmark times it on the rays a pass cast.
 #include "common/traversal.glsl"
+#include "common/dispatch_order.glsl"
 #include "gpu/bindings.h"
 
 // Compiled as a compute shader (BVH traversal, or HP_RAY_QUERY) and as a ray-generation shader
@@ -25,7 +26,9 @@ void main() {
 #ifdef HP_RT_PIPELINE
   uint i = gl_LaunchIDEXT.y * (batch.groups_x * 64u) + gl_LaunchIDEXT.x;
 #else
-  uint i = (gl_WorkGroupID.y * batch.groups_x + gl_WorkGroupID.x) * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
+  // The groups take their rays in spread order (dispatch_order.glsl).
+  uint group = hp_spread(gl_WorkGroupID.y * batch.groups_x + gl_WorkGroupID.x, batch.groups_x * gl_NumWorkGroups.y);
+  uint i = group * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
 #endif
   if (i >= batch.count) return;
   BatchRay ray = batch_rays[i];

@@ -24,6 +24,9 @@ layout(constant_id = 3) const uint HP_RT_FLAGS = 0;
 // Node layout of the compute traversal (bvh::NodeLayout): 0 = the study's 32-byte binary nodes (gpu::BvhNode),
 // 1 = wide4 (gpu::WideNode: 4-wide, quantized child boxes; renderer/bvh/wide.hpp).
 layout(constant_id = 5) const uint HP_WIDE_NODES = 0;
+// Levels of the order in which workgroups take their tiles or rays (common/dispatch_order.glsl): 0 on a GPU
+// (the image order), ceil(log2(threads)) on a CPU driver that gives each thread one block of workgroups.
+layout(constant_id = 6) const uint HP_SPREAD_LEVELS = 0;
 
 layout(set = 0, binding = HP_BIND_RT_FRAME) uniform FrameBlock { FrameUniforms frame; };
 layout(set = 0, binding = HP_BIND_RT_PARAMS) uniform RayBlock { RayParams rt; };

@@ -18,6 +18,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <limits>
 #include <random>
@@ -251,6 +252,46 @@ TEST(RayBatch, AnEmptyBatchTracesNothing) {
   RayBatchTracer tracer(*ctx, rts, {});
   tracer.trace(*ctx, bvh::HitMode::closest);
   EXPECT_TRUE(tracer.results(*ctx).empty());
+}
+
+// The dispatch order (shaders/common/dispatch_order.glsl) only changes which workgroup takes which rays:
+// with any number of levels, each ray of a batch that is no multiple of the workgroup gets the reference's
+// answer (a ray left out or traced twice would leave some result unwritten).
+TEST(RayBatch, EveryDispatchOrderTracesEachRayOnce) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  const RtGeometry g = build_rt_geometry(scene, {});
+  std::vector<bvh::Ray> rays = test_rays(g, 3000);
+  if (rays.size() % 64 == 0) rays.pop_back();
+  for (uint32_t levels : {0u, 1u, 3u, 7u}) {
+    const RtScene rts(*ctx, scene, g, GeometryLayout::indexed, false, true, true, true, levels);
+    EXPECT_EQ(rts.spread_levels(), levels);
+    for (bvh::HitMode mode : {bvh::HitMode::closest, bvh::HitMode::any}) {
+      const std::string what = "pica, " + std::to_string(levels) + " spread levels" +
+                               (mode == bvh::HitMode::any ? ", any hit" : ", closest hit");
+      const BatchCheck c = compare_batch(*ctx, g, rts, rays, mode, what);
+      EXPECT_EQ(c.differ, 0u) << what;
+      EXPECT_GT(c.hits, rays.size() / 10) << what;
+    }
+  }
+}
+
+// A CPU device gets ceil(log2(threads)) levels, lavapipe's LP_NUM_THREADS where set; a GPU none.
+TEST(RayBatch, TheDispatchOrderFollowsTheDevicesThreads) {
+  HP_REQUIRE_VULKAN(ctx);
+  const bool cpu = ctx->properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
+  const char* old = std::getenv("LP_NUM_THREADS");
+  const std::string saved = old ? old : "";
+  for (const auto& [threads, levels] :
+       std::vector<std::pair<const char*, uint32_t>>{{"1", 0u}, {"2", 1u}, {"5", 3u}, {"16", 4u}, {"0", 0u}}) {
+    setenv("LP_NUM_THREADS", threads, 1);
+    EXPECT_EQ(dispatch_spread_levels(*ctx), cpu ? levels : 0u) << "LP_NUM_THREADS=" << threads;
+  }
+  if (old) {
+    setenv("LP_NUM_THREADS", saved.c_str(), 1);
+  } else {
+    unsetenv("LP_NUM_THREADS");
+  }
 }
 
 TEST(RayBatch, LimitsAreCheckedWithTheLimitNamed) {

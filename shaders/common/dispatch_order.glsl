@@ -1,0 +1,34 @@
+// Which tiles or rays a workgroup takes. lavapipe splits a dispatch of N workgroups into one contiguous
+// block of about N/T workgroup indices per thread (T threads; llvmpipe's lp_cs_tpool), so with workgroups
+// in image order one thread traces the top of the image and the other the bottom, and the dispatch lasts as
+// long as the costlier block. hp_spread deals every such block out over the whole image instead. A GPU,
+// which hands out workgroups as its cores free up, keeps the image order (HP_SPREAD_LEVELS = 0, the
+// identity). Only which workgroup takes which tile changes: the tiles, their rays and the results do not.
+#ifndef HP_DISPATCH_ORDER_GLSL
+#define HP_DISPATCH_ORDER_GLSL
+
+#include "common/rt_bindings.glsl"
+
+// A bijection of [0, n), the bit-reversal permutation's first HP_SPREAD_LEVELS (= L) steps generalised to
+// any n: the first ceil(n/2) indices take the even positions and the others the odd ones, each half ordered
+// the same way for L - 1 more levels, then in order. A block of n/2^L consecutive indices thus lands on
+// every 2^L-th position, and 2^L >= T blocks each get their share of every part of the range. No division;
+// L is a specialization constant, so the loop unrolls.
+uint hp_spread(uint i, uint n) {
+  uint pos = 0u;
+  uint shift = 0u;
+  for (uint level = 0u; level < HP_SPREAD_LEVELS && n > 1u; ++level) {
+    uint evens = (n + 1u) >> 1u;
+    if (i < evens) {
+      n = evens;
+    } else {
+      i -= evens;
+      n -= evens;
+      pos |= 1u << shift;
+    }
+    shift++;
+  }
+  return pos | (i << shift);
+}
+
+#endif
