@@ -13,7 +13,8 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 void main() {
 #ifdef HP_RT_PIPELINE
-  ivec2 q = ivec2(gl_LaunchIDEXT.xy);  // launched over exactly the reflection grid
+  // Launched over exactly the reflection grid; rows in spread order, 8 at a time (dispatch_order.glsl).
+  ivec2 q = ivec2(gl_LaunchIDEXT.x, hp_spread_blocks(gl_LaunchIDEXT.y, gl_LaunchSizeEXT.y, 8u));
 #else
   // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise); the
   // rows are taken in spread order (dispatch_order.glsl).

@@ -16,7 +16,8 @@ const float HP_FLT_MAX = 3.402823466e+38;
 
 void main() {
 #ifdef HP_RT_PIPELINE
-  ivec2 p = ivec2(gl_LaunchIDEXT.xy);  // launched over exactly the image
+  // Launched over exactly the image; rows in spread order, 8 at a time (dispatch_order.glsl).
+  ivec2 p = ivec2(gl_LaunchIDEXT.x, hp_spread_blocks(gl_LaunchIDEXT.y, gl_LaunchSizeEXT.y, 8u));
 #else
   // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise); the
   // rows are taken in spread order (dispatch_order.glsl).

@@ -24,7 +24,9 @@ layout(push_constant) uniform BatchParams {
 
 void main() {
 #ifdef HP_RT_PIPELINE
-  uint i = gl_LaunchIDEXT.y * (batch.groups_x * 64u) + gl_LaunchIDEXT.x;
+  // The compute dispatch's rays per launch index, groups of 64 in the same spread order.
+  uint width = batch.groups_x * 64u;
+  uint i = hp_spread_blocks(gl_LaunchIDEXT.y * width + gl_LaunchIDEXT.x, width * gl_LaunchSizeEXT.y, 64u);
 #else
   // The groups take their rays in spread order (dispatch_order.glsl).
   uint group = hp_spread(gl_WorkGroupID.y * batch.groups_x + gl_WorkGroupID.x, batch.groups_x * gl_NumWorkGroups.y);
