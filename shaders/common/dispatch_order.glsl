@@ -32,7 +32,7 @@ uint hp_spread(uint i, uint n) {
 }
 
 // Index i of [0, n) with whole blocks of `block` consecutive indices in spread order and the last, partial
-// block in place: the ray-tracing pipelines' launches, which the driver runs as workgroups in launch order,
+// block in place: the ray-tracing pipelines' launches, which lavapipe splits among its threads the same way,
 // take blocks of 8 pixel rows (or of 64 rays, a compute workgroup's) the way the compute passes take theirs.
 uint hp_spread_blocks(uint i, uint n, uint block) {
   uint full = n / block;
