@@ -5,6 +5,7 @@
 // the cell its origin reprojects to (the study's write-back), where misplaced writes are counted.
 #include "common/reflection_common.glsl"
 #include "common/compaction.glsl"
+#include "common/dispatch_order.glsl"
 
 // Compiled as a compute shader (BVH traversal, or HP_RAY_QUERY) and as a ray-generation shader
 // (HP_RT_PIPELINE, launched indirectly over exactly the appended rays), as shadows.comp is.
@@ -14,10 +15,12 @@ layout(local_size_x = 64) in;
 
 void main() {
 #ifdef HP_RT_PIPELINE
-  uint i = gl_LaunchIDEXT.x;
+  // Blocks of 64 rays in spread order (dispatch_order.glsl), as the compute dispatch takes them.
+  uint i = hp_spread_blocks(gl_LaunchIDEXT.x, gl_LaunchSizeEXT.x, 64u);
 #else
-  // rt.frame.z offsets the workgroups when the traced variant is dispatched in slices (0 otherwise).
-  uint group = gl_WorkGroupID.x + rt.frame.z;
+  // rt.frame.z offsets the workgroups when the traced variant is dispatched in slices (0 otherwise); the
+  // workgroups take their rays in spread order (dispatch_order.glsl).
+  uint group = rt.frame.z + hp_spread(gl_WorkGroupID.x, gl_NumWorkGroups.x);
   uint i = group * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
 #endif
   HP_TRACE_BEGIN(uvec2(group, 0u), 1u, rt.frame.w);
