@@ -13,12 +13,9 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 void main() {
 #ifdef HP_RT_PIPELINE
-  // Launched over exactly the reflection grid; rows in spread order, 8 at a time (dispatch_order.glsl).
-  ivec2 q = ivec2(gl_LaunchIDEXT.x, hp_spread_blocks(gl_LaunchIDEXT.y, gl_LaunchSizeEXT.y, 8u));
+  ivec2 q = hp_launch_pixel();  // dispatch_order.glsl
 #else
-  // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise); the
-  // rows are taken in spread order (dispatch_order.glsl).
-  uvec2 wg = uvec2(gl_WorkGroupID.x, rt.frame.z + hp_spread(gl_WorkGroupID.y, gl_NumWorkGroups.y));
+  uvec2 wg = hp_tile_workgroup();  // dispatch_order.glsl
   ivec2 q = ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy);
 #endif
   if (q.x >= int(rt.grid.x) || q.y >= int(rt.grid.y)) return;

@@ -16,12 +16,9 @@ const float HP_FLT_MAX = 3.402823466e+38;
 
 void main() {
 #ifdef HP_RT_PIPELINE
-  // Launched over exactly the image; rows in spread order, 8 at a time (dispatch_order.glsl).
-  ivec2 p = ivec2(gl_LaunchIDEXT.x, hp_spread_blocks(gl_LaunchIDEXT.y, gl_LaunchSizeEXT.y, 8u));
+  ivec2 p = hp_launch_pixel();  // dispatch_order.glsl
 #else
-  // rt.frame.z offsets the workgroup rows when a traced pass is dispatched in slices (0 otherwise); the
-  // rows are taken in spread order (dispatch_order.glsl).
-  uvec2 wg = uvec2(gl_WorkGroupID.x, rt.frame.z + hp_spread(gl_WorkGroupID.y, gl_NumWorkGroups.y));
+  uvec2 wg = hp_tile_workgroup();  // dispatch_order.glsl
   ivec2 p = ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy);
 #endif
   // A ragged edge is covered by rounding the dispatch up and skipping here (the study truncated it).

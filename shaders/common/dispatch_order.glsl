@@ -40,4 +40,18 @@ uint hp_spread_blocks(uint i, uint n, uint block) {
   return hp_spread(i / block, full) * block + i % block;
 }
 
+// The two image passes (shadows, reflections) take their rows this way.
+#ifdef HP_RT_PIPELINE
+// A launch over exactly the image (or the reflection grid): the pixel, rows in spread order 8 at a time.
+ivec2 hp_launch_pixel() {
+  return ivec2(gl_LaunchIDEXT.x, hp_spread_blocks(gl_LaunchIDEXT.y, gl_LaunchSizeEXT.y, 8u));
+}
+#else
+// The 8x8 tile (workgroup column, row) this workgroup works on: rows in spread order, offset by rt.frame.z
+// when a traced pass is dispatched in slices (0 otherwise).
+uvec2 hp_tile_workgroup() {
+  return uvec2(gl_WorkGroupID.x, rt.frame.z + hp_spread(gl_WorkGroupID.y, gl_NumWorkGroups.y));
+}
+#endif
+
 #endif
