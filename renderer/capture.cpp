@@ -7,6 +7,7 @@
 #include "gpu/trace_buffers.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <exception>
 #include <functional>
@@ -54,6 +55,18 @@ uint64_t checked_buffer_bytes(const CaptureOptions& o, const vk::Context& ctx) {
   return bytes;
 }
 
+// The trace buffer's regions (gpu/trace_record.h): one per block of the passes' dispatch order, i.e. one per
+// lavapipe thread (2^spread levels), one on a GPU; CaptureOptions::record_regions overrides.
+uint32_t checked_regions(const CaptureOptions& o, const RtScene* scene) {
+  if (o.record_regions > HP_TRACE_MAX_REGIONS) {
+    throw InputError("trace: " + std::to_string(o.record_regions) + " record regions is over the limit of " +
+                     std::to_string(HP_TRACE_MAX_REGIONS));
+  }
+  if (o.record_regions) return o.record_regions;
+  const uint32_t levels = scene ? scene->spread_levels() : 0;
+  return std::min<uint32_t>(1u << std::min<uint32_t>(levels, 4), HP_TRACE_MAX_REGIONS);
+}
+
 // Writes a captured slice on a worker thread while the device runs the next one: the slice's records are
 // copied out of the trace buffer first (the next slice overwrites it), and the sink is only ever called
 // by one thread at a time, in slice order. wait() joins the write in flight and rethrows its error; the
@@ -70,9 +83,17 @@ class SliceWriter {
     if (thread_.joinable()) thread_.join();
     if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
   }
-  // Starts writing `records` of workgroups [first, end) of sink pass `pass` (after wait()).
-  void start(uint32_t pass, std::span<const gpu::TraceRecord> records, uint64_t first, uint64_t end) {
-    copy_.assign(records.begin(), records.end());
+  // Starts writing the records of workgroups [first, end) of sink pass `pass` (after wait()): those of
+  // each region, `counts[r]` from `records + r * region_capacity`, written as one span.
+  void start(uint32_t pass, const gpu::TraceRecord* records, std::span<const uint32_t> counts, uint32_t region_capacity,
+             uint64_t first, uint64_t end) {
+    uint64_t total = 0;
+    for (const uint32_t c : counts) total += c;
+    copy_.resize(total);
+    gpu::TraceRecord* out = copy_.data();
+    for (size_t r = 0; r < counts.size(); ++r) {
+      out = std::copy_n(records + r * uint64_t(region_capacity), counts[r], out);
+    }
     thread_ = std::thread([this, pass, first, end] {
       try {
         sink_.write_records(pass, std::span<const gpu::TraceRecord>(copy_), first, end);
@@ -94,7 +115,8 @@ struct Slicer {
   vk::Context& ctx;
   trace::TraceSink& sink;
   gpu::TraceBufferHeader* head;
-  uint32_t capacity;
+  uint32_t regions;
+  uint32_t region_capacity;  // records per region
   uint32_t sampling;
   const CaptureOptions& options;
 
@@ -125,7 +147,10 @@ struct Slicer {
     // pass is not expected to fit, the first slice is a probe (CaptureOptions::first_slice_units): trying
     // the whole pass first ran the whole instrumented pass once for nothing (a slice that overflows still
     // counts every record it made, so its re-run is sized from that count). Measured on pica's 1920x1080
-    // passes (64 MiB buffer): about 30% less capture time.
+    // passes (64 MiB buffer): about 30% less capture time. The regions share a slice's records about
+    // evenly (each takes every 2^L-th row of it, L the spread levels); a slice re-run after a region
+    // overflowed is sized from that region's count times the regions.
+    const uint64_t capacity = uint64_t(regions) * region_capacity;
     double peak_density = 0;  // records per unit, the most seen in a slice of this pass
     const auto sized = [&](uint32_t n, uint64_t count) {
       const double aim = double(capacity) / 2;
@@ -151,25 +176,36 @@ struct Slicer {
     for (uint32_t unit = 0; unit < units;) {
       const uint32_t n = std::min(n_max, units - unit);
       if (step.save) step.save();
-      head->count = 0;
-      head->capacity = capacity;
+      head->regions = regions;
+      head->region_capacity = region_capacity;
       head->pass_id = pass_index;
+      for (uint32_t r = 0; r < regions; ++r) head->region[r].count = 0;
       ctx.submit_and_wait([&](VkCommandBuffer cmd) { step.record_slice(cmd, unit, n, sampling); });
-      const uint32_t count = head->count;
-      if (count > capacity) {
+      std::array<uint32_t, HP_TRACE_MAX_REGIONS> counts{};
+      uint64_t count = 0, fullest = 0;
+      for (uint32_t r = 0; r < regions; ++r) {
+        counts[r] = head->region[r].count;
+        count += counts[r];
+        fullest = std::max<uint64_t>(fullest, counts[r]);
+      }
+      if (fullest > region_capacity) {
         if (n == 1) {
           throw InputError(std::string("trace: one workgroup ") + (step.one_d ? "" : "row ") + "of the " + step.name +
                            " pass makes " + std::to_string(count) + " records, over the trace buffer's capacity of " +
-                           std::to_string(capacity) + " (raise the trace buffer size, or sample workgroups)");
+                           std::to_string(capacity) +
+                           (regions > 1 ? " (" + std::to_string(region_capacity) + " in each of its " +
+                                              std::to_string(regions) + " regions)"
+                                        : std::string()) +
+                           " (raise the trace buffer size, or sample workgroups)");
         }
         if (step.restore) step.restore();
-        n_max = std::min(sized(n, count), n - 1);  // re-run this slice smaller
+        n_max = std::min(sized(n, fullest * regions), n - 1);  // re-run this slice smaller
         ++cp.reruns;
         continue;
       }
       finish_write();
-      writer.start(pass_index, std::span<const gpu::TraceRecord>(recs, count), unit * groups_per_unit,
-                   (unit + n) * groups_per_unit);
+      writer.start(pass_index, recs, std::span<const uint32_t>(counts.data(), regions), region_capacity,
+                   unit * groups_per_unit, (unit + n) * groups_per_unit);
       cp.records += count;
       ++cp.slices;
       unit += n;
@@ -206,6 +242,7 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
   }
   const uint32_t sampling = checked_sampling(o);
   const uint64_t bytes = checked_buffer_bytes(o, ctx_);
+  const uint32_t regions = checked_regions(o, rt_scene_.get());
   if (!trace_buffer_ || trace_buffer_->size() != bytes) {
     trace_buffer_ = std::make_unique<vk::Buffer>(ctx_, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   }
@@ -213,8 +250,18 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
   for (const FramePass& pass : passes_) {
     if (selected(pass.traced, o) && pass.traced.attach) pass.traced.attach(ctx_, *trace_buffer_);
   }
-  const uint32_t capacity = uint32_t((bytes - sizeof(gpu::TraceBufferHeader)) / sizeof(gpu::TraceRecord));
-  const Slicer slicer{ctx_, sink, static_cast<gpu::TraceBufferHeader*>(trace_buffer_->mapped()), capacity, sampling, o};
+  const uint64_t capacity = (bytes - sizeof(gpu::TraceBufferHeader)) / sizeof(gpu::TraceRecord);
+  if (capacity / regions < 64) {
+    throw InputError("trace: a trace buffer of " + std::to_string(bytes) +
+                     " bytes cannot hold one record per lane in each of its " + std::to_string(regions) + " regions");
+  }
+  const Slicer slicer{ctx_,
+                      sink,
+                      static_cast<gpu::TraceBufferHeader*>(trace_buffer_->mapped()),
+                      regions,
+                      uint32_t(capacity / regions),
+                      sampling,
+                      o};
 
   upload_uniforms();
   rt_->begin_frame(sample_index_);

@@ -86,6 +86,10 @@ struct CaptureOptions {
   /// where 32 records per traced invocation would fit the buffer, else one unit, a probe whose count sizes
   /// the next slices (a first slice that overflows runs once for nothing but its count).
   uint32_t first_slice_units = 0;
+  /// Regions of the trace buffer, each with its own record counter (gpu/trace_record.h), up to
+  /// HP_TRACE_MAX_REGIONS. 0 = one per block of the passes' dispatch order (RtScene::spread_levels): one per
+  /// lavapipe thread, so that no two threads add to one counter; one on a GPU. The records are the same.
+  uint32_t record_regions = 0;
   bool tiled_images = true;  ///< G-buffer and outputs laid out in 8x8-texel tiles (else linear rows)
   /// Also run the enabled passes that are not traced, then accumulate and composite, so that the frame's
   /// image is whole (`trace --image`). Off: only the G-buffer and the traced passes run.

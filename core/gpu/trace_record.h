@@ -23,9 +23,14 @@
 //               table declares how texels are laid out in memory (linear rows or tiles) and the
 //               replay maps the logical offset to an address, so shaders need not know the layout.
 //
-// Recording: shaders append with atomicAdd on TraceBufferHeader.count. If the returned index is past
-// `capacity` the record is not written but the count keeps growing, so the host sees
-// count > capacity and re-runs the slice smaller: a record is never silently dropped.
+// Recording: the records after the header are split into `regions` equal regions of `region_capacity`
+// records, each with its own counter on its own 64-byte line. A workgroup appends to the region of its
+// block of the dispatch (contiguous blocks of workgroup indices, one per region) with atomicAdd on that
+// region's count: lavapipe runs each contiguous block of a dispatch on one thread, so with a region per
+// thread no two threads add to the same counter (on one shared counter the cache line bounced between
+// the cores on every add). If the returned index is past `region_capacity` the record is not written but
+// the count keeps growing, so the host sees the overflow and re-runs the slice smaller: a record is never
+// silently dropped.
 #ifndef HP_TRACE_RECORD_H
 #define HP_TRACE_RECORD_H
 
@@ -61,14 +66,26 @@ HP_CHECK_LAYOUT(TraceRecord, seq, 4);
 HP_CHECK_LAYOUT(TraceRecord, info, 8);
 HP_CHECK_LAYOUT(TraceRecord, offset, 12);
 
-// Head of the trace storage buffer; the records follow it (std430: 16-byte header, then the array).
-struct TraceBufferHeader {
-  uint count;     // atomically incremented by every access, even past capacity
-  uint capacity;  // records that fit after the header
-  uint pass_id;
-  uint reserved;
+#define HP_TRACE_MAX_REGIONS 16u
+
+// One region's record counter, alone on a 64-byte line.
+struct TraceRegionCount {
+  uint count;  // atomically incremented by every access of the region, even past its capacity
+  uint pad[15];
 };
-HP_CHECK_SIZE(TraceBufferHeader, 16);
+HP_CHECK_SIZE(TraceRegionCount, 64);
+
+// Head of the trace storage buffer; the records follow it (std430: a 1088-byte header, then the array;
+// region r holds records [r * region_capacity, (r + 1) * region_capacity)).
+struct TraceBufferHeader {
+  uint regions;          // 1..HP_TRACE_MAX_REGIONS
+  uint region_capacity;  // records each region holds
+  uint pass_id;
+  uint reserved[13];
+  TraceRegionCount region[HP_TRACE_MAX_REGIONS];
+};
+HP_CHECK_SIZE(TraceBufferHeader, 64 + 64 * 16);
+HP_CHECK_LAYOUT(TraceBufferHeader, region, 64);
 
 #ifdef __cplusplus
 inline constexpr uint trace_size(uint info) { return (info & HP_TRACE_SIZE_MASK) + 1u; }

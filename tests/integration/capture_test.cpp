@@ -151,6 +151,46 @@ TEST(Capture, AnOverflowSizesTheRerunFromItsCount) {
   fs::remove(probed.file);
 }
 
+// The trace buffer's regions (one record counter each, so that lavapipe's threads do not add to one
+// counter): one region or sixteen, the records are the same. Sixteen regions in a buffer just larger than
+// the pass: the pass fits the buffer, but its denser blocks overflow their regions, so slices are re-run.
+TEST(Capture, EveryRegionCountGivesTheSameRecords) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  const FrameSettings s = small(96, 112);
+  CaptureOptions o;
+  o.record_regions = 1;
+  const Captured one = capture(*ctx, scene, s, o, "one_region");
+  ASSERT_EQ(one.passes.size(), 2u);
+  const uint64_t most = std::max(one.passes[0].records, one.passes[1].records);
+  o.record_regions = HP_TRACE_MAX_REGIONS;
+  o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (most * 11 / 10);
+  o.first_slice_units = UINT32_MAX;  // the whole pass first: it fits the buffer, not its regions
+  const Captured many = capture(*ctx, scene, s, o, "sixteen_regions");
+  ASSERT_EQ(many.passes.size(), 2u);
+  trace::TraceReader a(one.file), b(many.file);
+  for (uint32_t p = 0; p < 2; ++p) {
+    EXPECT_EQ(many.passes[p].records, one.passes[p].records) << many.passes[p].pass << ": records lost or doubled";
+    EXPECT_GT(many.passes[p].reruns, 0u) << many.passes[p].pass << ": no region overflowed";
+    EXPECT_TRUE(sorted_keys(a.read_pass(p)) == sorted_keys(b.read_pass(p))) << "pass " << p;
+  }
+  fs::remove(one.file);
+  fs::remove(many.file);
+
+  o.record_regions = HP_TRACE_MAX_REGIONS + 1;
+  Frame frame(*ctx, scene, scene.camera, s);
+  struct Discard final : trace::TraceSink {
+    uint32_t begin_pass(const trace::PassInfo&) override { return 0; }
+    void write_records(uint32_t, std::span<const trace::TraceRecord>, uint64_t, uint64_t) override {}
+  } discard;
+  try {
+    frame.render_captured(o, discard);
+    ADD_FAILURE() << "17 regions were accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("over the limit of 16"), std::string::npos) << e.what();
+  }
+}
+
 // Audit find (2026-11-30): a capture ran every enabled pass and the composite even when only one pass was
 // traced and nobody read the image (every cell of `hybridprof run` with a trace). final_image = false runs
 // the traced passes alone, with the same records.
@@ -392,7 +432,9 @@ TEST(Capture, OneRowThatCannotFitIsAClearError) {
   s.rt.reflections = false;
   Frame frame(*ctx, scene, scene.camera, s);
   CaptureOptions o;
-  o.buffer_bytes = 16 + 64 * 16 * 2;  // two records per lane of one workgroup: far too small
+  o.record_regions = 1;
+  o.buffer_bytes =
+      sizeof(gpu::TraceBufferHeader) + 64 * 16 * 2;  // two records per lane of one workgroup: far too small
   const fs::path f = fs::temp_directory_path() / ("hp_capture_err_" + std::to_string(::getpid()) + ".hptrace");
   try {
     trace::TraceWriter writer(f, frame.trace_header(true));
