@@ -52,7 +52,7 @@ struct TraceArgs {
   std::string passes = "shadows,reflections";
   uint32_t sample_every = 1;
   uint32_t sample_block = 1;
-  uint32_t buffer_mib = 64;
+  uint32_t buffer_mib = 0;
   uint32_t format_version = trace::kTraceVersion;
   uint32_t frames_before = 0;
   std::string image_layout = "tiled";
@@ -98,7 +98,7 @@ void run_trace(const TraceArgs& a) {
   co.final_image = !a.image_out.empty();  // the untraced passes and the composite only for --image
   co.sample_every = a.sample_every;
   co.sample_block = a.sample_block;
-  co.buffer_bytes = uint64_t(a.buffer_mib) << 20;
+  co.buffer_bytes = uint64_t(a.buffer_mib) << 20;  // 0: the default
   // The outputs, the preset and the export's CU are checked before any work, so a typo costs nothing and
   // leaves no trace file behind (the export's pass once the frame knows its passes, still before the capture).
   check_output_path(a.out, "--out");
@@ -219,8 +219,10 @@ void add_trace_command(CLI::App& app) {
   cmd->add_option("--sample-block", a->sample_block,
                   "workgroups per sampled burst (power of two <= 2048): every k-th burst is recorded")
       ->capture_default_str();
-  cmd->add_option("--trace-buffer-mib", a->buffer_mib, "GPU trace buffer per slice (bounded by maxStorageBufferRange)")
-      ->check(CLI::Range(1u, 4096u))
+  cmd->add_option("--trace-buffer-mib", a->buffer_mib,
+                  "GPU trace buffer, two halves: the device fills one while the other is written out (0: "
+                  "128 MiB or the device's maxStorageBufferRange if smaller)")
+      ->check(CLI::Range(0u, 4096u))
       ->capture_default_str();
   cmd->add_option("--trace-format", a->format_version,
                   "trace file format: 2 (compact records, about 3 bytes each) or 1 (16 bytes a record)")

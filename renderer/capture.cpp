@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <cstring>
 #include <exception>
 #include <functional>
 #include <span>
@@ -42,14 +43,16 @@ uint32_t checked_sampling(const CaptureOptions& o) {
 /// Records per traced invocation assumed when choosing a pass's first slice (CaptureOptions::first_slice_units).
 constexpr uint64_t kExpectedRecordsPerInvocation = 32;
 
+// The trace buffer: its header and two halves of records; a slice fills one half while the host writes out
+// the other.
 uint64_t checked_buffer_bytes(const CaptureOptions& o, const vk::Context& ctx) {
   const uint64_t limit = ctx.properties().limits.maxStorageBufferRange;
-  const uint64_t bytes = o.buffer_bytes ? o.buffer_bytes : std::min<uint64_t>(64ull << 20, limit);
+  const uint64_t bytes = o.buffer_bytes ? o.buffer_bytes : std::min<uint64_t>(128ull << 20, limit);
   if (bytes > limit) {
     throw InputError("trace: a trace buffer of " + std::to_string(bytes >> 20) + " MiB exceeds this device's " +
                      "maxStorageBufferRange of " + std::to_string(limit >> 20) + " MiB");
   }
-  if (bytes < sizeof(gpu::TraceBufferHeader) + 64 * sizeof(gpu::TraceRecord)) {
+  if (bytes < sizeof(gpu::TraceBufferHeader) + 2 * 64 * sizeof(gpu::TraceRecord)) {
     throw InputError("trace: a trace buffer of " + std::to_string(bytes) + " bytes cannot hold one record per lane");
   }
   return bytes;
@@ -67,10 +70,10 @@ uint32_t checked_regions(const CaptureOptions& o, const RtScene* scene) {
   return std::min<uint32_t>(1u << std::min<uint32_t>(levels, 4), HP_TRACE_MAX_REGIONS);
 }
 
-// Writes a captured slice on a worker thread while the device runs the next one: the slice's records are
-// copied out of the trace buffer first (the next slice overwrites it), and the sink is only ever called
-// by one thread at a time, in slice order. wait() joins the write in flight and rethrows its error; the
-// destructor joins it too, so a capture that throws leaves no thread behind.
+// Writes a captured slice on a worker thread, straight from its half of the trace buffer, while the device
+// runs the next slice into the other half. The sink is only ever called by one thread at a time, in slice
+// order. wait() joins the write in flight and rethrows its error; the destructor joins it too, so a capture
+// that throws leaves no thread behind.
 class SliceWriter {
  public:
   explicit SliceWriter(trace::TraceSink& sink) : sink_(sink) {}
@@ -84,19 +87,21 @@ class SliceWriter {
     if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
   }
   // Starts writing the records of workgroups [first, end) of sink pass `pass` (after wait()): those of
-  // each region, `counts[r]` from `records + r * region_capacity`, written as one span.
-  void start(uint32_t pass, const gpu::TraceRecord* records, std::span<const uint32_t> counts, uint32_t region_capacity,
+  // each region, `counts[r]` from `records + r * region_capacity`, moved together in place (on the
+  // worker) and written as one span. The half must stay untouched by the device until wait() returns.
+  void start(uint32_t pass, gpu::TraceRecord* records, std::span<const uint32_t> counts, uint32_t region_capacity,
              uint64_t first, uint64_t end) {
-    uint64_t total = 0;
-    for (const uint32_t c : counts) total += c;
-    copy_.resize(total);
-    gpu::TraceRecord* out = copy_.data();
-    for (size_t r = 0; r < counts.size(); ++r) {
-      out = std::copy_n(records + r * uint64_t(region_capacity), counts[r], out);
-    }
-    thread_ = std::thread([this, pass, first, end] {
+    std::array<uint32_t, HP_TRACE_MAX_REGIONS> n{};
+    std::copy(counts.begin(), counts.end(), n.begin());
+    thread_ = std::thread([this, pass, records, n, regions = counts.size(), region_capacity, first, end] {
       try {
-        sink_.write_records(pass, std::span<const gpu::TraceRecord>(copy_), first, end);
+        uint64_t total = n[0];
+        for (size_t r = 1; r < regions; ++r) {
+          const gpu::TraceRecord* from = records + r * uint64_t(region_capacity);
+          std::memmove(records + total, from, n[r] * sizeof(gpu::TraceRecord));
+          total += n[r];
+        }
+        sink_.write_records(pass, std::span<const gpu::TraceRecord>(records, total), first, end);
       } catch (...) {
         error_ = std::current_exception();
       }
@@ -105,7 +110,6 @@ class SliceWriter {
 
  private:
   trace::TraceSink& sink_;
-  std::vector<gpu::TraceRecord> copy_;
   std::thread thread_;
   std::exception_ptr error_;
 };
@@ -139,7 +143,8 @@ struct Slicer {
     for (uint64_t w = 0; w < cp.workgroups; ++w) {
       cp.sampled_workgroups += ((w >> block_log2) % options.sample_every) == 0;
     }
-    const auto* recs = reinterpret_cast<const gpu::TraceRecord*>(head + 1);
+    auto* const recs = reinterpret_cast<gpu::TraceRecord*>(head + 1);
+    uint32_t half = 0;  // the half of the buffer the next slice goes to
     const uint32_t units = step.one_d ? wg.x : wg.y;
     const uint64_t groups_per_unit = step.one_d ? 1 : wg.x;
     // The next slice's size, aimed at half the buffer: rows differ tenfold (sky rows make few records), so the
@@ -179,6 +184,7 @@ struct Slicer {
       head->regions = regions;
       head->region_capacity = region_capacity;
       head->pass_id = pass_index;
+      head->record_base = half * capacity;
       for (uint32_t r = 0; r < regions; ++r) head->region[r].count = 0;
       ctx.submit_and_wait([&](VkCommandBuffer cmd) { step.record_slice(cmd, unit, n, sampling); });
       std::array<uint32_t, HP_TRACE_MAX_REGIONS> counts{};
@@ -192,9 +198,9 @@ struct Slicer {
         if (n == 1) {
           throw InputError(std::string("trace: one workgroup ") + (step.one_d ? "" : "row ") + "of the " + step.name +
                            " pass makes " + std::to_string(count) + " records, over the trace buffer's capacity of " +
-                           std::to_string(capacity) +
-                           (regions > 1 ? " (" + std::to_string(region_capacity) + " in each of its " +
-                                              std::to_string(regions) + " regions)"
+                           std::to_string(capacity) + " a slice" +
+                           (regions > 1 ? ", " + std::to_string(region_capacity) + " in each of its " +
+                                              std::to_string(regions) + " regions"
                                         : std::string()) +
                            " (raise the trace buffer size, or sample workgroups)");
         }
@@ -204,8 +210,9 @@ struct Slicer {
         continue;
       }
       finish_write();
-      writer.start(pass_index, recs, std::span<const uint32_t>(counts.data(), regions), region_capacity,
-                   unit * groups_per_unit, (unit + n) * groups_per_unit);
+      writer.start(pass_index, recs + head->record_base, std::span<const uint32_t>(counts.data(), regions),
+                   region_capacity, unit * groups_per_unit, (unit + n) * groups_per_unit);
+      half ^= 1;
       cp.records += count;
       ++cp.slices;
       unit += n;
@@ -246,11 +253,11 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
   if (!trace_buffer_ || trace_buffer_->size() != bytes) {
     trace_buffer_ = std::make_unique<vk::Buffer>(ctx_, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   }
+  const uint64_t capacity = (bytes - sizeof(gpu::TraceBufferHeader)) / sizeof(gpu::TraceRecord) / 2;  // a slice's
   rt_->attach_trace_buffer(*trace_buffer_);
   for (const FramePass& pass : passes_) {
     if (selected(pass.traced, o) && pass.traced.attach) pass.traced.attach(ctx_, *trace_buffer_);
   }
-  const uint64_t capacity = (bytes - sizeof(gpu::TraceBufferHeader)) / sizeof(gpu::TraceRecord);
   if (capacity / regions < 64) {
     throw InputError("trace: a trace buffer of " + std::to_string(bytes) +
                      " bytes cannot hold one record per lane in each of its " + std::to_string(regions) + " regions");

@@ -81,7 +81,9 @@ struct CaptureOptions {
   /// sampled trace keeps the sharing between neighbouring workgroups that the caches see (1 = single
   /// workgroups, the plain every-k-th sampling).
   uint32_t sample_block = 1;
-  uint64_t buffer_bytes = 0;  ///< trace buffer size; 0 = min(64 MiB, maxStorageBufferRange)
+  /// Trace buffer size, a header and two halves: a slice fills one half while the host writes out the
+  /// other. 0 = min(128 MiB, maxStorageBufferRange).
+  uint64_t buffer_bytes = 0;
   /// Workgroup units (rows, or groups of a 1D pass) of a pass's first slice. 0 = automatic: the whole pass
   /// where 32 records per traced invocation would fit the buffer, else one unit, a probe whose count sizes
   /// the next slices (a first slice that overflows runs once for nothing but its count).

@@ -56,7 +56,7 @@ void hp_rec(uint buffer_id, uint kind, uint offset, uint size) {
   // re-runs the slice smaller: nothing is lost silently.
   uint capacity = trace_head.region_capacity;
   if (i < capacity) {
-    trace_records[hp_trace_region * capacity + i] =
+    trace_records[trace_head.record_base + hp_trace_region * capacity + i] =
         TraceRecord(hp_trace_invocation, hp_trace_seq, HP_TRACE_INFO(buffer_id, kind, size), offset);
   }
   hp_trace_seq++;

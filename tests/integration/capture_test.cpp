@@ -35,6 +35,11 @@ FrameSettings small(uint32_t w, uint32_t h) {
   return s;
 }
 
+// A trace buffer (CaptureOptions::buffer_bytes) whose slices hold `records` records each.
+uint64_t slice_buffer(uint64_t records) {
+  return sizeof(gpu::TraceBufferHeader) + 2 * records * sizeof(gpu::TraceRecord);
+}
+
 struct Captured {
   std::vector<CapturedPass> passes;
   Image4f image;
@@ -86,7 +91,7 @@ TEST(Capture, TracedImageEqualsUntracedAndRecordsAreComplete) {
   // A buffer that holds three quarters of the smaller pass (each pass has 14 workgroup rows): slices shrink
   // until they fit, and the records are the same.
   const uint64_t least = std::min(big.passes[0].records, big.passes[1].records);
-  o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (least * 3 / 4);
+  o.buffer_bytes = slice_buffer(least * 3 / 4);
   o.first_slice_units = UINT32_MAX;  // the whole pass first: it overflows, so the re-run path runs
   const Captured tiny = capture(*ctx, scene, s, o, "tiny");
   ASSERT_EQ(tiny.passes.size(), 2u);
@@ -121,7 +126,7 @@ TEST(Capture, AnOverflowSizesTheRerunFromItsCount) {
   const Captured big = capture(*ctx, scene, s, o, "whole");
   ASSERT_EQ(big.passes.size(), 2u);
   const uint64_t least = std::min(big.passes[0].records, big.passes[1].records);
-  o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (least / 6);
+  o.buffer_bytes = slice_buffer(least / 6);
   o.first_slice_units = UINT32_MAX;
   const Captured small_buffer = capture(*ctx, scene, s, o, "sixth");
   for (size_t i = 0; i < 2; ++i) {
@@ -164,7 +169,7 @@ TEST(Capture, EveryRegionCountGivesTheSameRecords) {
   ASSERT_EQ(one.passes.size(), 2u);
   const uint64_t most = std::max(one.passes[0].records, one.passes[1].records);
   o.record_regions = HP_TRACE_MAX_REGIONS;
-  o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (most * 11 / 10);
+  o.buffer_bytes = slice_buffer(most * 11 / 10);
   o.first_slice_units = UINT32_MAX;  // the whole pass first: it fits the buffer, not its regions
   const Captured many = capture(*ctx, scene, s, o, "sixteen_regions");
   ASSERT_EQ(many.passes.size(), 2u);
@@ -271,7 +276,7 @@ TEST(Capture, StreamedIntoTheSimulatorEqualsReplayingTheFile) {
   const Scene scene = load_scene("builtin:pica");
   const FrameSettings s = small(96, 112);
   CaptureOptions o;
-  o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * 120000;
+  o.buffer_bytes = slice_buffer(120000);
   const fs::path file = fs::temp_directory_path() / ("hp_capture_" + std::to_string(::getpid()) + "_tee.hptrace");
   Frame frame(*ctx, scene, scene.camera, s);
   CacheAnalysisOptions ao;
@@ -397,7 +402,7 @@ TEST(Capture, SlicesAreWrittenInOrderBesideTheNextSliceAndTheirErrorsSurface) {
   Frame frame(*ctx, scene, scene.camera, s);
   CaptureOptions o;
   o.final_image = false;
-  o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * 60000;  // several slices
+  o.buffer_bytes = slice_buffer(60000);  // several slices
   SliceLog log;
   std::vector<std::pair<uint64_t, uint64_t>> progress;  // (records, rows done) at each progress call
   o.on_slice = [&](const std::string&, uint64_t records, uint64_t done, uint64_t) {
@@ -433,8 +438,7 @@ TEST(Capture, OneRowThatCannotFitIsAClearError) {
   Frame frame(*ctx, scene, scene.camera, s);
   CaptureOptions o;
   o.record_regions = 1;
-  o.buffer_bytes =
-      sizeof(gpu::TraceBufferHeader) + 64 * 16 * 2;  // two records per lane of one workgroup: far too small
+  o.buffer_bytes = slice_buffer(64 * 2);  // two records per lane of one workgroup: far too small
   const fs::path f = fs::temp_directory_path() / ("hp_capture_err_" + std::to_string(::getpid()) + ".hptrace");
   try {
     trace::TraceWriter writer(f, frame.trace_header(true));
@@ -482,7 +486,7 @@ TEST(Capture, CompactionSubPassesAreTracedWithoutLosingRays) {
 
   CaptureOptions o;
   const uint64_t least = std::min(big.passes[0].records, consume.records);
-  o.buffer_bytes = sizeof(gpu::TraceBufferHeader) + sizeof(gpu::TraceRecord) * (least * 3 / 4);
+  o.buffer_bytes = slice_buffer(least * 3 / 4);
   o.first_slice_units = UINT32_MAX;  // the whole pass first: it overflows, so the re-run path runs
   const Captured tiny = capture(*ctx, scene, s, o, "compact_tiny");
   ASSERT_EQ(tiny.passes.size(), big.passes.size());
