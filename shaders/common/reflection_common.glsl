@@ -22,9 +22,7 @@ layout(set = 0, binding = HP_BIND_RT_MATERIAL_TEXELS) uniform utextureBuffer mat
 vec3 hit_normal(uint slot, float u, float v) {
   vec3 n0, n1, n2;
   if (HP_GEOMETRY_SOUP != 0u) {
-    HP_REC_LOAD(HP_TBUF_SOUP_NORMALS, slot * 36u, 12u);
-    HP_REC_LOAD(HP_TBUF_SOUP_NORMALS, slot * 36u + 12u, 12u);
-    HP_REC_LOAD(HP_TBUF_SOUP_NORMALS, slot * 36u + 24u, 12u);
+    HP_REC_LOADS(3u, HP_TBUF_SOUP_NORMALS, slot * 36u + uvec4(0u, 12u, 24u, 0u), 12u);
     uint b = slot * 9u;
     if (HP_GEOMETRY_TEXELS != 0u) {
       n0 = uintBitsToFloat(texelFetch(soup_normal_texels, int(slot * 3u)).xyz);
@@ -38,10 +36,9 @@ vec3 hit_normal(uint slot, float u, float v) {
   } else {
     uvec3 vi = hp_slot_indices(slot);  // as the traversal reads them (a texel where it can)
     uint i0 = vi.x * 3u, i1 = vi.y * 3u, i2 = vi.z * 3u;
-    HP_REC_LOAD(HP_TBUF_INDICES, slot * 12u, 12u);
-    HP_REC_LOAD(HP_TBUF_NORMALS, i0 * 4u, 12u);  // i0 is already a float index (vertex * 3)
-    HP_REC_LOAD(HP_TBUF_NORMALS, i1 * 4u, 12u);
-    HP_REC_LOAD(HP_TBUF_NORMALS, i2 * 4u, 12u);
+    // i0..i2 are already float indices (vertex * 3)
+    HP_REC_LOADS(4u, uvec4(HP_TBUF_INDICES, HP_TBUF_NORMALS, HP_TBUF_NORMALS, HP_TBUF_NORMALS),
+                 uvec4(slot * 12u, uvec3(i0, i1, i2) * 4u), 12u);
     if (HP_GEOMETRY_TEXELS != 0u) {
       n0 = uintBitsToFloat(texelFetch(normal_texels, int(vi.x)).xyz);
       n1 = uintBitsToFloat(texelFetch(normal_texels, int(vi.y)).xyz);
@@ -118,8 +115,7 @@ vec3 hp_shade_reflection(vec3 o, vec3 d, inout HpStats st, inout uint shadow_ray
     mi = slot_material[slot];
     m = materials[mi];
   }
-  HP_REC_LOAD(HP_TBUF_MATERIALS, mi * 32u, 16u);
-  HP_REC_LOAD(HP_TBUF_MATERIALS, mi * 32u + 16u, 16u);
+  HP_REC_LOADS(2u, HP_TBUF_MATERIALS, mi * 32u + uvec4(0u, 16u, 0u, 0u), 16u);
   vec3 hn = hit_normal(slot, h.u, h.v);
   if (dot(hn, d) > 0.0) hn = -hn;
   precise vec3 hp = o + h.t * d;  // the shadow ray's origin: identical in every path (no FMA)

@@ -42,33 +42,39 @@ void hp_trace_begin(uvec2 workgroup, uint workgroups_x, uint sampling, uint grou
   hp_trace_region = dispatched / ((groups + regions - 1u) / regions);
 }
 
-void hp_rec(uint buffer_id, uint kind, uint offset, uint size) {
+// Records the invocation's next n accesses (n <= 4, a constant at every call, so the loop unrolls), the k-th
+// with info[k] and offset[k]: the accesses one statement makes together (a node's 16-byte loads, a
+// triangle's index and vertices) take their slots with one reservation.
+void hp_rec_n(uint n, uvec4 info, uvec4 offset) {
   if (!hp_trace_on) return;
-  // One atomic per subgroup, not per invocation: the active lanes take consecutive slots of the workgroup's
-  // region after the first one's add (the file's writer puts records into issue order, so the slot order
-  // does not matter).
+  // One atomic per subgroup, not per invocation: the active lanes take consecutive runs of n slots of the
+  // workgroup's region after the first one's add (the file's writer puts records into issue order, so the
+  // slot order does not matter).
   uvec4 lanes = subgroupBallot(true);
-  uint n = subgroupBallotBitCount(lanes);
+  uint lanes_on = subgroupBallotBitCount(lanes);
   uint base = 0u;
-  if (subgroupElect()) base = atomicAdd(trace_head.region[hp_trace_region].count, n);
-  uint i = subgroupBroadcastFirst(base) + subgroupBallotExclusiveBitCount(lanes);
-  // Past the region's capacity the record is dropped here but counted, so the host sees the overflow and
+  if (subgroupElect()) base = atomicAdd(trace_head.region[hp_trace_region].count, lanes_on * n);
+  uint i = subgroupBroadcastFirst(base) + subgroupBallotExclusiveBitCount(lanes) * n;
+  // Past the region's capacity a record is dropped here but counted, so the host sees the overflow and
   // re-runs the slice smaller: nothing is lost silently.
   uint capacity = trace_head.region_capacity;
-  if (i < capacity) {
-    trace_records[trace_head.record_base + hp_trace_region * capacity + i] =
-        TraceRecord(hp_trace_invocation, hp_trace_seq, HP_TRACE_INFO(buffer_id, kind, size), offset);
+  uint at = trace_head.record_base + hp_trace_region * capacity + i;
+  for (uint k = 0u; k < n; ++k) {
+    if (i + k < capacity) trace_records[at + k] = TraceRecord(hp_trace_invocation, hp_trace_seq + k, info[k], offset[k]);
   }
-  hp_trace_seq++;
+  hp_trace_seq += n;
 }
-#define HP_REC_LOAD(buf, off, size) hp_rec((buf), HP_TRACE_LOAD, uint(off), uint(size))
-#define HP_REC_STORE(buf, off, size) hp_rec((buf), HP_TRACE_STORE, uint(off), uint(size))
-#define HP_REC_ATOMIC(buf, off, size) hp_rec((buf), HP_TRACE_ATOMIC, uint(off), uint(size))
+#define HP_REC_LOAD(buf, off, size) hp_rec_n(1u, uvec4(HP_TRACE_INFO((buf), HP_TRACE_LOAD, (size))), uvec4(off))
+#define HP_REC_STORE(buf, off, size) hp_rec_n(1u, uvec4(HP_TRACE_INFO((buf), HP_TRACE_STORE, (size))), uvec4(off))
+#define HP_REC_ATOMIC(buf, off, size) hp_rec_n(1u, uvec4(HP_TRACE_INFO((buf), HP_TRACE_ATOMIC, (size))), uvec4(off))
+// n loads made together, in this order: buffers, offsets and sizes as uvec4 (the first n components count).
+#define HP_REC_LOADS(n, bufs, offs, sizes) hp_rec_n((n), HP_TRACE_INFO(uvec4(bufs), HP_TRACE_LOAD, uvec4(sizes)), uvec4(offs))
 #define HP_TRACE_BEGIN(wg, wgx, k) hp_trace_begin((wg), (wgx), (k), gl_WorkGroupSize.x * gl_WorkGroupSize.y)
 #else
 #define HP_REC_LOAD(buf, off, size)
 #define HP_REC_STORE(buf, off, size)
 #define HP_REC_ATOMIC(buf, off, size)
+#define HP_REC_LOADS(n, bufs, offs, sizes)
 #define HP_TRACE_BEGIN(wg, wgx, k)
 #endif
 

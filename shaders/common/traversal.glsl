@@ -142,9 +142,7 @@ void hp_fetch_triangle(uint slot, out vec3 p0, out vec3 p1, out vec3 p2) {
   // Traced as the accesses a GPU makes for one float3 each (12 bytes), whatever word size this shader
   // happens to load with: the cache model cares about the bytes touched.
   if (HP_GEOMETRY_SOUP != 0u) {
-    HP_REC_LOAD(HP_TBUF_SOUP, slot * 36u, 12u);
-    HP_REC_LOAD(HP_TBUF_SOUP, slot * 36u + 12u, 12u);
-    HP_REC_LOAD(HP_TBUF_SOUP, slot * 36u + 24u, 12u);
+    HP_REC_LOADS(3u, HP_TBUF_SOUP, slot * 36u + uvec4(0u, 12u, 24u, 0u), 12u);
     if (HP_GEOMETRY_TEXELS != 0u) {
       p0 = uintBitsToFloat(texelFetch(soup_texels, int(slot * 3u)).xyz);
       p1 = uintBitsToFloat(texelFetch(soup_texels, int(slot * 3u + 1u)).xyz);
@@ -165,10 +163,8 @@ void hp_fetch_triangle(uint slot, out vec3 p0, out vec3 p1, out vec3 p2) {
     p2 = uintBitsToFloat(odd ? uvec3(w2.y, w3) : uvec3(w3, single));
   } else {
     uvec3 i = hp_slot_indices(slot);
-    HP_REC_LOAD(HP_TBUF_INDICES, slot * 12u, 12u);
-    HP_REC_LOAD(HP_TBUF_POSITIONS, i.x * 12u, 12u);
-    HP_REC_LOAD(HP_TBUF_POSITIONS, i.y * 12u, 12u);
-    HP_REC_LOAD(HP_TBUF_POSITIONS, i.z * 12u, 12u);
+    HP_REC_LOADS(4u, uvec4(HP_TBUF_INDICES, HP_TBUF_POSITIONS, HP_TBUF_POSITIONS, HP_TBUF_POSITIONS),
+                 uvec4(slot, i) * 12u, 12u);
     p0 = hp_position(i.x);
     p1 = hp_position(i.y);
     p2 = hp_position(i.z);
@@ -256,8 +252,7 @@ uint hp_pop(inout HpStack st, uint lane) {
 bool hp_test_leaf(HpRay r, uint first, uint last, bool any_hit, inout HpHit best, inout float best_t,
                   inout HpStats stats) {
   if (HP_OBJECT_LEAVES != 0u && first != last) {
-    HP_REC_LOAD(HP_TBUF_OBJECT_FIRST, first * 4u, 4u);
-    HP_REC_LOAD(HP_TBUF_OBJECT_FIRST, last * 4u, 4u);
+    HP_REC_LOADS(2u, HP_TBUF_OBJECT_FIRST, uvec4(first, last, 0u, 0u) * 4u, 4u);
     first = object_first[first];
     last = object_first[last];
   }
@@ -304,8 +299,7 @@ HpHit hp_trace_binary(HpRay r, bool any_hit, inout HpStats stats) {
   while (!done) {
     uint first = 0u, last = 0u;
     for (;;) {
-      HP_REC_LOAD(HP_TBUF_NODES, node * 32u, 16u);  // a 32-byte node is two 16-byte loads on a GPU
-      HP_REC_LOAD(HP_TBUF_NODES, node * 32u + 16u, 16u);
+      HP_REC_LOADS(2u, HP_TBUF_NODES, node * 32u + uvec4(0u, 16u, 0u, 0u), 16u);  // a 32-byte node is two 16-byte loads on a GPU
       uvec4 t0 = texelFetch(node_texels, int(node * 2u));
       uvec4 t1 = texelFetch(node_texels, int(node * 2u + 1u));
       BvhNode n;
@@ -371,10 +365,7 @@ HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
         last = first + ((entry >> HP_WIDE_COUNT_SHIFT) & HP_WIDE_COUNT_MASK);
         break;
       }
-      HP_REC_LOAD(HP_TBUF_NODES, entry * 64u, 16u);  // a 64-byte node is four 16-byte loads on a GPU
-      HP_REC_LOAD(HP_TBUF_NODES, entry * 64u + 16u, 16u);
-      HP_REC_LOAD(HP_TBUF_NODES, entry * 64u + 32u, 16u);
-      HP_REC_LOAD(HP_TBUF_NODES, entry * 64u + 48u, 16u);
+      HP_REC_LOADS(4u, HP_TBUF_NODES, entry * 64u + uvec4(0u, 16u, 32u, 48u), 16u);  // a 64-byte node is four 16-byte loads on a GPU
       uvec4 t0 = texelFetch(node_texels, int(entry * 4u));
       uvec4 t1 = texelFetch(node_texels, int(entry * 4u + 1u));
       uvec4 t2 = texelFetch(node_texels, int(entry * 4u + 2u));
