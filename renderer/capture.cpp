@@ -250,17 +250,17 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
   const uint32_t sampling = checked_sampling(o);
   const uint64_t bytes = checked_buffer_bytes(o, ctx_);
   const uint32_t regions = checked_regions(o, rt_scene_.get());
-  if (!trace_buffer_ || trace_buffer_->size() != bytes) {
-    trace_buffer_ = std::make_unique<vk::Buffer>(ctx_, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
-  }
   const uint64_t capacity = (bytes - sizeof(gpu::TraceBufferHeader)) / sizeof(gpu::TraceRecord) / 2;  // a slice's
-  rt_->attach_trace_buffer(*trace_buffer_);
-  for (const FramePass& pass : passes_) {
-    if (selected(pass.traced, o) && pass.traced.attach) pass.traced.attach(ctx_, *trace_buffer_);
-  }
   if (capacity / regions < 64) {
     throw InputError("trace: a trace buffer of " + std::to_string(bytes) +
                      " bytes cannot hold one record per lane in each of its " + std::to_string(regions) + " regions");
+  }
+  if (!trace_buffer_ || trace_buffer_->size() != bytes) {
+    trace_buffer_ = std::make_unique<vk::Buffer>(ctx_, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
+  }
+  rt_->attach_trace_buffer(*trace_buffer_);
+  for (const FramePass& pass : passes_) {
+    if (selected(pass.traced, o) && pass.traced.attach) pass.traced.attach(ctx_, *trace_buffer_);
   }
   const Slicer slicer{ctx_,
                       sink,

@@ -23,15 +23,15 @@
 //               table declares how texels are laid out in memory (linear rows or tiles) and the
 //               replay maps the logical offset to an address, so shaders need not know the layout.
 //
-// Recording: a slice's records go to the `regions` equal regions of `region_capacity` records that start at
-// record `record_base` after the header (the host alternates two such halves of the buffer, writing one out
-// while the device fills the other), each region with its own counter on its own 64-byte line. A workgroup appends to the region of its
-// block of the dispatch (contiguous blocks of workgroup indices, one per region) with atomicAdd on that
-// region's count: lavapipe runs each contiguous block of a dispatch on one thread, so with a region per
-// thread no two threads add to the same counter (on one shared counter the cache line bounced between
-// the cores on every add). If the returned index is past `region_capacity` the record is not written but
-// the count keeps growing, so the host sees the overflow and re-runs the slice smaller: a record is never
-// silently dropped.
+// Recording: a slice's records go to the `regions` equal regions of `region_capacity` records that start
+// at record `record_base` after the header (the host alternates two such halves of the buffer, writing one
+// out while the device fills the other), each region with its own counter on its own 64-byte line. A
+// workgroup appends to the region of its block of the dispatch (contiguous blocks of workgroup indices,
+// one per region) with atomicAdd on that region's count: lavapipe runs each contiguous block of a dispatch
+// on one thread, so with a region per thread no two threads add to the same counter (on one shared
+// counter the cache line bounced between the cores on every add). If the returned index is past
+// `region_capacity` the record is not written but the count keeps growing, so the host sees the overflow
+// and re-runs the slice smaller: a record is never silently dropped.
 #ifndef HP_TRACE_RECORD_H
 #define HP_TRACE_RECORD_H
 

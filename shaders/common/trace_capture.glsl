@@ -60,7 +60,9 @@ void hp_rec_n(uint n, uvec4 info, uvec4 offset) {
   uint capacity = trace_head.region_capacity;
   uint at = trace_head.record_base + hp_trace_region * capacity + i;
   for (uint k = 0u; k < n; ++k) {
-    if (i + k < capacity) trace_records[at + k] = TraceRecord(hp_trace_invocation, hp_trace_seq + k, info[k], offset[k]);
+    if (i + k < capacity) {
+      trace_records[at + k] = TraceRecord(hp_trace_invocation, hp_trace_seq + k, info[k], offset[k]);
+    }
   }
   hp_trace_seq += n;
 }
@@ -68,7 +70,8 @@ void hp_rec_n(uint n, uvec4 info, uvec4 offset) {
 #define HP_REC_STORE(buf, off, size) hp_rec_n(1u, uvec4(HP_TRACE_INFO((buf), HP_TRACE_STORE, (size))), uvec4(off))
 #define HP_REC_ATOMIC(buf, off, size) hp_rec_n(1u, uvec4(HP_TRACE_INFO((buf), HP_TRACE_ATOMIC, (size))), uvec4(off))
 // n loads made together, in this order: buffers, offsets and sizes as uvec4 (the first n components count).
-#define HP_REC_LOADS(n, bufs, offs, sizes) hp_rec_n((n), HP_TRACE_INFO(uvec4(bufs), HP_TRACE_LOAD, uvec4(sizes)), uvec4(offs))
+#define HP_REC_LOADS(n, bufs, offs, sizes) \
+  hp_rec_n((n), HP_TRACE_INFO(uvec4(bufs), HP_TRACE_LOAD, uvec4(sizes)), uvec4(offs))
 #define HP_TRACE_BEGIN(wg, wgx, k) hp_trace_begin((wg), (wgx), (k), gl_WorkGroupSize.x * gl_WorkGroupSize.y)
 #else
 #define HP_REC_LOAD(buf, off, size)

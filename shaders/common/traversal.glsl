@@ -299,7 +299,8 @@ HpHit hp_trace_binary(HpRay r, bool any_hit, inout HpStats stats) {
   while (!done) {
     uint first = 0u, last = 0u;
     for (;;) {
-      HP_REC_LOADS(2u, HP_TBUF_NODES, node * 32u + uvec4(0u, 16u, 0u, 0u), 16u);  // a 32-byte node is two 16-byte loads on a GPU
+      // A 32-byte node is two 16-byte loads on a GPU.
+      HP_REC_LOADS(2u, HP_TBUF_NODES, node * 32u + uvec4(0u, 16u, 0u, 0u), 16u);
       uvec4 t0 = texelFetch(node_texels, int(node * 2u));
       uvec4 t1 = texelFetch(node_texels, int(node * 2u + 1u));
       BvhNode n;
@@ -365,7 +366,8 @@ HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
         last = first + ((entry >> HP_WIDE_COUNT_SHIFT) & HP_WIDE_COUNT_MASK);
         break;
       }
-      HP_REC_LOADS(4u, HP_TBUF_NODES, entry * 64u + uvec4(0u, 16u, 32u, 48u), 16u);  // a 64-byte node is four 16-byte loads on a GPU
+      // A 64-byte node is four 16-byte loads on a GPU.
+      HP_REC_LOADS(4u, HP_TBUF_NODES, entry * 64u + uvec4(0u, 16u, 32u, 48u), 16u);
       uvec4 t0 = texelFetch(node_texels, int(entry * 4u));
       uvec4 t1 = texelFetch(node_texels, int(entry * 4u + 1u));
       uvec4 t2 = texelFetch(node_texels, int(entry * 4u + 2u));
