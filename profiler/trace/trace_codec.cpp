@@ -98,7 +98,7 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
     const uint32_t info = r.info;
     if (info != prev_info) control |= 8;
     const uint32_t zz = zigzag(int64_t(r.offset) - int64_t(prev_offset));
-    const uint32_t mode = zz == 0 ? 0 : zz < (1u << 8) ? 1 : zz < (1u << 16) ? 2 : zz < (1u << 24) ? 3 : 4;
+    const uint32_t mode = uint32_t(std::bit_width(zz) + 7) >> 3;  // zz's bytes, 0..4 (4: the offset itself)
     control |= uint8_t(mode << 4);
     *p++ = control;
     if (d >= 7) put_varint(p, d - 7);
