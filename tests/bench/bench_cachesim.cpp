@@ -32,6 +32,8 @@
 //                    file, timed beforehand), file_read_ms (the fastest read(2) of its bytes from the page
 //                    cache, nothing decoded) and replay_over_read, replay_over_file_read (the replay's
 //                    time over each) put the ratios in the same row.
+//   TraceFileWrite/F  the capture's writer: the trace's slices (held in memory) coded and written to a
+//                    file in form F (TraceWriter::write_records).
 //   DinFileRead      read(2) of a Dinero text file into a 1 MiB buffer: the memory-speed floor.
 //   DinFileReplay    `cachesim --din FILE`: the file streamed through the parser and a 16k:64:4 L1 +
 //                    4m:64:16 L2 (/0), or read whole into memory first and then replayed (/1: what the
@@ -375,6 +377,49 @@ void TraceFileRead(benchmark::State& state) {
   state.SetLabel(kForms[state.range(0)].label);
 }
 BENCHMARK(TraceFileRead)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The capture's writer (TraceWriter::write_records, what `trace` runs on its worker thread for each slice):
+// the trace's slices, held in memory as read from the version-1 file, coded and written to a temporary
+// file in form /1, /2 or /3 (items: lane accesses, per wall second; bytes: the file written).
+void TraceFileWrite(benchmark::State& state) {
+  const Files& fs = files();
+  struct Slice {
+    uint32_t pass;
+    std::vector<hp::trace::TraceRecord> records;
+    uint64_t first, end;
+  };
+  static const auto held = [&] {
+    hp::trace::TraceReader reader(fs.trace_path[1]);
+    std::vector<Slice> slices;
+    for (uint32_t p = 0; p < reader.passes().size(); ++p) {
+      reader.read_slices(p, [&](std::span<const hp::trace::TraceRecord> r, uint64_t first, uint64_t end) {
+        slices.push_back({p, {r.begin(), r.end()}, first, end});
+      });
+    }
+    return std::tuple(reader.header(), reader.passes(), std::move(slices));
+  }();
+  const auto& [header, passes, slices] = held;
+  const std::string out = fs.trace_path[1] + ".written";
+  const TraceForm& form = kForms[state.range(0)];
+  uint64_t records = 0;
+  for (auto _ : state) {
+    hp::trace::TraceWriter w(out, header, form.version, form.coding);
+    records = 0;
+    uint32_t pass = 0, begun = 0;  // slices come pass by pass
+    for (const Slice& s : slices) {
+      while (begun <= s.pass) pass = w.begin_pass(passes[begun++]);
+      w.write_records(pass, s.records, s.first, s.end);
+      records += s.records.size();
+    }
+    while (begun < passes.size()) w.begin_pass(passes[begun++]);
+    w.finish();
+  }
+  state.SetItemsProcessed(int64_t(state.iterations() * records));
+  state.counters["bytes"] = double(std::filesystem::file_size(out));
+  std::filesystem::remove(out);
+  state.SetLabel(form.label);
+}
+BENCHMARK(TraceFileWrite)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // `cachesim TRACE` end to end from the file (items: lane accesses, per wall second). read_ms is the
 // fastest whole read of the same file (TraceFileRead's work, timed when the files were made), so each
