@@ -339,13 +339,13 @@ trace::TraceHeader Frame::trace_header(bool tiled) const {
   if (rt_scene_) {
     const RtScene& r = *rt_scene_;
     t.add(HP_TBUF_NODES, "bvh_nodes", r.nodes().size());
-    t.add(HP_TBUF_POSITIONS, "positions", r.positions().size());
-    t.add(HP_TBUF_INDICES, "indices", r.indices().size());
-    t.add(HP_TBUF_SOUP, "soup", r.soup().size());
+    t.add(HP_TBUF_POSITIONS, "positions", r.positions_bytes());
+    t.add(HP_TBUF_INDICES, "indices", r.indices_bytes());
+    t.add(HP_TBUF_SOUP, "soup", r.soup_bytes());
     t.add(HP_TBUF_OBJECT_FIRST, "object_first", r.object_first().size());
     t.add(HP_TBUF_SLOT_SCENE, "slot_scene", r.slot_scene().size());
-    t.add(HP_TBUF_NORMALS, "normals", r.normals().size());
-    t.add(HP_TBUF_SOUP_NORMALS, "soup_normals", r.soup_normals().size());
+    t.add(HP_TBUF_NORMALS, "normals", r.normals_bytes());
+    t.add(HP_TBUF_SOUP_NORMALS, "soup_normals", r.soup_normals_bytes());
     t.add(HP_TBUF_SLOT_MATERIAL, "slot_material", r.slot_material().size());
     t.add(HP_TBUF_MATERIALS, "materials", r.materials().size());
   }

@@ -17,15 +17,28 @@ constexpr VkBufferUsageFlags kStorage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
 
 vk::Buffer dummy(vk::Context& ctx) { return vk::Buffer(ctx, 4, kStorage, false); }
 
+// A dummy seen as texels holds whole texels of every format used here (4 to 16 bytes: 48 bytes).
+uint64_t dummy_bytes(VkBufferUsageFlags extra_usage) { return extra_usage ? 48 : 4; }
+
 template <typename T>
 vk::Buffer upload(vk::Context& ctx, const std::vector<T>& v, uint64_t& total, VkBufferUsageFlags extra_usage = 0) {
-  // A dummy seen as texels holds whole texels of every format used here (12 and 16 bytes: 48 bytes).
-  if (v.empty()) return vk::Buffer(ctx, extra_usage ? 48 : 4, kStorage | extra_usage, false);
+  if (v.empty()) return vk::Buffer(ctx, dummy_bytes(extra_usage), kStorage | extra_usage, false);
   total += v.size() * sizeof(T);
   return vk::upload_vector(ctx, v, kStorage | extra_usage);
 }
 
-constexpr VkFormat kTriple = VK_FORMAT_R32G32B32_UINT;  // a vertex, or a triangle's three indices
+// A vertex, a normal or a triangle's three indices as a texel: 16 bytes, the fourth word unused.
+constexpr VkFormat kQuad = VK_FORMAT_R32G32B32A32_UINT;
+
+// Three-word items as four-word ones (the fourth 0): the texel layout of the geometry.
+template <typename T>
+std::vector<T> quads(const std::vector<T>& triples) {
+  std::vector<T> q;
+  q.reserve(triples.size() / 3 * 4);
+  for (size_t i = 0; i + 2 < triples.size(); i += 3)
+    q.insert(q.end(), {triples[i], triples[i + 1], triples[i + 2], T(0)});
+  return q;
+}
 
 }  // namespace
 
@@ -120,35 +133,53 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   check_range("vertex", positions.size() * 4);
   check_range("index", indices.size() * 4);
   check_range("triangle soup", soup.size() * 4);
-  // The geometry as R32G32B32_UINT texels: a triangle's fetch is one texel per vertex (and one for its
-  // indices) instead of llvmpipe's loops over the lanes for storage loads (docs/gpu-passes.md,
-  // "Geometry as texels"). UINT keeps the float bits exactly. The storage path stays for devices without the format.
-  VkFormatProperties triple{};
-  vkGetPhysicalDeviceFormatProperties(ctx.physical_device(), kTriple, &triple);
-  // Every buffer seen as texels stays within maxTexelBufferElements (R32_UINT: the slot map is 1 per slot).
+  // The geometry as R32G32B32A32_UINT texels: a triangle's fetch is one texel per vertex (and one for its
+  // indices) instead of llvmpipe's loops over the lanes for storage loads, and a 16-byte texel is one
+  // 16-byte load per lane where a 12-byte R32G32B32_UINT one took an 8- and a 4-byte load and inserts
+  // (docs/gpu-passes.md, "Geometry as texels"). UINT keeps the float bits exactly. The buffers are then
+  // uploaded in that layout, a fourth word per item; the storage bindings, which the shaders do not read
+  // with texels, see the same buffers. The storage path (12 bytes an item) stays for devices without the
+  // format or past their limits.
+  VkFormatProperties quad{};
+  vkGetPhysicalDeviceFormatProperties(ctx.physical_device(), kQuad, &quad);
+  // Every buffer seen as texels stays within maxTexelBufferElements (R32_UINT: the slot map is 1 per slot),
+  // and in the texel layout within maxStorageBufferRange.
   const uint64_t most_texels =
       std::max({positions.size() / 3, indices.size() / 3, soup.size() / 3, normals.size() / 3, soup_normals.size() / 3,
                 uint64_t(slots), uint64_t(scene.materials.size()) * 2});
-  geometry_texels_ = allow_geometry_texels &&
-                     (triple.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT) != 0 &&
-                     most_texels <= max_texels;
+  geometry_texels_ = allow_geometry_texels && (quad.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT) != 0 &&
+                     most_texels <= max_texels && most_texels * 16 <= max_range;
   const VkBufferUsageFlags texel_usage = geometry_texels_ ? VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT : 0;
-  positions_ = upload(ctx, positions, uploaded_bytes_, texel_usage);
-  indices_ = upload(ctx, indices, uploaded_bytes_, texel_usage);
-  soup_ = upload(ctx, soup, uploaded_bytes_, texel_usage);
-  normals_ = upload(ctx, normals, uploaded_bytes_, texel_usage);
-  soup_normals_ = upload(ctx, soup_normals, uploaded_bytes_, texel_usage);
+  // The sizes of the geometry as the shaders address it (12 bytes a vertex, index triple or normal; an
+  // unused buffer's dummy): the trace's buffer table, whatever the layout uploaded.
+  const auto addressed_bytes = [&](const auto& triples) {  // float or uint32_t items
+    return triples.empty() ? dummy_bytes(texel_usage) : triples.size() * 4;
+  };
+  positions_bytes_ = addressed_bytes(positions);
+  indices_bytes_ = addressed_bytes(indices);
+  soup_bytes_ = addressed_bytes(soup);
+  normals_bytes_ = addressed_bytes(normals);
+  soup_normals_bytes_ = addressed_bytes(soup_normals);
+  const auto geometry = [&](const auto& triples) {
+    if (geometry_texels_) return upload(ctx, quads(triples), uploaded_bytes_, texel_usage);
+    return upload(ctx, triples, uploaded_bytes_);
+  };
+  positions_ = geometry(positions);
+  indices_ = geometry(indices);
+  soup_ = geometry(soup);
+  normals_ = geometry(normals);
+  soup_normals_ = geometry(soup_normals);
   slot_scene_ = upload(ctx, slot_map ? leaf.scene_index : std::vector<uint32_t>{}, uploaded_bytes_, texel_usage);
   // Without texels, the texel bindings (HP_BIND_RT_*_TEXELS) still need valid views: any small texel buffer does (never read).
   if (!geometry_texels_) texel_dummy_ = vk::Buffer(ctx, 48, VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);
   const auto view = [&](const vk::Buffer& b, VkFormat f) {
     return vk::BufferView(ctx, geometry_texels_ ? b : texel_dummy_, f);
   };
-  position_texels_ = view(positions_, kTriple);
-  index_texels_ = view(indices_, kTriple);
-  soup_texels_ = view(soup_, kTriple);
-  normal_texels_ = view(normals_, kTriple);
-  soup_normal_texels_ = view(soup_normals_, kTriple);
+  position_texels_ = view(positions_, kQuad);
+  index_texels_ = view(indices_, kQuad);
+  soup_texels_ = view(soup_, kQuad);
+  normal_texels_ = view(normals_, kQuad);
+  soup_normal_texels_ = view(soup_normals_, kQuad);
   slot_scene_texels_ = view(slot_scene_, VK_FORMAT_R32_UINT);
 
   std::vector<uint32_t> slot_material;

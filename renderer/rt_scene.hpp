@@ -38,9 +38,9 @@ class RtScene {
   /// (shaders/common/dispatch_order.glsl; specialization constant 6).
   uint32_t spread_levels() const { return spread_levels_; }
   /// The traversal fetches the geometry through texel views (positions(), indices(), soup() seen as
-  /// R32G32B32_UINT, a vertex or a triangle's three indices per texel: bindings 29-31) rather than storage
+  /// R32G32B32A32_UINT, a vertex or a triangle's three indices per texel: bindings 29-31) rather than storage
   /// loads. Off where the device cannot read that format as a uniform texel buffer, a buffer exceeds
-  /// maxTexelBufferElements, or the constructor was asked not to.
+  /// maxTexelBufferElements (or in that layout maxStorageBufferRange), or the constructor was asked not to.
   bool geometry_texels() const { return geometry_texels_; }
   VkBufferView position_texels() const { return position_texels_.handle(); }
   VkBufferView index_texels() const { return index_texels_.handle(); }
@@ -60,6 +60,9 @@ class RtScene {
   /// The node buffer as RGBA32UI texels, two per binary node or four per wide node (binding 26: the
   /// traversal's fetches).
   VkBufferView node_texels() const { return node_texels_.handle(); }
+  /// The geometry's buffers: 12 bytes a vertex, index triple or normal, or 16 (a fourth word, unused) where
+  /// the shaders read them as texels (geometry_texels()). The *_bytes sizes are those of the 12-byte layout,
+  /// as the shaders address and trace them.
   const vk::Buffer& positions() const { return positions_; }
   const vk::Buffer& indices() const { return indices_; }
   const vk::Buffer& soup() const { return soup_; }
@@ -68,6 +71,11 @@ class RtScene {
   const vk::Buffer& normals() const { return normals_; }
   const vk::Buffer& soup_normals() const { return soup_normals_; }
   const vk::Buffer& slot_material() const { return slot_material_; }
+  uint64_t positions_bytes() const { return positions_bytes_; }
+  uint64_t indices_bytes() const { return indices_bytes_; }
+  uint64_t soup_bytes() const { return soup_bytes_; }
+  uint64_t normals_bytes() const { return normals_bytes_; }
+  uint64_t soup_normals_bytes() const { return soup_normals_bytes_; }
   const vk::Buffer& materials() const { return materials_; }
   /// The bindings the traversal reads (shaders/common/traversal.glsl; gpu::kTraversalBindings of
   /// core/gpu/bindings.h): their layout entries (compute stage), and writing this scene's buffers into them.
@@ -83,6 +91,7 @@ class RtScene {
   bool wide_nodes_;
   uint32_t spread_levels_;
   uint64_t uploaded_bytes_ = 0;
+  uint64_t positions_bytes_ = 0, indices_bytes_ = 0, soup_bytes_ = 0, normals_bytes_ = 0, soup_normals_bytes_ = 0;
   vk::Buffer nodes_, positions_, indices_, soup_, object_first_, slot_scene_, normals_, soup_normals_, slot_material_,
       materials_, texel_dummy_;
   bool geometry_texels_ = false;

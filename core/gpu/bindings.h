@@ -34,11 +34,11 @@
 #define HP_BIND_RT_NODE_TEXELS 26           // BVH nodes as RGBA32UI texels, two per node
 #define HP_BIND_BATCH_RAYS 27               // RayBatchTracer's set only: the rays (BatchRay)
 #define HP_BIND_BATCH_RESULTS 28            // RayBatchTracer's set only: the answers (BatchResult)
-#define HP_BIND_RT_POSITION_TEXELS 29       // positions as R32G32B32_UINT texels (HP_GEOMETRY_TEXELS)
-#define HP_BIND_RT_INDEX_TEXELS 30          // a slot's three indices per R32G32B32_UINT texel
-#define HP_BIND_RT_SOUP_TEXELS 31           // soup vertices as R32G32B32_UINT texels
-#define HP_BIND_RT_NORMAL_TEXELS 32         // shading normals as R32G32B32_UINT texels
-#define HP_BIND_RT_SOUP_NORMAL_TEXELS 33    // soup shading normals as R32G32B32_UINT texels
+#define HP_BIND_RT_POSITION_TEXELS 29       // positions as R32G32B32A32_UINT texels (HP_GEOMETRY_TEXELS)
+#define HP_BIND_RT_INDEX_TEXELS 30          // a slot's three indices per R32G32B32A32_UINT texel
+#define HP_BIND_RT_SOUP_TEXELS 31           // soup vertices as R32G32B32A32_UINT texels
+#define HP_BIND_RT_NORMAL_TEXELS 32         // shading normals as R32G32B32A32_UINT texels
+#define HP_BIND_RT_SOUP_NORMAL_TEXELS 33    // soup shading normals as R32G32B32A32_UINT texels
 #define HP_BIND_RT_SLOT_SCENE_TEXELS 34     // slot -> scene triangle as R32_UINT texels
 #define HP_BIND_RT_SLOT_MATERIAL_TEXELS 35  // slot -> material id as R32_UINT texels
 #define HP_BIND_RT_MATERIAL_TEXELS 36       // materials as RGBA32_UINT texels, two per material

@@ -12,7 +12,7 @@
 
 const float HP_FLT_MAX = 3.402823466e+38;
 
-// The shading data seen as texels (RtScene::geometry_texels), like the positions: normals as R32G32B32_UINT,
+// The shading data seen as texels (RtScene::geometry_texels), like the positions: normals as R32G32B32A32_UINT,
 // material ids and materials.
 layout(set = 0, binding = HP_BIND_RT_NORMAL_TEXELS) uniform utextureBuffer normal_texels;
 layout(set = 0, binding = HP_BIND_RT_SOUP_NORMAL_TEXELS) uniform utextureBuffer soup_normal_texels;

@@ -23,9 +23,9 @@
 // loads on pica 1280x720: shadows 1.3-1.6x, reflections 1.2-1.4x faster, the same rays and hits; the other
 // glTF scenes within noise (docs/gpu-passes.md).
 layout(set = 0, binding = HP_BIND_RT_NODE_TEXELS) uniform utextureBuffer node_texels;
-// The geometry buffers (bindings 3, 4, 5) seen as R32G32B32_UINT texels (bindings 29, 30, 31): a vertex, or
-// a slot's three indices, per texel; read where HP_GEOMETRY_TEXELS is set (2-8% faster passes on lavapipe,
-// docs/gpu-passes.md). 12-byte texels need no padding, and UINT moves the float bits unchanged.
+// The geometry buffers (bindings 3, 4, 5) seen as R32G32B32A32_UINT texels (bindings 29, 30, 31): a vertex,
+// or a slot's three indices, per texel, the fourth word unused; read where HP_GEOMETRY_TEXELS is set (faster
+// passes on lavapipe, docs/gpu-passes.md). UINT moves the float bits unchanged.
 layout(set = 0, binding = HP_BIND_RT_POSITION_TEXELS) uniform utextureBuffer position_texels;
 layout(set = 0, binding = HP_BIND_RT_INDEX_TEXELS) uniform utextureBuffer index_texels;
 layout(set = 0, binding = HP_BIND_RT_SOUP_TEXELS) uniform utextureBuffer soup_texels;
