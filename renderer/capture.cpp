@@ -44,16 +44,17 @@ uint32_t checked_sampling(const CaptureOptions& o) {
 constexpr uint64_t kExpectedRecordsPerInvocation = 32;
 
 // The trace buffer: its header and two halves of records; a slice fills one half while the host writes out
-// the other.
-uint64_t checked_buffer_bytes(const CaptureOptions& o, const vk::Context& ctx) {
+// the other. Each of a half's `regions` must hold a record per lane of a workgroup.
+uint64_t checked_buffer_bytes(const CaptureOptions& o, const vk::Context& ctx, uint32_t regions) {
   const uint64_t limit = ctx.properties().limits.maxStorageBufferRange;
   const uint64_t bytes = o.buffer_bytes ? o.buffer_bytes : std::min<uint64_t>(128ull << 20, limit);
   if (bytes > limit) {
     throw InputError("trace: a trace buffer of " + std::to_string(bytes >> 20) + " MiB exceeds this device's " +
                      "maxStorageBufferRange of " + std::to_string(limit >> 20) + " MiB");
   }
-  if (bytes < sizeof(gpu::TraceBufferHeader) + 2 * 64 * sizeof(gpu::TraceRecord)) {
-    throw InputError("trace: a trace buffer of " + std::to_string(bytes) + " bytes cannot hold one record per lane");
+  if (bytes < sizeof(gpu::TraceBufferHeader) + 2 * uint64_t(regions) * 64 * sizeof(gpu::TraceRecord)) {
+    throw InputError("trace: a trace buffer of " + std::to_string(bytes) + " bytes cannot hold one record per lane" +
+                     (regions > 1 ? " in each of its " + std::to_string(regions) + " regions" : std::string()));
   }
   return bytes;
 }
@@ -66,8 +67,9 @@ uint32_t checked_regions(const CaptureOptions& o, const RtScene* scene) {
                      std::to_string(HP_TRACE_MAX_REGIONS));
   }
   if (o.record_regions) return o.record_regions;
-  const uint32_t levels = scene ? scene->spread_levels() : 0;
-  return std::min<uint32_t>(1u << std::min<uint32_t>(levels, 4), HP_TRACE_MAX_REGIONS);
+  static_assert(std::has_single_bit(HP_TRACE_MAX_REGIONS));
+  constexpr uint32_t most_levels = std::countr_zero(HP_TRACE_MAX_REGIONS);
+  return 1u << std::min<uint32_t>(scene ? scene->spread_levels() : 0, most_levels);
 }
 
 // Writes a captured slice on a worker thread, straight from its half of the trace buffer, while the device
@@ -248,13 +250,9 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
                      "their record slots");
   }
   const uint32_t sampling = checked_sampling(o);
-  const uint64_t bytes = checked_buffer_bytes(o, ctx_);
   const uint32_t regions = checked_regions(o, rt_scene_.get());
+  const uint64_t bytes = checked_buffer_bytes(o, ctx_, regions);
   const uint64_t capacity = (bytes - sizeof(gpu::TraceBufferHeader)) / sizeof(gpu::TraceRecord) / 2;  // a slice's
-  if (capacity / regions < 64) {
-    throw InputError("trace: a trace buffer of " + std::to_string(bytes) +
-                     " bytes cannot hold one record per lane in each of its " + std::to_string(regions) + " regions");
-  }
   if (!trace_buffer_ || trace_buffer_->size() != bytes) {
     trace_buffer_ = std::make_unique<vk::Buffer>(ctx_, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, true);
   }
