@@ -64,6 +64,13 @@ class TraceSink {
   // One slice of a pass; [first_workgroup, end_workgroup) is the slice's dispatched range.
   virtual void write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
                              uint64_t end_workgroup) = 0;
+  // The same for a slice whose records are `parts` put together in order (a capture's trace buffer regions),
+  // where the sink can take them as they lie. False (the default): nothing was written, and the caller puts
+  // the parts together and calls write_records.
+  virtual bool write_record_parts(uint32_t /*pass*/, std::span<const std::span<const TraceRecord>> /*parts*/,
+                                  uint64_t /*first_workgroup*/, uint64_t /*end_workgroup*/) {
+    return false;
+  }
 };
 
 // Sends everything to two sinks (keep the trace file while simulating it).

@@ -89,14 +89,19 @@ class SliceWriter {
     if (error_) std::rethrow_exception(std::exchange(error_, nullptr));
   }
   // Starts writing the records of workgroups [first, end) of sink pass `pass` (after wait()): those of
-  // each region, `counts[r]` from `records + r * region_capacity`, moved together in place (on the
-  // worker) and written as one span. The half must stay untouched by the device until wait() returns.
+  // each region, `counts[r]` from `records + r * region_capacity`, handed to the sink as they lie, or moved
+  // together in place (on the worker) and written as one span where it cannot take them so. The half must stay untouched by the device until wait() returns.
   void start(uint32_t pass, gpu::TraceRecord* records, std::span<const uint32_t> counts, uint32_t region_capacity,
              uint64_t first, uint64_t end) {
     std::array<uint32_t, HP_TRACE_MAX_REGIONS> n{};
     std::copy(counts.begin(), counts.end(), n.begin());
     thread_ = std::thread([this, pass, records, n, regions = counts.size(), region_capacity, first, end] {
       try {
+        // As they lie where the sink can take them so (the coding reads each record once then), else
+        // put together.
+        std::array<std::span<const gpu::TraceRecord>, HP_TRACE_MAX_REGIONS> parts;
+        for (size_t r = 0; r < regions; ++r) parts[r] = {records + r * uint64_t(region_capacity), n[r]};
+        if (sink_.write_record_parts(pass, std::span(parts.data(), regions), first, end)) return;
         uint64_t total = n[0];
         for (size_t r = 1; r < regions; ++r) {
           const gpu::TraceRecord* from = records + r * uint64_t(region_capacity);

@@ -1,6 +1,7 @@
 #include "trace/trace_codec.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cstring>
 #include <stdexcept>
@@ -26,6 +27,162 @@ uint32_t zigzag(int64_t d) { return uint32_t((uint64_t(d) << 1) ^ uint64_t(d >> 
 
 }  // namespace
 
+namespace {
+
+// What a workgroup's records are coded against (the coding's "previous record").
+struct CodeState {
+  uint32_t prev_info = 0, prev_offset = 0;
+  int64_t prev_lane = -1;
+};
+
+// One record of the current step, at p.
+[[gnu::always_inline]] inline void put_record(uint8_t*& p, CodeState& s, const TraceRecord& r, int64_t lane) {
+  const uint64_t d = uint64_t(lane - s.prev_lane);
+  s.prev_lane = lane;
+  uint8_t control = uint8_t(std::min<uint64_t>(d, 7));
+  const uint32_t info = r.info;
+  if (info != s.prev_info) control |= 8;
+  const uint32_t zz = zigzag(int64_t(r.offset) - int64_t(s.prev_offset));
+  const uint32_t mode = uint32_t(std::bit_width(zz) + 7) >> 3;  // zz's bytes, 0..4 (4: the offset itself)
+  control |= uint8_t(mode << 4);
+  *p++ = control;
+  if (d >= 7) put_varint(p, d - 7);
+  if (info != s.prev_info) {
+    *p++ = uint8_t(info);
+    *p++ = uint8_t(info >> 8);
+    s.prev_info = info;
+  }
+  const uint32_t v = mode == 4 ? r.offset : zz;
+  std::memcpy(p, &v, 4);  // little-endian; only the first `bytes` count
+  p += mode == 4 ? 4u : mode;
+  s.prev_offset = r.offset;
+}
+
+// The refusals of SliceEncoder::encode, for record `index` of the slice (in the order given).
+[[noreturn]] void refuse_invocation(uint64_t index, uint32_t invocation, uint64_t first_workgroup,
+                                    uint64_t end_workgroup) {
+  throw InputError("trace writer: record " + std::to_string(index) + ": invocation " + std::to_string(invocation) +
+                   " outside its slice's workgroups [" + std::to_string(first_workgroup) + ", " +
+                   std::to_string(end_workgroup) + ")");
+}
+[[noreturn]] void refuse_info(uint64_t index) {
+  throw InputError("trace writer: record " + std::to_string(index) + ": reserved info bits set");
+}
+
+}  // namespace
+
+// Codes workgroup g (relative to the slice), whose `n` records are the runs `segs` in record order (their
+// seqs at most max_seq; the invocations of lanes lane_base ..), at room_ + at; returns where it ends.
+size_t SliceEncoder::code_group(size_t at, uint64_t g, std::span<const Segment> segs, uint64_t n, uint32_t max_seq,
+                                uint64_t lane_base, uint64_t per_group, uint32_t coding) {
+  // A workgroup in several runs is gathered first, so that one index names each of its records.
+  const TraceRecord* records = segs[0].first;
+  if (segs.size() > 1) {
+    gathered.clear();
+    for (const Segment& s : segs) gathered.insert(gathered.end(), s.first, s.first + s.count);
+    records = gathered.data();
+  }
+  uint8_t* p = room.get() + at;
+  put_varint(p, g - next_g_);
+  next_g_ = g + 1;
+  uint8_t* body_bytes = nullptr;  // coding 2: where the body's size goes once it is known
+  if (coding == kCodingSizedGroups) {
+    body_bytes = p;
+    p += 4;
+    state_prev_info_ = state_prev_offset_ = 0;
+  }
+  CodeState s{state_prev_info_, state_prev_offset_, -1};
+  uint64_t prev_seq = 0;
+  bool first_step = true;
+  const auto put_step_header = [&](uint64_t seq, uint64_t count) {
+    put_varint(p, first_step ? seq : seq - prev_seq - 1);
+    put_varint(p, count - 1);
+    first_step = false;
+    prev_seq = seq;
+    s.prev_lane = -1;
+  };
+  // The workgroup's records in (seq, lane, position) order. A GPU capture numbers each invocation's records
+  // 0, 1, 2, ... so the keys are distinct and dense: a table of (largest seq + 1) x per_group slots, each
+  // record's index placed into its slot (in record order), read back in order (linear time, and the table
+  // small enough to stay in the host's caches while the workgroup is coded). A key that repeats (the format
+  // allows it), or a table much larger than the workgroup's records, takes a comparison sort of the
+  // workgroup's keys instead; both give the same order.
+  const uint64_t seqs = uint64_t(max_seq) + 1;
+  bool placed = seqs * per_group <= 8 * n + 4096;
+  if (placed) {
+    slot.assign(seqs * per_group, kEmpty);
+    row_count.assign(seqs, 0);  // records per seq: a step's size, without scanning its row
+    uint32_t* const table = slot.data();
+    uint32_t* const in_row = row_count.data();
+    for (uint32_t i = 0; i < n; ++i) {
+      const TraceRecord& r = records[i];
+      uint32_t& where = table[uint64_t(r.seq) * per_group + (r.invocation - lane_base)];
+      if (where != kEmpty) {
+        placed = false;  // a repeated key: this workgroup is sorted instead
+        break;
+      }
+      where = i;
+      ++in_row[r.seq];
+    }
+  }
+  if (placed) {
+    const uint32_t* row = slot.data();
+    const uint32_t* count = row_count.data();
+    uint64_t steps = 0;
+    for (uint64_t seq = 0; seq < seqs; ++seq) steps += count[seq] != 0;
+    put_varint(p, steps);
+    for (uint64_t seq = 0; seq < seqs; ++seq, row += per_group) {
+      if (count[seq] == 0) continue;
+      put_step_header(seq, count[seq]);
+      for (uint64_t lane = 0, left = count[seq]; left > 0; ++lane) {
+        if (row[lane] == kEmpty) continue;
+        put_record(p, s, records[row[lane]], int64_t(lane));
+        --left;
+      }
+    }
+  } else {
+    // Keys (seq << 32 | lane, position), sorted (positions break ties: stable).
+    keys.clear();
+    for (uint32_t i = 0; i < n; ++i)
+      keys.emplace_back(uint64_t(records[i].seq) << 32 | (records[i].invocation - lane_base), i);
+    std::sort(keys.begin(), keys.end());
+    const auto* k0 = keys.data();
+    const auto* k1 = keys.data() + keys.size();
+    uint64_t steps = 1;
+    for (const auto* k = k0 + 1; k < k1; ++k) steps += (k->first >> 32) != ((k - 1)->first >> 32);
+    put_varint(p, steps);
+    for (const auto* k = k0; k < k1;) {
+      const uint64_t seq = k->first >> 32;
+      const auto* j = k;
+      while (j < k1 && (j->first >> 32) == seq) ++j;
+      put_step_header(seq, uint64_t(j - k));
+      for (; k < j; ++k) put_record(p, s, records[k->second], int64_t(k->first & 0xFFFFFFFFu));
+    }
+  }
+  state_prev_info_ = s.prev_info;
+  state_prev_offset_ = s.prev_offset;
+  if (body_bytes) {
+    const uint64_t size = uint64_t(p - body_bytes - 4);
+    if (size > 0xFFFFFFFFu) throw InputError("trace writer: a workgroup's records code to 4 GiB or more");
+    const uint32_t v = uint32_t(size);
+    std::memcpy(body_bytes, &v, 4);
+  }
+  return size_t(p - room.get());
+}
+
+// The coding's room for `records` records of `groups` workgroups: at most 5 + 4 + 5 bytes a workgroup, 5 + 5
+// a step, 1 + 5 + 2 + 4 a record, and a slice has no more steps than records. Left uninitialised: zeroing the
+// bound would cost more than the coding.
+void SliceEncoder::reserve_room(uint64_t records, uint64_t groups) {
+  const size_t bound = 22 * records + 14 * groups + 16;
+  if (room_size < bound) {
+    room = std::make_unique_for_overwrite<uint8_t[]>(bound);
+    room_size = bound;
+  }
+  next_g_ = 0;
+  state_prev_info_ = state_prev_offset_ = 0;
+}
+
 void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup,
                           uint64_t per_group, std::vector<uint8_t>& out, uint32_t coding) {
   if (coding != kCodingDeltaVarint && coding != kCodingSizedGroups)
@@ -39,8 +196,7 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
   };
   // Per workgroup: its record count and largest seq, and the runs of consecutive records of one workgroup
   // (one pass over the records, which also refuses what the coding cannot hold rather than writing it as
-  // something else; a version-1 file stores such records as given, and its reader rejects them). A capture
-  // writes a workgroup's records in a few runs: the GPU runs a workgroup on one core.
+  // something else; a version-1 file stores such records as given, and its reader rejects them).
   if (records.size() > 0xFFFFFFFFu) throw InputError("trace writer: a slice of 2^32 records or more");
   group_begin.assign(groups + 1, 0);
   max_seq.assign(groups, 0);
@@ -53,10 +209,8 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
   for (size_t i = 0; i < records.size(); ++i) {
     const TraceRecord& r = records[i];
     if (r.invocation < first_invocation || r.invocation - first_invocation >= groups * per_group)
-      throw InputError("trace writer: record " + std::to_string(i) + ": invocation " + std::to_string(r.invocation) +
-                       " outside its slice's workgroups [" + std::to_string(first_workgroup) + ", " +
-                       std::to_string(end_workgroup) + ")");
-    if (r.info > 0xFFFF) throw InputError("trace writer: record " + std::to_string(i) + ": reserved info bits set");
+      refuse_invocation(i, r.invocation, first_workgroup, end_workgroup);
+    if (r.info > 0xFFFF) refuse_info(i);
     const uint32_t g = group_of(r.invocation);
     ++counts[g];
     seq_max[g] = std::max(seq_max[g], r.seq);
@@ -78,135 +232,110 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
     cursor.assign(run_begin.begin(), run_begin.end() - 1);
     for (size_t k = 0; k < runs.size(); ++k) run_order[cursor[runs[k].group]++] = uint32_t(k);
   }
-  // Coded into scratch room, then appended. Its bound: at most 5 + 4 + 5 bytes a workgroup, 5 + 5 a step,
-  // 1 + 5 + 2 + 4 a record, and a slice has no more steps than records. Left uninitialised: zeroing the
-  // bound would cost more than the coding.
-  const size_t bound = 22 * records.size() + 14 * groups + 16;
-  if (room_size < bound) {
-    room = std::make_unique_for_overwrite<uint8_t[]>(bound);
-    room_size = bound;
-  }
-  uint8_t* p = room.get();
-  uint64_t next_g = 0;
-  uint32_t prev_info = 0, prev_offset = 0;
-  int64_t prev_lane = -1;
-  // One record of the current step.
-  const auto put_record = [&](const TraceRecord& r, int64_t lane) {
-    const uint64_t d = uint64_t(lane - prev_lane);
-    prev_lane = lane;
-    uint8_t control = uint8_t(std::min<uint64_t>(d, 7));
-    const uint32_t info = r.info;
-    if (info != prev_info) control |= 8;
-    const uint32_t zz = zigzag(int64_t(r.offset) - int64_t(prev_offset));
-    const uint32_t mode = uint32_t(std::bit_width(zz) + 7) >> 3;  // zz's bytes, 0..4 (4: the offset itself)
-    control |= uint8_t(mode << 4);
-    *p++ = control;
-    if (d >= 7) put_varint(p, d - 7);
-    if (info != prev_info) {
-      *p++ = uint8_t(info);
-      *p++ = uint8_t(info >> 8);
-      prev_info = info;
-    }
-    const uint32_t v = mode == 4 ? r.offset : zz;
-    std::memcpy(p, &v, 4);  // little-endian; only the first `bytes` count
-    p += mode == 4 ? 4u : mode;
-    prev_offset = r.offset;
-  };
+  reserve_room(records.size(), groups);
+  size_t at = 0;
   for (uint64_t g = 0; g < groups; ++g) {
     if (group_begin[g] == group_begin[g + 1]) continue;
-    put_varint(p, g - next_g);
-    next_g = g + 1;
-    uint8_t* body_bytes = nullptr;  // coding 2: where the body's size goes once it is known
-    if (coding == kCodingSizedGroups) {
-      body_bytes = p;
-      p += 4;
-      prev_info = prev_offset = 0;
+    segments.clear();
+    for (uint32_t k = run_begin[g]; k < run_begin[g + 1]; ++k) {
+      const Run& run = runs[run_order[k]];
+      segments.push_back({records.data() + run.first, run.count});
     }
-    uint64_t prev_seq = 0;
-    bool first_step = true;
-    const auto put_step_header = [&](uint64_t seq, uint64_t n) {
-      put_varint(p, first_step ? seq : seq - prev_seq - 1);
-      put_varint(p, n - 1);
-      first_step = false;
-      prev_seq = seq;
-      prev_lane = -1;
+    at = code_group(at, g, segments, group_begin[g + 1] - group_begin[g], max_seq[g], first_invocation + g * per_group,
+                    per_group, coding);
+  }
+  out.insert(out.end(), room.get(), room.get() + at);
+}
+
+bool SliceEncoder::encode_parts(std::span<const std::span<const TraceRecord>> parts, uint64_t first_workgroup,
+                                uint64_t end_workgroup, uint64_t per_group, std::vector<uint8_t>& out,
+                                uint32_t coding) {
+  if (coding != kCodingDeltaVarint && coding != kCodingSizedGroups)
+    throw std::logic_error("SliceEncoder::encode_parts: unknown coding " + std::to_string(coding));
+  if (parts.size() > kMaxParts) return false;
+  uint64_t total = 0;
+  for (const auto& part : parts) total += part.size();
+  if (total > 0xFFFFFFFFu) throw InputError("trace writer: a slice of 2^32 records or more");
+  const uint64_t groups = end_workgroup - first_workgroup;
+  const uint64_t first_invocation = first_workgroup * per_group;
+  const int shift = std::has_single_bit(per_group) ? std::countr_zero(per_group) : -1;
+  // Each part's next run: records [at, end) of workgroup `group`, their largest seq; `before`: the records
+  // of the parts before it (for the refusals' record index), `last`: the group of its previous run.
+  struct Head {
+    const TraceRecord* begin;
+    uint64_t at, end, size, before;
+    uint64_t group, last;
+    uint32_t seq_max;
+  };
+  std::array<Head, kMaxParts> heads;
+  constexpr uint64_t kNone = ~uint64_t(0);
+  // Reads part h's next run; false where it is not after the part's previous one (the parts are then
+  // not in run order, and the caller gathers them).
+  const auto next_run = [&](Head& h) {
+    h.at = h.end;
+    if (h.at == h.size) {
+      h.group = kNone;
+      return true;
+    }
+    const TraceRecord* r = h.begin + h.at;
+    const auto group_of = [&](uint64_t index, const TraceRecord& x) {
+      if (x.invocation < first_invocation || x.invocation - first_invocation >= groups * per_group)
+        refuse_invocation(h.before + index, x.invocation, first_workgroup, end_workgroup);
+      if (x.info > 0xFFFF) refuse_info(h.before + index);
+      const uint64_t i = x.invocation - first_invocation;
+      return shift >= 0 ? i >> shift : i / per_group;
     };
-    // The workgroup's records in (seq, lane, position) order. A GPU capture numbers each invocation's
-    // records 0, 1, 2, ... so the keys are distinct and dense: a table of (largest seq + 1) x per_group
-    // slots, each record's index placed into its slot (its runs read in order), read back in order (linear
-    // time, and the table small enough to stay in the host's caches while the workgroup is coded). A key
-    // that repeats (the format allows it), or a table much larger than the workgroup's records, takes a
-    // comparison sort of the workgroup's keys instead; both give the same order.
-    const uint64_t n = group_begin[g + 1] - group_begin[g];
-    const uint64_t seqs = uint64_t(max_seq[g]) + 1;
-    const uint64_t lane_base = first_invocation + g * per_group;
-    bool placed = seqs * per_group <= 8 * n + 4096;
-    if (placed) {
-      slot.assign(seqs * per_group, kEmpty);
-      row_count.assign(seqs, 0);  // records per seq: a step's size, without scanning its row
-      uint32_t* const table = slot.data();
-      uint32_t* const in_row = row_count.data();
-      for (uint32_t k = run_begin[g]; k < run_begin[g + 1] && placed; ++k) {
-        const Run& run = runs[run_order[k]];
-        for (uint32_t i = run.first; i < run.first + run.count; ++i) {
-          const TraceRecord& r = records[i];
-          uint32_t& at = table[uint64_t(r.seq) * per_group + (r.invocation - lane_base)];
-          if (at != kEmpty) {
-            placed = false;  // a repeated key: this workgroup is sorted instead
-            break;
-          }
-          at = i;
-          ++in_row[r.seq];
-        }
-      }
+    const uint64_t g = group_of(h.at, *r);
+    if (h.last != kNone && g <= h.last) return false;
+    // The run ends at the first record of another workgroup: its invocation outside [lo, hi).
+    const uint64_t lo = first_invocation + g * per_group, hi = lo + per_group;
+    uint32_t seq = r->seq;
+    uint64_t e = h.at + 1;
+    for (; e < h.size; ++e) {
+      const TraceRecord& x = h.begin[e];
+      if (x.invocation - lo >= hi - lo) break;
+      if (x.info > 0xFFFF) refuse_info(h.before + e);
+      seq = std::max(seq, x.seq);
     }
-    if (!placed) {
-      // Keys (seq << 32 | lane, position), sorted (positions break ties: stable).
-      keys.clear();
-      for (uint32_t k = run_begin[g]; k < run_begin[g + 1]; ++k) {
-        const Run& run = runs[run_order[k]];
-        for (uint32_t i = run.first; i < run.first + run.count; ++i)
-          keys.emplace_back(uint64_t(records[i].seq) << 32 | (records[i].invocation - lane_base), i);
-      }
-      std::sort(keys.begin(), keys.end());
+    h.end = e;
+    h.group = g;
+    h.last = g;
+    h.seq_max = seq;
+    return true;
+  };
+  size_t n_heads = 0;
+  uint64_t before = 0;
+  for (const auto& part : parts) {
+    if (part.empty()) continue;
+    Head& h = heads[n_heads++];
+    h = {part.data(), 0, 0, part.size(), before, kNone, kNone, 0};
+    before += part.size();
+    if (!next_run(h)) return false;
+  }
+  reserve_room(total, groups);
+  size_t at = 0;
+  for (;;) {
+    uint64_t g = kNone;
+    for (size_t k = 0; k < n_heads; ++k) g = std::min(g, heads[k].group);
+    if (g == kNone) break;
+    // The workgroup's runs, one per part at most, in part order (the order of the parts put together).
+    segments.clear();
+    uint64_t n = 0;
+    uint32_t seq = 0;
+    for (size_t k = 0; k < n_heads; ++k) {
+      Head& h = heads[k];
+      if (h.group != g) continue;
+      segments.push_back({h.begin + h.at, uint32_t(h.end - h.at)});
+      n += h.end - h.at;
+      seq = std::max(seq, h.seq_max);
     }
-    if (placed) {
-      const uint32_t* row = slot.data();
-      const uint32_t* count = row_count.data();
-      uint64_t steps = 0;
-      for (uint64_t seq = 0; seq < seqs; ++seq) steps += count[seq] != 0;
-      put_varint(p, steps);
-      for (uint64_t seq = 0; seq < seqs; ++seq, row += per_group) {
-        if (count[seq] == 0) continue;
-        put_step_header(seq, count[seq]);
-        for (uint64_t lane = 0, left = count[seq]; left > 0; ++lane) {
-          if (row[lane] == kEmpty) continue;
-          put_record(records[row[lane]], int64_t(lane));
-          --left;
-        }
-      }
-    } else {
-      const auto* k0 = keys.data();
-      const auto* k1 = keys.data() + keys.size();
-      uint64_t steps = 1;
-      for (const auto* k = k0 + 1; k < k1; ++k) steps += (k->first >> 32) != ((k - 1)->first >> 32);
-      put_varint(p, steps);
-      for (const auto* k = k0; k < k1;) {
-        const uint64_t seq = k->first >> 32;
-        const auto* j = k;
-        while (j < k1 && (j->first >> 32) == seq) ++j;
-        put_step_header(seq, uint64_t(j - k));
-        for (; k < j; ++k) put_record(records[k->second], int64_t(k->first & 0xFFFFFFFFu));
-      }
-    }
-    if (body_bytes) {
-      const uint64_t size = uint64_t(p - body_bytes - 4);
-      if (size > 0xFFFFFFFFu) throw InputError("trace writer: a workgroup's records code to 4 GiB or more");
-      const uint32_t v = uint32_t(size);
-      std::memcpy(body_bytes, &v, 4);
+    at = code_group(at, g, segments, n, seq, first_invocation + g * per_group, per_group, coding);
+    for (size_t k = 0; k < n_heads; ++k) {
+      if (heads[k].group == g && !next_run(heads[k])) return false;
     }
   }
-  out.insert(out.end(), room.get(), p);
+  out.insert(out.end(), room.get(), room.get() + at);
+  return true;
 }
 
 namespace {

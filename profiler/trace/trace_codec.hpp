@@ -56,7 +56,14 @@ struct SliceEncoder {
   struct Run {
     uint32_t first, count, group;  // records [first, first + count) of workgroup `group`
   };
+  struct Segment {
+    const TraceRecord* first;
+    uint32_t count;
+  };
+  static constexpr size_t kMaxParts = 16;
   std::vector<Run> runs;
+  std::vector<Segment> segments;
+  std::vector<TraceRecord> gathered;
   std::vector<uint32_t> group_begin, max_seq, run_begin, run_order, slot, row_count;
   static constexpr uint32_t kEmpty = 0xFFFFFFFFu;
   std::unique_ptr<uint8_t[]> room;  // the coding's room, of room_size bytes
@@ -67,6 +74,22 @@ struct SliceEncoder {
   // hold: an invocation outside those workgroups, or info bits 16-31 set.
   void encode(std::span<const TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup,
               uint64_t per_group, std::vector<uint8_t>& out, uint32_t coding = kCodingSizedGroups);
+  // The same coding of the records of `parts` put together in order (the bytes encode() gives for them),
+  // read once, straight from the parts, where they are in run order: in each part, every workgroup's
+  // records are one run, and the runs are in increasing workgroup order (a capture's trace buffer regions,
+  // each filled by one lavapipe thread running whole workgroups in turn). Returns false, leaving `out` as
+  // it was, where they are not (or there are more than kMaxParts parts): encode() on the records put
+  // together then codes them. Throws as encode() does.
+  bool encode_parts(std::span<const std::span<const TraceRecord>> parts, uint64_t first_workgroup,
+                    uint64_t end_workgroup, uint64_t per_group, std::vector<uint8_t>& out,
+                    uint32_t coding = kCodingSizedGroups);
+
+ private:
+  void reserve_room(uint64_t records, uint64_t groups);
+  size_t code_group(size_t at, uint64_t g, std::span<const Segment> segs, uint64_t n, uint32_t max_seq,
+                    uint64_t lane_base, uint64_t per_group, uint32_t coding);
+  uint64_t next_g_ = 0;  // the workgroup after the last one coded (relative to the slice)
+  uint32_t state_prev_info_ = 0, state_prev_offset_ = 0;  // the coding's previous record (coding 1: across workgroups)
 };
 
 // Decodes a slice of `count` records into `out` (room for count) in canonical order. `check` is called

@@ -190,23 +190,44 @@ uint32_t TraceWriter::begin_pass(const PassInfo& pass) {
 
 void TraceWriter::write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
                                 uint64_t end_workgroup) {
+  const std::span<const TraceRecord> one[] = {records};
   if (version_ == kTraceVersionRaw) {
-    RecordsEntry e{pass, 0, first_workgroup, end_workgroup, records.size()};
-    put_chunk_header(kTagRecords, sizeof e + records.size_bytes());
-    put(&e, sizeof e);
-    put(records.data(), records.size_bytes());
-  } else {
-    coded_.clear();
-    encoder_.encode(records, first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_);
-    CodedEntry e{pass, coding_, first_workgroup, end_workgroup, records.size(), coded_.size()};
-    const size_t pad = pad8(coded_.size());
-    put_chunk_header(kTagCoded, sizeof e + coded_.size() + pad);
-    put(&e, sizeof e);
-    put(coded_.data(), coded_.size());
-    const uint64_t zero = 0;
-    put(&zero, pad);
+    write_record_parts(pass, one, first_workgroup, end_workgroup);
+    return;
   }
-  total_records_ += records.size();
+  coded_.clear();
+  encoder_.encode(records, first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_);
+  put_coded(pass, first_workgroup, end_workgroup, records.size());
+}
+
+bool TraceWriter::write_record_parts(uint32_t pass, std::span<const std::span<const TraceRecord>> parts,
+                                     uint64_t first_workgroup, uint64_t end_workgroup) {
+  uint64_t count = 0;
+  for (const auto& part : parts) count += part.size();
+  if (version_ == kTraceVersionRaw) {
+    RecordsEntry e{pass, 0, first_workgroup, end_workgroup, count};
+    put_chunk_header(kTagRecords, sizeof e + count * sizeof(TraceRecord));
+    put(&e, sizeof e);
+    for (const auto& part : parts) put(part.data(), part.size_bytes());
+    total_records_ += count;
+    return true;
+  }
+  coded_.clear();
+  if (!encoder_.encode_parts(parts, first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_)) return false;
+  put_coded(pass, first_workgroup, end_workgroup, count);
+  return true;
+}
+
+// The 'RECV' chunk of the slice coded in coded_.
+void TraceWriter::put_coded(uint32_t pass, uint64_t first_workgroup, uint64_t end_workgroup, uint64_t records) {
+  CodedEntry e{pass, coding_, first_workgroup, end_workgroup, records, coded_.size()};
+  const size_t pad = pad8(coded_.size());
+  put_chunk_header(kTagCoded, sizeof e + coded_.size() + pad);
+  put(&e, sizeof e);
+  put(coded_.data(), coded_.size());
+  const uint64_t zero = 0;
+  put(&zero, pad);
+  total_records_ += records;
 }
 
 void TraceWriter::finish() {

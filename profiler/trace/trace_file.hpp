@@ -68,6 +68,10 @@ class TraceWriter final : public TraceSink {
   uint32_t begin_pass(const PassInfo& pass) override;
   void write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
                      uint64_t end_workgroup) override;
+  /// Codes the parts where they lie when they are in run order (SliceEncoder::encode_parts); a raw (version 1)
+  /// file stores them one after the other.
+  bool write_record_parts(uint32_t pass, std::span<const std::span<const TraceRecord>> parts, uint64_t first_workgroup,
+                          uint64_t end_workgroup) override;
   void finish();
   /// Bytes written to the file so far (headers and records): what the capture has cost on disk.
   uint64_t bytes_written() const { return bytes_written_; }
@@ -75,6 +79,7 @@ class TraceWriter final : public TraceSink {
  private:
   void put(const void* data, size_t bytes);
   void put_chunk_header(uint32_t tag, uint64_t payload_bytes);
+  void put_coded(uint32_t pass, uint64_t first_workgroup, uint64_t end_workgroup, uint64_t records);
   AtomicFile out_;
   std::FILE* file_ = nullptr;
   uint32_t passes_ = 0;

@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <set>
 #include <thread>
@@ -194,6 +195,58 @@ TEST(Capture, EveryRegionCountGivesTheSameRecords) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("over the limit of 16"), std::string::npos) << e.what();
   }
+}
+
+// The file writer codes a slice's trace buffer regions where they lie when each holds its workgroups in
+// run order (one lavapipe thread runs a workgroup from start to end), reading every record once; the file
+// is the one it writes from the regions moved together.
+TEST(Capture, RegionsCodedWhereTheyLieGiveTheFileOfTheRegionsPutTogether) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  const FrameSettings s = small(96, 112);
+  struct Forward final : trace::TraceSink {
+    trace::TraceWriter& writer;
+    bool in_place;
+    int coded_in_place = 0;
+    Forward(trace::TraceWriter& w, bool p) : writer(w), in_place(p) {}
+    uint32_t begin_pass(const trace::PassInfo& pass) override { return writer.begin_pass(pass); }
+    void write_records(uint32_t pass, std::span<const trace::TraceRecord> r, uint64_t first, uint64_t end) override {
+      writer.write_records(pass, r, first, end);
+    }
+    bool write_record_parts(uint32_t pass, std::span<const std::span<const trace::TraceRecord>> parts, uint64_t first,
+                            uint64_t end) override {
+      const bool done = in_place && writer.write_record_parts(pass, parts, first, end);
+      coded_in_place += done;
+      return done;
+    }
+  };
+  CaptureOptions o;
+  o.record_regions = 4;
+  o.buffer_bytes = slice_buffer(160000);  // several slices a pass
+  std::vector<std::vector<char>> files;
+  for (const bool in_place : {true, false}) {
+    const fs::path file =
+        fs::temp_directory_path() / ("hp_capture_" + std::to_string(::getpid()) + "_in_place.hptrace");
+    Frame frame(*ctx, scene, scene.camera, s);
+    int coded_in_place = 0;
+    {
+      trace::TraceWriter writer(file, frame.trace_header(o.tiled_images));
+      Forward sink(writer, in_place);
+      const std::vector<CapturedPass> passes = frame.render_captured(o, sink);
+      ASSERT_EQ(passes.size(), 2u);
+      EXPECT_GT(passes[0].slices, 1u);
+      writer.finish();
+      coded_in_place = sink.coded_in_place;
+    }
+    if (in_place) {
+      EXPECT_GT(coded_in_place, 0) << "no slice was coded where it lies";
+    }
+    std::ifstream in(file, std::ios::binary);
+    files.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    fs::remove(file);
+  }
+  EXPECT_GT(files[0].size(), 1000u);
+  EXPECT_TRUE(files[0] == files[1]);
 }
 
 // Audit find (2026-11-30): a capture ran every enabled pass and the composite even when only one pass was

@@ -459,6 +459,85 @@ TEST(TraceFile, ARepeatedKeyFallsBackToSortingItsWorkgroupOnly) {
   }
 }
 
+// A capture's regions: each lavapipe thread runs whole workgroups in turn, so in its region each workgroup's
+// records are one run, in increasing workgroup order, and the regions interleave (rows in spread order).
+// Coded where they lie, they give the bytes of the records put together, for both codings; parts that are
+// not in run order are refused with nothing written, and the records put together are coded instead.
+TEST(TraceFile, RegionsInRunOrderCodeWhereTheyLieAsTheirRecordsPutTogether) {
+  std::mt19937 rng(11);
+  // Workgroup g's records, lanes interleaved step by step as subgroups make them; some lanes stop early.
+  const auto group_records = [&](uint32_t g) {
+    std::vector<TraceRecord> v;
+    std::vector<uint32_t> steps(64);
+    for (auto& n : steps) n = 1 + rng() % 6;
+    for (uint32_t seq = 0; seq < 6; ++seq) {
+      for (uint32_t lane = 0; lane < 64; ++lane) {
+        if (seq < steps[lane]) {
+          v.push_back({(100 + g) * 64 + lane, seq, HP_TRACE_INFO(uint32_t(rng() % 3), HP_TRACE_LOAD, 16u),
+                       uint32_t(rng() % 512) * 16});
+        }
+      }
+    }
+    return v;
+  };
+  std::vector<TraceRecord> even, odd;
+  for (uint32_t g = 0; g < 24; ++g) {
+    if (g == 9) continue;  // a workgroup without records
+    auto v = group_records(g);
+    if (g == 14) {  // one workgroup's records split between the two regions, a key in both (ties keep
+                    // the order of the records put together)
+      even.insert(even.end(), v.begin(), v.begin() + v.size() / 3);
+      odd.insert(odd.end(), v.begin() + v.size() / 3, v.end());
+      odd.push_back({v[0].invocation, v[0].seq, v[0].info, v[0].offset + 4096});
+      continue;
+    }
+    (g % 2 ? odd : even).insert((g % 2 ? odd : even).end(), v.begin(), v.end());
+  }
+  std::vector<TraceRecord> together = even;
+  together.insert(together.end(), odd.begin(), odd.end());
+  for (uint32_t coding : {kCodingDeltaVarint, kCodingSizedGroups}) {
+    SliceEncoder a, b;
+    std::vector<uint8_t> want, got = {0xAB};  // appended to, as the file writer's buffer
+    a.encode(together, 100, 124, 64, want, coding);
+    const std::span<const TraceRecord> parts[] = {even, {}, odd};
+    ASSERT_TRUE(b.encode_parts(parts, 100, 124, 64, got, coding));
+    ASSERT_EQ(got.size(), want.size() + 1);
+    EXPECT_TRUE(std::equal(want.begin(), want.end(), got.begin() + 1)) << "coding " << coding;
+    // The encoder's scratch carries nothing from one slice to the next.
+    got.clear();
+    ASSERT_TRUE(b.encode_parts(parts, 100, 124, 64, got, coding));
+    EXPECT_EQ(got, want);
+  }
+  // Not in run order: a part's workgroups decreasing, or a workgroup's records in two runs of one part.
+  SliceEncoder e;
+  std::vector<uint8_t> out = {1, 2, 3};
+  std::vector<TraceRecord> backwards = odd;
+  std::rotate(backwards.begin(), backwards.begin() + backwards.size() / 2, backwards.end());
+  const std::span<const TraceRecord> unordered[] = {even, backwards};
+  EXPECT_FALSE(e.encode_parts(unordered, 100, 124, 64, out));
+  std::vector<TraceRecord> twice = even;
+  twice.push_back(even.front());  // workgroup 0 again after the others
+  const std::span<const TraceRecord> repeated[] = {twice, odd};
+  EXPECT_FALSE(e.encode_parts(repeated, 100, 124, 64, out));
+  EXPECT_EQ(out, (std::vector<uint8_t>{1, 2, 3}));
+  // What the coding cannot hold is refused as encode() refuses it, naming the record by its place in the
+  // records put together.
+  std::vector<TraceRecord> bad = odd;
+  bad[5].info = 0x10000;
+  const std::span<const TraceRecord> with_bad[] = {even, bad};
+  try {
+    e.encode_parts(with_bad, 100, 124, 64, out);
+    FAIL() << "no error";
+  } catch (const InputError& x) {
+    EXPECT_STREQ(x.what(),
+                 ("trace writer: record " + std::to_string(even.size() + 5) + ": reserved info bits set").c_str());
+  }
+  bad = odd;
+  bad.back().invocation = 124 * 64;
+  const std::span<const TraceRecord> outside[] = {even, bad};
+  EXPECT_THROW(e.encode_parts(outside, 100, 124, 64, out), InputError);
+}
+
 TEST(TraceFile, CorruptCompactRecordsGiveOneLineErrorsNamingTheFile) {
   const auto good = tmp("compact_good.hptrace"), bad = tmp("compact_bad.hptrace");
   write_trace(good, sample());
