@@ -17,7 +17,7 @@
 
 layout(std430, set = 0, binding = HP_BIND_TRACE_RECORDS) coherent buffer TraceBuffer {
   TraceBufferHeader trace_head;
-  TraceRecord trace_records[];
+  uvec4 trace_records[];  // TraceRecord's four words, stored as one vector (one lane loop in llvmpipe, not four)
 };
 
 uint hp_trace_invocation = 0u;  // global linear invocation index in the full (unsliced) dispatch
@@ -61,7 +61,7 @@ void hp_rec_n(uint n, uvec4 info, uvec4 offset) {
   uint at = trace_head.record_base + hp_trace_region * capacity + i;
   for (uint k = 0u; k < n; ++k) {
     if (i + k < capacity) {
-      trace_records[at + k] = TraceRecord(hp_trace_invocation, hp_trace_seq + k, info[k], offset[k]);
+      trace_records[at + k] = uvec4(hp_trace_invocation, hp_trace_seq + k, info[k], offset[k]);
     }
   }
   hp_trace_seq += n;
