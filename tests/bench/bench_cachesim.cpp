@@ -33,7 +33,10 @@
 //                    cache, nothing decoded) and replay_over_read, replay_over_file_read (the replay's
 //                    time over each) put the ratios in the same row.
 //   TraceFileWrite/F  the capture's writer: the trace's slices (held in memory) coded and written to a
-//                    file in form F (TraceWriter::write_records).
+//                    file in form F as a capture hands them over (TraceWriter::write_record_parts, each
+//                    slice split where its workgroup order restarts, as the trace buffer's regions lie;
+//                    write_records where the parts are not in run order). in_place: the share of
+//                    slices coded where they lie.
 //   DinFileRead      read(2) of a Dinero text file into a 1 MiB buffer: the memory-speed floor.
 //   DinFileReplay    `cachesim --din FILE`: the file streamed through the parser and a 16k:64:4 L1 +
 //                    4m:64:16 L2 (/0), or read whole into memory first and then replayed (/1: what the
@@ -378,22 +381,30 @@ void TraceFileRead(benchmark::State& state) {
 }
 BENCHMARK(TraceFileRead)->Arg(1)->Arg(2)->Arg(3)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// The capture's writer (TraceWriter::write_records, what `trace` runs on its worker thread for each slice):
-// the trace's slices, held in memory as read from the version-1 file, coded and written to a temporary
-// file in form /1, /2 or /3 (items: lane accesses, per wall second; bytes: the file written).
+// The capture's writer (what `trace` runs on its worker thread for each slice): the trace's slices, held in
+// memory as read from the version-1 file and split into the parts a capture's regions make (a region holds
+// an increasing run of workgroups, so a new part starts where the workgroup order goes back), coded and
+// written to a temporary file in form /1, /2 or /3 (items: lane accesses, per wall second; bytes: the file
+// written).
 void TraceFileWrite(benchmark::State& state) {
   const Files& fs = files();
   struct Slice {
     uint32_t pass;
     std::vector<hp::trace::TraceRecord> records;
     uint64_t first, end;
+    std::vector<size_t> part_begin;  // where each part starts in records
   };
   static const auto held = [&] {
     hp::trace::TraceReader reader(fs.trace_path[1]);
     std::vector<Slice> slices;
     for (uint32_t p = 0; p < reader.passes().size(); ++p) {
+      const uint64_t per_group = reader.passes()[p].dispatch.invocations_per_workgroup();
       reader.read_slices(p, [&](std::span<const hp::trace::TraceRecord> r, uint64_t first, uint64_t end) {
-        slices.push_back({p, {r.begin(), r.end()}, first, end});
+        Slice s{p, {r.begin(), r.end()}, first, end, {0}};
+        for (size_t i = 1; i < r.size(); ++i) {
+          if (r[i].invocation / per_group < r[i - 1].invocation / per_group) s.part_begin.push_back(i);
+        }
+        slices.push_back(std::move(s));
       });
     }
     return std::tuple(reader.header(), reader.passes(), std::move(slices));
@@ -401,14 +412,24 @@ void TraceFileWrite(benchmark::State& state) {
   const auto& [header, passes, slices] = held;
   const std::string out = fs.trace_path[1] + ".written";
   const TraceForm& form = kForms[state.range(0)];
-  uint64_t records = 0;
+  uint64_t records = 0, in_place = 0;
+  std::vector<std::span<const hp::trace::TraceRecord>> parts;
   for (auto _ : state) {
     hp::trace::TraceWriter w(out, header, form.version, form.coding);
-    records = 0;
+    records = in_place = 0;
     uint32_t pass = 0, begun = 0;  // slices come pass by pass
     for (const Slice& s : slices) {
       while (begun <= s.pass) pass = w.begin_pass(passes[begun++]);
-      w.write_records(pass, s.records, s.first, s.end);
+      parts.clear();
+      for (size_t k = 0; k < s.part_begin.size(); ++k) {
+        const size_t end = k + 1 < s.part_begin.size() ? s.part_begin[k + 1] : s.records.size();
+        parts.emplace_back(s.records.data() + s.part_begin[k], end - s.part_begin[k]);
+      }
+      if (w.write_record_parts(pass, parts, s.first, s.end)) {
+        ++in_place;
+      } else {
+        w.write_records(pass, s.records, s.first, s.end);
+      }
       records += s.records.size();
     }
     while (begun < passes.size()) w.begin_pass(passes[begun++]);
@@ -416,6 +437,7 @@ void TraceFileWrite(benchmark::State& state) {
   }
   state.SetItemsProcessed(int64_t(state.iterations() * records));
   state.counters["bytes"] = double(std::filesystem::file_size(out));
+  state.counters["in_place"] = slices.empty() ? 0.0 : double(in_place) / double(slices.size());
   std::filesystem::remove(out);
   state.SetLabel(form.label);
 }
