@@ -220,8 +220,8 @@ void add_trace_command(CLI::App& app) {
                   "workgroups per sampled burst (power of two <= 2048): every k-th burst is recorded")
       ->capture_default_str();
   cmd->add_option("--trace-buffer-mib", a->buffer_mib,
-                  "GPU trace buffer, two halves: the device fills one while the other is written out (0: "
-                  "128 MiB or the device's maxStorageBufferRange if smaller)")
+                  "GPU trace buffer in four parts: the device fills one while the others are written out (0: "
+                  "four parts of 64 MiB, or of the device's maxStorageBufferRange if smaller)")
       ->check(CLI::Range(0u, 4096u))
       ->capture_default_str();
   cmd->add_option("--trace-format", a->format_version,

@@ -7,6 +7,7 @@
 #include "gpu/trace_record.h"
 
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -55,8 +56,9 @@ struct TraceHeader {
 
 // Where a capture sends its trace, pass by pass and slice by slice (a file, the cache simulator, both).
 // Passes begin in order; a pass's slices come in increasing, non-overlapping workgroup order, and each
-// slice's records are only valid during the call. A capture writes a slice on a worker thread while the
-// device runs the next one: calls come one at a time, in that order, but not always from one thread.
+// slice's records are only valid during the call. A capture writes slices on worker threads while the
+// device runs the next ones: the calls come one at a time, in that order, but not always from one thread;
+// only stage_record_parts runs beside other calls (on other slices).
 class TraceSink {
  public:
   virtual ~TraceSink() = default;
@@ -70,6 +72,16 @@ class TraceSink {
   virtual bool write_record_parts(uint32_t /*pass*/, std::span<const std::span<const TraceRecord>> /*parts*/,
                                   uint64_t /*first_workgroup*/, uint64_t /*end_workgroup*/) {
     return false;
+  }
+  // A slice in two steps, for a sink whose work on the records can run beside other slices' on other
+  // threads: stage reads the parts (valid during the call only) and returns what is left to do in slice
+  // order (the file write), which the caller runs after the previous slices' (and before begin_pass of
+  // the next pass). Null (the default): the sink cannot, and the caller uses write_record_parts or
+  // write_records in slice order instead.
+  using Commit = std::function<void()>;
+  virtual Commit stage_record_parts(uint32_t /*pass*/, std::span<const std::span<const TraceRecord>> /*parts*/,
+                                    uint64_t /*first_workgroup*/, uint64_t /*end_workgroup*/) {
+    return nullptr;
   }
 };
 

@@ -73,6 +73,10 @@ struct FrameTiming {
 };
 
 /// What a memory-trace capture records (Frame::render_captured).
+/// Parts of the capture's trace buffer: the device fills one with a slice while the host writes the slices
+/// in the others (coding them on up to three threads at once where the sink allows it).
+inline constexpr uint32_t kTraceBufferParts = 4;
+
 struct CaptureOptions {
   bool shadows = true;        ///< trace the shadow pass (when it is enabled)
   bool reflections = true;    ///< trace the reflection pass (when it is enabled)
@@ -81,8 +85,9 @@ struct CaptureOptions {
   /// sampled trace keeps the sharing between neighbouring workgroups that the caches see (1 = single
   /// workgroups, the plain every-k-th sampling).
   uint32_t sample_block = 1;
-  /// Trace buffer size, a header and two halves: a slice fills one half while the host writes out the
-  /// other. 0 = min(128 MiB, maxStorageBufferRange).
+  /// Trace buffer size: kTraceBufferParts parts, each a header and records and at most
+  /// maxStorageBufferRange; a slice fills one part while the host writes out others. 0 = four parts of
+  /// min(64 MiB, maxStorageBufferRange).
   uint64_t buffer_bytes = 0;
   /// Workgroup units (rows, or groups of a 1D pass) of a pass's first slice. 0 = automatic: the whole pass
   /// where 32 records per traced invocation would fit the buffer, else one unit, a probe whose count sizes
@@ -212,8 +217,8 @@ class Frame {
   std::unique_ptr<CompositePass> composite_pass_;
   vk::TimestampQueries timestamps_;
   vk::ComputeInvocationQueries invocations_;
-  std::vector<FramePass> passes_;  // built last: its entries point at the passes above
-  std::unique_ptr<vk::Buffer> trace_buffer_;
+  std::vector<FramePass> passes_;                           // built last: its entries point at the passes above
+  std::vector<std::unique_ptr<vk::Buffer>> trace_buffers_;  // the capture's trace buffer parts
   uint32_t compact_saved_ = 0;  // the capture's compacted count before a slice (restored on overflow)
   uint32_t frame_index_ = 0;
   uint32_t sample_index_ = 0;

@@ -191,13 +191,21 @@ uint32_t TraceWriter::begin_pass(const PassInfo& pass) {
 void TraceWriter::write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
                                 uint64_t end_workgroup) {
   const std::span<const TraceRecord> one[] = {records};
-  if (version_ == kTraceVersionRaw) {
-    write_record_parts(pass, one, first_workgroup, end_workgroup);
+  write_record_parts(pass, one, first_workgroup, end_workgroup);
+}
+
+void TraceWriter::code_parts(SliceEncoder& encoder, std::vector<TraceRecord>& gathered, uint32_t pass,
+                             std::span<const std::span<const TraceRecord>> parts, uint64_t first_workgroup,
+                             uint64_t end_workgroup, std::vector<uint8_t>& out) const {
+  const uint64_t per_group = per_group_.at(pass);
+  if (parts.size() == 1) {
+    encoder.encode(parts[0], first_workgroup, end_workgroup, per_group, out, coding_);
     return;
   }
-  coded_.clear();
-  encoder_.encode(records, first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_);
-  put_coded(pass, first_workgroup, end_workgroup, records.size());
+  if (encoder.encode_parts(parts, first_workgroup, end_workgroup, per_group, out, coding_)) return;
+  gathered.clear();
+  for (const auto& part : parts) gathered.insert(gathered.end(), part.begin(), part.end());
+  encoder.encode(gathered, first_workgroup, end_workgroup, per_group, out, coding_);
 }
 
 bool TraceWriter::write_record_parts(uint32_t pass, std::span<const std::span<const TraceRecord>> parts,
@@ -213,18 +221,54 @@ bool TraceWriter::write_record_parts(uint32_t pass, std::span<const std::span<co
     return true;
   }
   coded_.clear();
-  if (!encoder_.encode_parts(parts, first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_)) return false;
-  put_coded(pass, first_workgroup, end_workgroup, count);
+  if (parts.size() == 1) {
+    encoder_.encode(parts[0], first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_);
+  } else if (!encoder_.encode_parts(parts, first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_)) {
+    return false;  // the caller puts them together, in place
+  }
+  put_coded(pass, first_workgroup, end_workgroup, count, coded_);
   return true;
 }
 
-// The 'RECV' chunk of the slice coded in coded_.
-void TraceWriter::put_coded(uint32_t pass, uint64_t first_workgroup, uint64_t end_workgroup, uint64_t records) {
-  CodedEntry e{pass, coding_, first_workgroup, end_workgroup, records, coded_.size()};
-  const size_t pad = pad8(coded_.size());
-  put_chunk_header(kTagCoded, sizeof e + coded_.size() + pad);
+TraceSink::Commit TraceWriter::stage_record_parts(uint32_t pass, std::span<const std::span<const TraceRecord>> parts,
+                                                  uint64_t first_workgroup, uint64_t end_workgroup) {
+  if (version_ == kTraceVersionRaw) return nullptr;
+  std::unique_ptr<Staging> staging;
+  {
+    const std::lock_guard lock(staging_mutex_);
+    if (!staging_.empty()) {
+      staging = std::move(staging_.back());
+      staging_.pop_back();
+    }
+  }
+  if (!staging) staging = std::make_unique<Staging>();
+  uint64_t count = 0;
+  for (const auto& part : parts) count += part.size();
+  std::vector<uint8_t> coded;
+  std::exception_ptr error;
+  try {
+    code_parts(staging->encoder, staging->gathered, pass, parts, first_workgroup, end_workgroup, coded);
+  } catch (...) {
+    error = std::current_exception();
+  }
+  {
+    const std::lock_guard lock(staging_mutex_);
+    staging_.push_back(std::move(staging));
+  }
+  if (error) std::rethrow_exception(error);
+  return [this, pass, first_workgroup, end_workgroup, count, coded = std::move(coded)] {
+    put_coded(pass, first_workgroup, end_workgroup, count, coded);
+  };
+}
+
+// The 'RECV' chunk of a coded slice.
+void TraceWriter::put_coded(uint32_t pass, uint64_t first_workgroup, uint64_t end_workgroup, uint64_t records,
+                            std::span<const uint8_t> coded) {
+  CodedEntry e{pass, coding_, first_workgroup, end_workgroup, records, coded.size()};
+  const size_t pad = pad8(coded.size());
+  put_chunk_header(kTagCoded, sizeof e + coded.size() + pad);
   put(&e, sizeof e);
-  put(coded_.data(), coded_.size());
+  put(coded.data(), coded.size());
   const uint64_t zero = 0;
   put(&zero, pad);
   total_records_ += records;

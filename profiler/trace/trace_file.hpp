@@ -30,6 +30,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <span>
 #include <string>
 #include <vector>
@@ -72,6 +74,10 @@ class TraceWriter final : public TraceSink {
   /// file stores them one after the other.
   bool write_record_parts(uint32_t pass, std::span<const std::span<const TraceRecord>> parts, uint64_t first_workgroup,
                           uint64_t end_workgroup) override;
+  /// Codes the slice on the calling thread (beside other slices being coded on other threads), leaving the
+  /// file write to the returned step. Version 1 files are written in order only (null).
+  Commit stage_record_parts(uint32_t pass, std::span<const std::span<const TraceRecord>> parts,
+                            uint64_t first_workgroup, uint64_t end_workgroup) override;
   void finish();
   /// Bytes written to the file so far (headers and records): what the capture has cost on disk.
   uint64_t bytes_written() const { return bytes_written_; }
@@ -79,7 +85,13 @@ class TraceWriter final : public TraceSink {
  private:
   void put(const void* data, size_t bytes);
   void put_chunk_header(uint32_t tag, uint64_t payload_bytes);
-  void put_coded(uint32_t pass, uint64_t first_workgroup, uint64_t end_workgroup, uint64_t records);
+  void put_coded(uint32_t pass, uint64_t first_workgroup, uint64_t end_workgroup, uint64_t records,
+                 std::span<const uint8_t> coded);
+  // Codes the records of `parts` put together into `out` with `encoder` (in place where they are in run
+  // order, else gathered into `gathered` first where there are several parts).
+  void code_parts(SliceEncoder& encoder, std::vector<TraceRecord>& gathered, uint32_t pass,
+                  std::span<const std::span<const TraceRecord>> parts, uint64_t first_workgroup, uint64_t end_workgroup,
+                  std::vector<uint8_t>& out) const;
   AtomicFile out_;
   std::FILE* file_ = nullptr;
   uint32_t passes_ = 0;
@@ -90,6 +102,13 @@ class TraceWriter final : public TraceSink {
   std::vector<uint64_t> per_group_;  // by pass: invocations per workgroup (the coding needs them)
   SliceEncoder encoder_;
   std::vector<uint8_t> coded_;
+  // Encoders for stage_record_parts, one per thread coding at once, kept between slices.
+  struct Staging {
+    SliceEncoder encoder;
+    std::vector<TraceRecord> gathered;
+  };
+  std::mutex staging_mutex_;
+  std::vector<std::unique_ptr<Staging>> staging_;
 };
 
 // A coding-2 slice as stored (TraceReader::read_slices_coded): its bytes, with kRecordReadBytes more

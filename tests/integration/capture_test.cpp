@@ -17,6 +17,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <set>
 #include <thread>
 #include <tuple>
@@ -38,7 +39,7 @@ FrameSettings small(uint32_t w, uint32_t h) {
 
 // A trace buffer (CaptureOptions::buffer_bytes) whose slices hold `records` records each.
 uint64_t slice_buffer(uint64_t records) {
-  return sizeof(gpu::TraceBufferHeader) + 2 * records * sizeof(gpu::TraceRecord);
+  return kTraceBufferParts * (sizeof(gpu::TraceBufferHeader) + records * sizeof(gpu::TraceRecord));
 }
 
 struct Captured {
@@ -198,55 +199,63 @@ TEST(Capture, EveryRegionCountGivesTheSameRecords) {
 }
 
 // The file writer codes a slice's trace buffer regions where they lie when each holds its workgroups in
-// run order (one lavapipe thread runs a workgroup from start to end), reading every record once; the file
-// is the one it writes from the regions moved together.
-TEST(Capture, RegionsCodedWhereTheyLieGiveTheFileOfTheRegionsPutTogether) {
+// run order (one lavapipe thread runs a workgroup from start to end), reading every record once, and codes
+// several slices at once on worker threads (staged, then written in order); the file is the one it writes
+// from the regions moved together, one slice at a time.
+TEST(Capture, RegionsCodedWhereTheyLieOrSideBySideGiveTheFileOfTheRegionsPutTogether) {
   HP_REQUIRE_VULKAN(ctx);
   const Scene scene = load_scene("builtin:pica");
   const FrameSettings s = small(96, 112);
+  enum class Way { staged, in_place, put_together };
   struct Forward final : trace::TraceSink {
     trace::TraceWriter& writer;
-    bool in_place;
-    int coded_in_place = 0;
-    Forward(trace::TraceWriter& w, bool p) : writer(w), in_place(p) {}
+    Way way;
+    std::atomic<int> done_that_way{0};
+    Forward(trace::TraceWriter& w, Way h) : writer(w), way(h) {}
     uint32_t begin_pass(const trace::PassInfo& pass) override { return writer.begin_pass(pass); }
     void write_records(uint32_t pass, std::span<const trace::TraceRecord> r, uint64_t first, uint64_t end) override {
       writer.write_records(pass, r, first, end);
+      done_that_way += way == Way::put_together;
     }
     bool write_record_parts(uint32_t pass, std::span<const std::span<const trace::TraceRecord>> parts, uint64_t first,
                             uint64_t end) override {
-      const bool done = in_place && writer.write_record_parts(pass, parts, first, end);
-      coded_in_place += done;
+      const bool done = way == Way::in_place && writer.write_record_parts(pass, parts, first, end);
+      done_that_way += done;
       return done;
+    }
+    Commit stage_record_parts(uint32_t pass, std::span<const std::span<const trace::TraceRecord>> parts, uint64_t first,
+                              uint64_t end) override {
+      if (way != Way::staged) return nullptr;
+      Commit c = writer.stage_record_parts(pass, parts, first, end);
+      done_that_way += c != nullptr;
+      return c;
     }
   };
   CaptureOptions o;
   o.record_regions = 4;
   o.buffer_bytes = slice_buffer(160000);  // several slices a pass
   std::vector<std::vector<char>> files;
-  for (const bool in_place : {true, false}) {
-    const fs::path file =
-        fs::temp_directory_path() / ("hp_capture_" + std::to_string(::getpid()) + "_in_place.hptrace");
+  for (const Way way : {Way::staged, Way::in_place, Way::put_together}) {
+    const fs::path file = fs::temp_directory_path() / ("hp_capture_" + std::to_string(::getpid()) + "_ways.hptrace");
     Frame frame(*ctx, scene, scene.camera, s);
-    int coded_in_place = 0;
+    int done_that_way = 0;
     {
       trace::TraceWriter writer(file, frame.trace_header(o.tiled_images));
-      Forward sink(writer, in_place);
+      Forward sink(writer, way);
       const std::vector<CapturedPass> passes = frame.render_captured(o, sink);
       ASSERT_EQ(passes.size(), 2u);
       EXPECT_GT(passes[0].slices, 1u);
       writer.finish();
-      coded_in_place = sink.coded_in_place;
-    }
-    if (in_place) {
-      EXPECT_GT(coded_in_place, 0) << "no slice was coded where it lies";
+      done_that_way = sink.done_that_way;
+      EXPECT_EQ(uint32_t(done_that_way), passes[0].slices + passes[1].slices) << "way " << int(way);
     }
     std::ifstream in(file, std::ios::binary);
     files.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
     fs::remove(file);
   }
   EXPECT_GT(files[0].size(), 1000u);
-  EXPECT_TRUE(files[0] == files[1]);
+  EXPECT_TRUE(files[0] == files[2]) << "staged";
+  EXPECT_TRUE(files[1] == files[2]) << "coded where they lie";
 }
 
 // Audit find (2026-11-30): a capture ran every enabled pass and the composite even when only one pass was
@@ -481,6 +490,94 @@ TEST(Capture, SlicesAreWrittenInOrderBesideTheNextSliceAndTheirErrorsSurface) {
     EXPECT_STREQ(e.what(), "sink: disk full");
   }
   EXPECT_EQ(failing.slices.size(), 2u) << "no slice is written after the one that failed";
+}
+
+// A sink that stages slices (the trace file's coding) works on several at once, on up to three workers:
+// the stagings overlap, the commits still come one at a time in slice order, each slice's progress call
+// right after its commit, and an error in a staging or a commit comes out of render_captured with no later
+// slice committed.
+struct StagedLog final : trace::TraceSink {
+  std::mutex m;
+  std::vector<std::pair<uint64_t, uint64_t>> staged, committed;
+  uint64_t records = 0;
+  std::atomic<int> staging{0}, committing{0};
+  int most_staging = 0;
+  bool overlapped_commits = false;
+  size_t fail_stage_at = 0, fail_commit_at = 0;  // 1-based staged / committed slice that throws; 0: none
+  uint32_t begin_pass(const trace::PassInfo&) override { return 0; }
+  void write_records(uint32_t, std::span<const gpu::TraceRecord>, uint64_t, uint64_t) override {
+    ADD_FAILURE() << "a staging sink is not written in one step";
+  }
+  Commit stage_record_parts(uint32_t, std::span<const std::span<const gpu::TraceRecord>> parts, uint64_t first,
+                            uint64_t end) override {
+    const int now = staging.fetch_add(1) + 1;
+    uint64_t n = 0;
+    for (const auto& p : parts) n += p.size();
+    size_t index;
+    {
+      const std::lock_guard lock(m);
+      most_staging = std::max(most_staging, now);
+      staged.emplace_back(first, end);
+      index = staged.size();
+    }
+    // Slow coding, slower for every other slice: the next ones stage meanwhile and finish first.
+    std::this_thread::sleep_for(std::chrono::milliseconds(index % 2 ? 25 : 2));
+    staging.fetch_sub(1);
+    if (fail_stage_at && index == fail_stage_at) throw InputError("sink: coding failed");
+    return [this, first, end, n] {
+      overlapped_commits |= committing.fetch_add(1) != 0;
+      committed.emplace_back(first, end);
+      records += n;
+      committing.fetch_sub(1);
+      if (fail_commit_at && committed.size() == fail_commit_at) throw InputError("sink: disk full");
+    };
+  }
+};
+
+TEST(Capture, StagedSlicesAreCodedSideBySideAndCommittedInOrder) {
+  HP_REQUIRE_VULKAN(ctx);
+  const Scene scene = load_scene("builtin:pica");
+  FrameSettings s = small(96, 112);
+  s.rt.reflections = false;
+  Frame frame(*ctx, scene, scene.camera, s);
+  CaptureOptions o;
+  o.final_image = false;
+  o.buffer_bytes = slice_buffer(60000);  // a slice a row or two
+  StagedLog log;
+  std::vector<uint64_t> progress;  // records at each progress call
+  o.on_slice = [&](const std::string&, uint64_t records, uint64_t, uint64_t) {
+    EXPECT_EQ(records, log.records) << "a slice's progress call follows its commit";
+    progress.push_back(records);
+  };
+  const std::vector<CapturedPass> passes = frame.render_captured(o, log);
+  ASSERT_EQ(passes.size(), 1u);
+  ASSERT_GE(log.committed.size(), 4u);
+  EXPECT_FALSE(log.overlapped_commits);
+  for (size_t i = 1; i < log.committed.size(); ++i) EXPECT_EQ(log.committed[i].first, log.committed[i - 1].second);
+  EXPECT_EQ(log.committed.back().second, passes[0].workgroups);
+  EXPECT_EQ(log.records, passes[0].records);
+  EXPECT_EQ(progress.size(), log.committed.size());
+  if (std::thread::hardware_concurrency() >= 2) {
+    EXPECT_GE(log.most_staging, 2) << "no two slices were coded at once";
+  }
+
+  for (const bool in_commit : {false, true}) {
+    StagedLog failing;
+    (in_commit ? failing.fail_commit_at : failing.fail_stage_at) = 2;
+    o.on_slice = nullptr;
+    try {
+      frame.render_captured(o, failing);
+      FAIL() << "expected the sink's error";
+    } catch (const InputError& e) {
+      EXPECT_STREQ(e.what(), in_commit ? "sink: disk full" : "sink: coding failed");
+    }
+    // The failed slice is the second; the first may or may not have been committed before the error.
+    if (in_commit) {
+      EXPECT_EQ(failing.committed.size(), 2u) << "a slice was committed after the one that failed";
+    } else {
+      EXPECT_LE(failing.committed.size(), 1u) << "a slice was committed after the one that failed";
+    }
+  }
 }
 
 TEST(Capture, OneRowThatCannotFitIsAClearError) {

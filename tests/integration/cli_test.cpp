@@ -275,7 +275,7 @@ TEST(Cli, TraceRefusesWhatTheDiskCannotHold) {
   }
   const std::string on_small_disk = "unshare -m sh -c '" + mount + " && exec \"$0\" \"$@\"'";
   const std::string args =
-      "trace --scene builtin:pica --width 640 --height 360 --passes shadows --trace-buffer-mib 8 "
+      "trace --scene builtin:pica --width 640 --height 360 --passes shadows --trace-buffer-mib 16 "
       "--out " +
       (d / "t.hptrace").string();
   CmdResult r = run(args + " --quiet", on_small_disk);
