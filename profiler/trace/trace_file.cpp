@@ -198,11 +198,11 @@ void TraceWriter::code_parts(SliceEncoder& encoder, std::vector<TraceRecord>& ga
                              std::span<const std::span<const TraceRecord>> parts, uint64_t first_workgroup,
                              uint64_t end_workgroup, std::vector<uint8_t>& out) const {
   const uint64_t per_group = per_group_.at(pass);
+  if (encoder.encode_parts(parts, first_workgroup, end_workgroup, per_group, out, coding_)) return;
   if (parts.size() == 1) {
     encoder.encode(parts[0], first_workgroup, end_workgroup, per_group, out, coding_);
     return;
   }
-  if (encoder.encode_parts(parts, first_workgroup, end_workgroup, per_group, out, coding_)) return;
   gathered.clear();
   for (const auto& part : parts) gathered.insert(gathered.end(), part.begin(), part.end());
   encoder.encode(gathered, first_workgroup, end_workgroup, per_group, out, coding_);
@@ -221,10 +221,9 @@ bool TraceWriter::write_record_parts(uint32_t pass, std::span<const std::span<co
     return true;
   }
   coded_.clear();
-  if (parts.size() == 1) {
+  if (!encoder_.encode_parts(parts, first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_)) {
+    if (parts.size() != 1) return false;  // the caller puts them together, in place
     encoder_.encode(parts[0], first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_);
-  } else if (!encoder_.encode_parts(parts, first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_)) {
-    return false;  // the caller puts them together, in place
   }
   put_coded(pass, first_workgroup, end_workgroup, count, coded_);
   return true;
