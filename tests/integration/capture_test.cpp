@@ -456,15 +456,27 @@ struct SliceLog final : trace::TraceSink {
   }
 };
 
+// pica's shadow pass alone at 96x112, in slices of a row or two (14 rows).
+struct ShadowSlices {
+  Scene scene = load_scene("builtin:pica");
+  FrameSettings settings = [] {
+    FrameSettings s = small(96, 112);
+    s.rt.reflections = false;
+    return s;
+  }();
+  Frame frame;
+  CaptureOptions o;
+  explicit ShadowSlices(vk::Context& ctx) : frame(ctx, scene, scene.camera, settings) {
+    o.final_image = false;
+    o.buffer_bytes = slice_buffer(60000);
+  }
+};
+
 TEST(Capture, SlicesAreWrittenInOrderBesideTheNextSliceAndTheirErrorsSurface) {
   HP_REQUIRE_VULKAN(ctx);
-  const Scene scene = load_scene("builtin:pica");
-  FrameSettings s = small(96, 112);
-  s.rt.reflections = false;
-  Frame frame(*ctx, scene, scene.camera, s);
-  CaptureOptions o;
-  o.final_image = false;
-  o.buffer_bytes = slice_buffer(60000);  // several slices
+  ShadowSlices sliced(*ctx);
+  Frame& frame = sliced.frame;
+  CaptureOptions& o = sliced.o;
   SliceLog log;
   std::vector<std::pair<uint64_t, uint64_t>> progress;  // (records, rows done) at each progress call
   o.on_slice = [&](const std::string&, uint64_t records, uint64_t done, uint64_t) {
@@ -536,13 +548,9 @@ struct StagedLog final : trace::TraceSink {
 
 TEST(Capture, StagedSlicesAreCodedSideBySideAndCommittedInOrder) {
   HP_REQUIRE_VULKAN(ctx);
-  const Scene scene = load_scene("builtin:pica");
-  FrameSettings s = small(96, 112);
-  s.rt.reflections = false;
-  Frame frame(*ctx, scene, scene.camera, s);
-  CaptureOptions o;
-  o.final_image = false;
-  o.buffer_bytes = slice_buffer(60000);  // a slice a row or two
+  ShadowSlices sliced(*ctx);
+  Frame& frame = sliced.frame;
+  CaptureOptions& o = sliced.o;
   StagedLog log;
   std::vector<uint64_t> progress;  // records at each progress call
   o.on_slice = [&](const std::string&, uint64_t records, uint64_t, uint64_t) {
