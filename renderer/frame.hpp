@@ -101,8 +101,9 @@ struct CaptureOptions {
   /// Also run the enabled passes that are not traced, then accumulate and composite, so that the frame's
   /// image is whole (`trace --image`). Off: only the G-buffer and the traced passes run.
   bool final_image = true;
-  /// Called after each slice with the pass (step) name, the records so far in it, and its workgroup units
-  /// (rows, or groups of a 1D pass) done and in all: progress for a command.
+  /// Called after each slice is written, with the pass (step) name, the records so far in it, and its
+  /// workgroup units (rows, or groups of a 1D pass) done and in all: progress for a command. Calls come in
+  /// slice order, one at a time, from the capture's writer threads; one that throws stops the capture.
   std::function<void(const std::string& pass, uint64_t records, uint64_t done, uint64_t total)> on_slice;
 };
 

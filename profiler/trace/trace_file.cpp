@@ -194,18 +194,20 @@ void TraceWriter::write_records(uint32_t pass, std::span<const TraceRecord> reco
   write_record_parts(pass, one, first_workgroup, end_workgroup);
 }
 
-void TraceWriter::code_parts(SliceEncoder& encoder, std::vector<TraceRecord>& gathered, uint32_t pass,
+bool TraceWriter::code_parts(SliceEncoder& encoder, std::vector<TraceRecord>* gathered, uint32_t pass,
                              std::span<const std::span<const TraceRecord>> parts, uint64_t first_workgroup,
                              uint64_t end_workgroup, std::vector<uint8_t>& out) const {
   const uint64_t per_group = per_group_.at(pass);
-  if (encoder.encode_parts(parts, first_workgroup, end_workgroup, per_group, out, coding_)) return;
+  if (encoder.encode_parts(parts, first_workgroup, end_workgroup, per_group, out, coding_)) return true;
   if (parts.size() == 1) {
     encoder.encode(parts[0], first_workgroup, end_workgroup, per_group, out, coding_);
-    return;
+    return true;
   }
-  gathered.clear();
-  for (const auto& part : parts) gathered.insert(gathered.end(), part.begin(), part.end());
-  encoder.encode(gathered, first_workgroup, end_workgroup, per_group, out, coding_);
+  if (!gathered) return false;
+  gathered->clear();
+  for (const auto& part : parts) gathered->insert(gathered->end(), part.begin(), part.end());
+  encoder.encode(*gathered, first_workgroup, end_workgroup, per_group, out, coding_);
+  return true;
 }
 
 bool TraceWriter::write_record_parts(uint32_t pass, std::span<const std::span<const TraceRecord>> parts,
@@ -221,9 +223,8 @@ bool TraceWriter::write_record_parts(uint32_t pass, std::span<const std::span<co
     return true;
   }
   coded_.clear();
-  if (!encoder_.encode_parts(parts, first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_)) {
-    if (parts.size() != 1) return false;  // the caller puts them together, in place
-    encoder_.encode(parts[0], first_workgroup, end_workgroup, per_group_.at(pass), coded_, coding_);
+  if (!code_parts(encoder_, nullptr, pass, parts, first_workgroup, end_workgroup, coded_)) {
+    return false;  // the caller puts them together, in place
   }
   put_coded(pass, first_workgroup, end_workgroup, count, coded_);
   return true;
@@ -246,7 +247,7 @@ TraceSink::Commit TraceWriter::stage_record_parts(uint32_t pass, std::span<const
   std::vector<uint8_t> coded;
   std::exception_ptr error;
   try {
-    code_parts(staging->encoder, staging->gathered, pass, parts, first_workgroup, end_workgroup, coded);
+    code_parts(staging->encoder, &staging->gathered, pass, parts, first_workgroup, end_workgroup, coded);
   } catch (...) {
     error = std::current_exception();
   }

@@ -70,8 +70,9 @@ class TraceWriter final : public TraceSink {
   uint32_t begin_pass(const PassInfo& pass) override;
   void write_records(uint32_t pass, std::span<const TraceRecord> records, uint64_t first_workgroup,
                      uint64_t end_workgroup) override;
-  /// Codes the parts where they lie when they are in run order (SliceEncoder::encode_parts); a raw (version 1)
-  /// file stores them one after the other.
+  /// Codes the parts where they lie when they are in run order (SliceEncoder::encode_parts), a single part
+  /// in any order; a raw (version 1) file stores them one after the other. False for several parts not in
+  /// run order.
   bool write_record_parts(uint32_t pass, std::span<const std::span<const TraceRecord>> parts, uint64_t first_workgroup,
                           uint64_t end_workgroup) override;
   /// Codes the slice on the calling thread (beside other slices being coded on other threads), leaving the
@@ -87,9 +88,10 @@ class TraceWriter final : public TraceSink {
   void put_chunk_header(uint32_t tag, uint64_t payload_bytes);
   void put_coded(uint32_t pass, uint64_t first_workgroup, uint64_t end_workgroup, uint64_t records,
                  std::span<const uint8_t> coded);
-  // Codes the records of `parts` put together into `out` with `encoder` (in place where they are in run
-  // order, else gathered into `gathered` first where there are several parts).
-  void code_parts(SliceEncoder& encoder, std::vector<TraceRecord>& gathered, uint32_t pass,
+  // Codes the records of `parts` put together into `out` with `encoder`: where they lie if they are in run
+  // order, else (several parts) gathered into `gathered` first; false, nothing coded, where that is needed
+  // and `gathered` is null.
+  bool code_parts(SliceEncoder& encoder, std::vector<TraceRecord>* gathered, uint32_t pass,
                   std::span<const std::span<const TraceRecord>> parts, uint64_t first_workgroup, uint64_t end_workgroup,
                   std::vector<uint8_t>& out) const;
   AtomicFile out_;
