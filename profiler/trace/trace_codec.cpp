@@ -25,10 +25,6 @@ void put_varint(uint8_t*& p, uint64_t v) {
 
 uint32_t zigzag(int64_t d) { return uint32_t((uint64_t(d) << 1) ^ uint64_t(d >> 63)); }
 
-}  // namespace
-
-namespace {
-
 // What a workgroup's records are coded against (the coding's "previous record").
 struct CodeState {
   uint32_t prev_info = 0, prev_offset = 0;
@@ -72,7 +68,7 @@ struct CodeState {
 }  // namespace
 
 // Codes workgroup g (relative to the slice), whose `n` records are the runs `segs` in record order (their
-// seqs at most max_seq; the invocations of lanes lane_base ..), at room_ + at; returns where it ends.
+// seqs at most max_seq; the invocations of lanes lane_base ..), at room + at; returns where it ends.
 size_t SliceEncoder::code_group(size_t at, uint64_t g, std::span<const Segment> segs, uint64_t n, uint32_t max_seq,
                                 uint64_t lane_base, uint64_t per_group, uint32_t coding) {
   // A workgroup in several runs is gathered first, so that one index names each of its records.
