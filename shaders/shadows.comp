@@ -30,10 +30,13 @@ void main() {
   float lit = 1.0;
   RayDump dump;
   dump.origin_tmin = vec4(0.0); dump.dir_tmax = vec4(0.0); dump.hit = ivec4(-1, 0, 0, 0);
-  HP_REC_LOAD(HP_TBUF_GBUF_DEPTH, pix * 4u, 4u);
   float depth = texelFetch(g_depth, p, 0).r;
-  if (!hp_is_background(depth)) {
-    HP_REC_LOAD(HP_TBUF_GBUF_NORMAL, pix * 8u, 8u);
+  // The depth, and the normal where the pixel is not background: one reservation for both.
+  if (hp_is_background(depth)) {
+    HP_REC_LOAD(HP_TBUF_GBUF_DEPTH, pix * 4u, 4u);
+  } else {
+    HP_REC_LOADS(2u, uvec4(HP_TBUF_GBUF_DEPTH, HP_TBUF_GBUF_NORMAL, 0u, 0u), uvec4(pix * 4u, pix * 8u, 0u, 0u),
+                 uvec4(4u, 8u, 0u, 0u));
     vec3 n = normalize(texelFetch(g_normal_roughness, p, 0).xyz);
     vec3 pos = hp_world_position(p, depth);
     vec3 l = frame.light_dir.xyz;

@@ -63,8 +63,8 @@ bool hp_reflection_ray(ivec2 q, uint cell, out vec3 o, out vec3 d) {
   int s = int(rt.grid.z);
   ivec2 p = min(q * s + s / 2, ivec2(frame.extent.xy) - 1);
   uint pix = uint(p.y) * frame.extent.x + uint(p.x);
-  HP_REC_LOAD(HP_TBUF_GBUF_DEPTH, pix * 4u, 4u);
-  HP_REC_LOAD(HP_TBUF_GBUF_NORMAL, pix * 8u, 8u);
+  HP_REC_LOADS(2u, uvec4(HP_TBUF_GBUF_DEPTH, HP_TBUF_GBUF_NORMAL, 0u, 0u), uvec4(pix * 4u, pix * 8u, 0u, 0u),
+               uvec4(4u, 8u, 0u, 0u));
   float depth = texelFetch(g_depth, p, 0).r;
   vec4 nr = texelFetch(g_normal_roughness, p, 0);
   if (hp_is_background(depth) || !(nr.a < rt.reflection.x)) return false;
