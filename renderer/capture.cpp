@@ -303,7 +303,6 @@ struct Slicer {
       head->regions = regions;
       head->region_capacity = region_capacity;
       head->pass_id = pass_index;
-      head->record_base = 0;
       for (uint32_t r = 0; r < regions; ++r) head->region[r].count = 0;
       bind(part);
       ctx.submit_and_wait([&](VkCommandBuffer cmd) { step.record_slice(cmd, unit, n, sampling); });

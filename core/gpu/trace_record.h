@@ -23,9 +23,9 @@
 //               table declares how texels are laid out in memory (linear rows or tiles) and the
 //               replay maps the logical offset to an address, so shaders need not know the layout.
 //
-// Recording: a slice's records go to the `regions` equal regions of `region_capacity` records that start
-// at record `record_base` after the header (the host alternates two such halves of the buffer, writing one
-// out while the device fills the other), each region with its own counter on its own 64-byte line. A
+// Recording: a slice's records go to the `regions` equal regions of `region_capacity` records that follow
+// the header (the host has several such buffers, writing some out while the device fills another), each
+// region with its own counter on its own 64-byte line. A
 // workgroup appends to the region of its block of the dispatch (contiguous blocks of workgroup indices,
 // one per region) with atomicAdd on that region's count: lavapipe runs each contiguous block of a dispatch
 // on one thread, so with a region per thread no two threads add to the same counter (on one shared
@@ -77,13 +77,12 @@ struct TraceRegionCount {
 HP_CHECK_SIZE(TraceRegionCount, 64);
 
 // Head of the trace storage buffer; the records follow it (std430: a 1088-byte header, then the array;
-// region r holds records record_base + [r * region_capacity, (r + 1) * region_capacity)).
+// region r holds records [r * region_capacity, (r + 1) * region_capacity)).
 struct TraceBufferHeader {
   uint regions;          // 1..HP_TRACE_MAX_REGIONS
   uint region_capacity;  // records each region holds
   uint pass_id;
-  uint record_base;      // the slice's first record slot
-  uint reserved[12];
+  uint reserved[13];
   TraceRegionCount region[HP_TRACE_MAX_REGIONS];
 };
 HP_CHECK_SIZE(TraceBufferHeader, 64 + 64 * 16);

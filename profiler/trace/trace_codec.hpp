@@ -60,7 +60,7 @@ struct SliceEncoder {
     const TraceRecord* first;
     uint32_t count;
   };
-  static constexpr size_t kMaxParts = 16;
+  static constexpr size_t kMaxParts = HP_TRACE_MAX_REGIONS;  // a capture's regions
   std::vector<Run> runs;
   std::vector<Segment> segments;
   std::vector<TraceRecord> gathered;

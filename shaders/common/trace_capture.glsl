@@ -58,7 +58,7 @@ void hp_rec_n(uint n, uvec4 info, uvec4 offset) {
   // Past the region's capacity a record is dropped here but counted, so the host sees the overflow and
   // re-runs the slice smaller: nothing is lost silently.
   uint capacity = trace_head.region_capacity;
-  uint at = trace_head.record_base + hp_trace_region * capacity + i;
+  uint at = hp_trace_region * capacity + i;
   for (uint k = 0u; k < n; ++k) {
     if (i + k < capacity) {
       trace_records[at + k] = uvec4(hp_trace_invocation, hp_trace_seq + k, info[k], offset[k]);
