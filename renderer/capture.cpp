@@ -22,6 +22,11 @@
 
 namespace hp {
 
+unsigned capture_writer_threads(unsigned cores, unsigned device_threads) {
+  const unsigned free_cores = cores > device_threads ? cores - device_threads : 0;
+  return std::clamp(free_cores, 1u, kTraceBufferParts - 1);
+}
+
 namespace {
 
 bool selected(const TracedVariant& t, const CaptureOptions& o) {
@@ -78,6 +83,16 @@ uint32_t checked_regions(const CaptureOptions& o, const RtScene* scene) {
   return 1u << std::min<uint32_t>(scene ? scene->spread_levels() : 0, most_levels);
 }
 
+// The slice writers' threads: CaptureOptions::writer_threads, else capture_writer_threads.
+unsigned checked_writer_threads(const CaptureOptions& o, const vk::Context& ctx) {
+  if (o.writer_threads > kTraceBufferParts - 1) {
+    throw InputError("trace: " + std::to_string(o.writer_threads) + " writer threads is over the limit of " +
+                     std::to_string(kTraceBufferParts - 1));
+  }
+  if (o.writer_threads) return o.writer_threads;
+  return capture_writer_threads(std::thread::hardware_concurrency(), device_cpu_threads(ctx));
+}
+
 // Writes captured slices on worker threads, straight from their parts of the trace buffer, while the device
 // runs the next slice into a free part. A sink that can stage a slice (TraceSink::stage_record_parts: the
 // trace file's coding) works on several slices at once, one per worker, and each part is free again once
@@ -88,11 +103,9 @@ uint32_t checked_regions(const CaptureOptions& o, const RtScene* scene) {
 class SliceWriter {
  public:
   SliceWriter(trace::TraceSink& sink, const std::array<gpu::TraceRecord*, kTraceBufferParts>& records,
-              uint32_t region_capacity)
+              uint32_t region_capacity, unsigned workers)
       : sink_(sink), records_(records), region_capacity_(region_capacity) {
     for (uint32_t p = 0; p < kTraceBufferParts; ++p) free_.push_back(p);
-    const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-    const unsigned workers = std::min<unsigned>(kTraceBufferParts - 1, cores);
     for (unsigned w = 0; w < workers; ++w) workers_.emplace_back([this] { work(); });
   }
   SliceWriter(const SliceWriter&) = delete;
@@ -242,6 +255,7 @@ struct Slicer {
   uint32_t regions;
   uint32_t region_capacity;  // records per region
   uint32_t sampling;
+  unsigned writers;  // threads that write the slices
   const CaptureOptions& options;
 
   // Captures one dispatch in slices: of workgroup rows for a 2D pass, of groups for a 1D one (the consume
@@ -287,7 +301,7 @@ struct Slicer {
     };
     // Slices are written while the next ones run; a slice's progress call (which may stop the capture, e.g.
     // for disk space: the next acquire() rethrows) follows its write.
-    SliceWriter writer(sink, recs, region_capacity);
+    SliceWriter writer(sink, recs, region_capacity, writers);
     // The first slice: the whole pass where it is expected to fit (at 1920x1080 pica's passes make 23-38
     // records per invocation), else the probe.
     const uint64_t traced_invocations = cp.sampled_workgroups * uint64_t(step.group_size.x) * step.group_size.y;
@@ -368,6 +382,7 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
   }
   const uint32_t sampling = checked_sampling(o);
   const uint32_t regions = checked_regions(o, rt_scene_.get());
+  const unsigned writers = checked_writer_threads(o, ctx_);
   const uint64_t part_bytes = checked_part_bytes(o, ctx_, regions);
   const uint64_t capacity = (part_bytes - sizeof(gpu::TraceBufferHeader)) / sizeof(gpu::TraceRecord);  // a slice's
   if (trace_buffers_.size() != kTraceBufferParts || trace_buffers_[0]->size() != part_bytes) {
@@ -390,7 +405,7 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
     }
   };
   bind(0);
-  const Slicer slicer{ctx_, sink, heads, bind, regions, uint32_t(capacity / regions), sampling, o};
+  const Slicer slicer{ctx_, sink, heads, bind, regions, uint32_t(capacity / regions), sampling, writers, o};
 
   upload_uniforms();
   rt_->begin_frame(sample_index_);

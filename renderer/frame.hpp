@@ -77,6 +77,12 @@ struct FrameTiming {
 /// in the others (coding them on up to three threads at once where the sink allows it).
 inline constexpr uint32_t kTraceBufferParts = 4;
 
+/// The threads that write a capture's slices, given the host's cores and the device's CPU threads
+/// (device_cpu_threads: 0 on a GPU): one per part the device is not filling, and no more than the cores the
+/// device leaves free, but at least one. On lavapipe the device computes on the same cores, and a writer
+/// that preempts one of its threads holds up the whole dispatch (docs/memory-traces.md).
+unsigned capture_writer_threads(unsigned cores, unsigned device_threads);
+
 struct CaptureOptions {
   bool shadows = true;        ///< trace the shadow pass (when it is enabled)
   bool reflections = true;    ///< trace the reflection pass (when it is enabled)
@@ -97,6 +103,9 @@ struct CaptureOptions {
   /// HP_TRACE_MAX_REGIONS. 0 = one per block of the passes' dispatch order (RtScene::spread_levels): one per
   /// lavapipe thread, so that no two threads add to one counter; one on a GPU. The records are the same.
   uint32_t record_regions = 0;
+  /// Threads that write the slices, 1 .. kTraceBufferParts - 1. 0 = capture_writer_threads of the host's
+  /// cores and the device's CPU threads.
+  uint32_t writer_threads = 0;
   bool tiled_images = true;  ///< G-buffer and outputs laid out in 8x8-texel tiles (else linear rows)
   /// Also run the enabled passes that are not traced, then accumulate and composite, so that the frame's
   /// image is whole (`trace --image`). Off: only the G-buffer and the traced passes run.

@@ -42,7 +42,7 @@ std::vector<T> quads(const std::vector<T>& triples) {
 
 }  // namespace
 
-uint32_t dispatch_spread_levels(const vk::Context& ctx) {
+unsigned device_cpu_threads(const vk::Context& ctx) {
   if (ctx.properties().deviceType != VK_PHYSICAL_DEVICE_TYPE_CPU) return 0;
   unsigned threads = std::max(1u, std::thread::hardware_concurrency());
   if (const char* env = std::getenv("LP_NUM_THREADS"); env != nullptr && *env != '\0') {
@@ -50,6 +50,12 @@ uint32_t dispatch_spread_levels(const vk::Context& ctx) {
     const unsigned long n = std::strtoul(env, &end, 10);
     if (*end == '\0') threads = static_cast<unsigned>(std::min(n, 1024ul));
   }
+  return threads;
+}
+
+uint32_t dispatch_spread_levels(const vk::Context& ctx) {
+  const unsigned threads = device_cpu_threads(ctx);
+  if (threads == 0) return 0;
   uint32_t levels = 0;
   while ((1u << levels) < threads) ++levels;
   return levels;

@@ -100,6 +100,10 @@ class RtScene {
       slot_material_texels_, material_texels_;
 };
 
+/// How many CPU threads `ctx`'s device computes on: 0 on a GPU; on a CPU device (lavapipe) LP_NUM_THREADS
+/// where set, else one per online CPU.
+unsigned device_cpu_threads(const vk::Context& ctx);
+
 /// How many levels of hp_spread (shaders/common/dispatch_order.glsl) the traced passes of `ctx`'s device use:
 /// on a CPU device, which splits a dispatch into one contiguous block of workgroups per thread (lavapipe:
 /// LP_NUM_THREADS where set, else one thread per online CPU), ceil(log2(threads)), so that every block
