@@ -281,10 +281,11 @@ struct Slicer {
     for (uint32_t p = 0; p < kTraceBufferParts; ++p) recs[p] = reinterpret_cast<gpu::TraceRecord*>(heads[p] + 1);
     const uint32_t units = step.one_d ? wg.x : wg.y;
     const uint64_t groups_per_unit = step.one_d ? 1 : wg.x;
-    // The next slice's size, aimed at a quarter of a part: rows differ tenfold (sky rows make few records), so
-    // the density assumed is the largest seen in the pass so far, and a slice grows at most twofold. Smaller
-    // slices keep the device and the writers busy together (1080p pica, 64 MiB parts: a quarter about 15%
-    // faster than a half for the reflection pass, an eighth no faster). Where the
+    // The next slice's size, aimed at a 32nd of a part: rows differ tenfold (sky rows make few records), so
+    // the density assumed is the largest seen in the pass so far, and a slice grows at most twofold. Small
+    // slices keep the device and the writer busy together: at 1080p on lavapipe with one writer a slice is
+    // then a row or two of pica (a dense row makes about 1 M records), and the captures took 3-12% less time
+    // than with slices aimed at a quarter of a part, and less than with a 64th (docs/memory-traces.md). Where the
     // pass is not expected to fit, the first slice is a probe (CaptureOptions::first_slice_units): trying
     // the whole pass first ran the whole instrumented pass once for nothing (a slice that overflows still
     // counts every record it made, so its re-run is sized from that count). Measured on pica's 1920x1080
@@ -294,7 +295,7 @@ struct Slicer {
     const uint64_t capacity = uint64_t(regions) * region_capacity;
     double peak_density = 0;  // records per unit, the most seen in a slice of this pass
     const auto sized = [&](uint32_t n, uint64_t count) {
-      const double aim = double(capacity) / 4;
+      const double aim = double(capacity) / 32;
       peak_density = std::max(peak_density, double(count) / n);
       const double m = peak_density <= 0 ? 2.0 * n : std::min(aim / peak_density, 2.0 * n);
       return uint32_t(std::clamp<double>(std::floor(m), 1, units));

@@ -222,7 +222,9 @@ TEST(Capture, EveryRegionCountGivesTheSameRecords) {
 // The file writer codes a slice's trace buffer regions where they lie when each holds its workgroups in
 // run order (one lavapipe thread runs a workgroup from start to end), reading every record once, and codes
 // several slices at once on worker threads (staged, then written in order); the file is the one it writes
-// from the regions moved together, one slice at a time.
+// from the regions moved together, one slice at a time. A slice whose regions are not in run order (the
+// spread order over an odd number of rows can put a later row's workgroups first in a region) is moved
+// together and written as one span instead.
 TEST(Capture, RegionsCodedWhereTheyLieOrSideBySideGiveTheFileOfTheRegionsPutTogether) {
   HP_REQUIRE_VULKAN(ctx);
   const Scene scene = load_scene("builtin:pica");
@@ -232,11 +234,13 @@ TEST(Capture, RegionsCodedWhereTheyLieOrSideBySideGiveTheFileOfTheRegionsPutToge
     trace::TraceWriter& writer;
     Way way;
     std::atomic<int> done_that_way{0};
+    std::atomic<int> put_together{0};  // slices written as one span
     Forward(trace::TraceWriter& w, Way h) : writer(w), way(h) {}
     uint32_t begin_pass(const trace::PassInfo& pass) override { return writer.begin_pass(pass); }
     void write_records(uint32_t pass, std::span<const trace::TraceRecord> r, uint64_t first, uint64_t end) override {
       writer.write_records(pass, r, first, end);
       done_that_way += way == Way::put_together;
+      ++put_together;
     }
     bool write_record_parts(uint32_t pass, std::span<const std::span<const trace::TraceRecord>> parts, uint64_t first,
                             uint64_t end) override {
@@ -259,7 +263,6 @@ TEST(Capture, RegionsCodedWhereTheyLieOrSideBySideGiveTheFileOfTheRegionsPutToge
   for (const Way way : {Way::staged, Way::in_place, Way::put_together}) {
     const fs::path file = fs::temp_directory_path() / ("hp_capture_" + std::to_string(::getpid()) + "_ways.hptrace");
     Frame frame(*ctx, scene, scene.camera, s);
-    int done_that_way = 0;
     {
       trace::TraceWriter writer(file, frame.trace_header(o.tiled_images));
       Forward sink(writer, way);
@@ -267,8 +270,14 @@ TEST(Capture, RegionsCodedWhereTheyLieOrSideBySideGiveTheFileOfTheRegionsPutToge
       ASSERT_EQ(passes.size(), 2u);
       EXPECT_GT(passes[0].slices, 1u);
       writer.finish();
-      done_that_way = sink.done_that_way;
-      EXPECT_EQ(uint32_t(done_that_way), passes[0].slices + passes[1].slices) << "way " << int(way);
+      const uint32_t slices = passes[0].slices + passes[1].slices;
+      if (way == Way::in_place) {
+        // Most slices' regions are in run order; the others were moved together.
+        EXPECT_GT(uint32_t(sink.done_that_way), slices / 2);
+        EXPECT_EQ(uint32_t(sink.done_that_way + sink.put_together), slices);
+      } else {
+        EXPECT_EQ(uint32_t(sink.done_that_way), slices) << "way " << int(way);
+      }
     }
     std::ifstream in(file, std::ios::binary);
     files.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
