@@ -74,7 +74,8 @@ struct FrameTiming {
 
 /// What a memory-trace capture records (Frame::render_captured).
 /// Parts of the capture's trace buffer: the device fills one with a slice while the host writes the slices
-/// in the others (coding them on up to three threads at once where the sink allows it).
+/// in the others (coding them on up to three threads at once where the sink allows it and the device leaves
+/// the cores free).
 inline constexpr uint32_t kTraceBufferParts = 4;
 
 /// The threads that write a capture's slices, given the host's cores and the device's CPU threads
