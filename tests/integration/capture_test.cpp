@@ -117,9 +117,6 @@ TEST(Capture, TracedImageEqualsUntracedAndRecordsAreComplete) {
   fs::remove(tiny.file);
 }
 
-// A slice that overflows the buffer still counts every record it made, so the rerun is sized from that
-// count: one overflow of the whole pass, not a halving series that runs the pass's work about twice more.
-// By default a probe comes first instead, and nothing overflows but where the density jumps.
 TEST(Capture, WritersTakeOnlyTheCoresTheDeviceLeavesFree) {
   // lavapipe computes on the host's cores: on two cores with its two threads, one writer.
   EXPECT_EQ(capture_writer_threads(2, 2), 1u);
@@ -133,6 +130,9 @@ TEST(Capture, WritersTakeOnlyTheCoresTheDeviceLeavesFree) {
   EXPECT_EQ(capture_writer_threads(0, 0), 1u);
 }
 
+// A slice that overflows the buffer still counts every record it made, so the rerun is sized from that
+// count: one overflow of the whole pass, not a halving series that runs the pass's work about twice more.
+// By default a probe comes first instead, and nothing overflows but where the density jumps.
 TEST(Capture, AnOverflowSizesTheRerunFromItsCount) {
   HP_REQUIRE_VULKAN(ctx);
   const Scene scene = load_scene("builtin:pica");
