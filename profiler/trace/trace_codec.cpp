@@ -65,6 +65,13 @@ struct CodeState {
   throw InputError("trace writer: record " + std::to_string(index) + ": reserved info bits set");
 }
 
+// What both entry points of SliceEncoder refuse before coding a slice of `records` records.
+void check_slice(const char* caller, uint32_t coding, uint64_t records) {
+  if (coding != kCodingDeltaVarint && coding != kCodingSizedGroups)
+    throw std::logic_error(std::string("SliceEncoder::") + caller + ": unknown coding " + std::to_string(coding));
+  if (records > 0xFFFFFFFFu) throw InputError("trace writer: a slice of 2^32 records or more");
+}
+
 }  // namespace
 
 // Codes workgroup g (relative to the slice), whose `n` records are the runs `segs` in record order (their
@@ -181,8 +188,7 @@ void SliceEncoder::reserve_room(uint64_t records, uint64_t groups) {
 
 void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_workgroup, uint64_t end_workgroup,
                           uint64_t per_group, std::vector<uint8_t>& out, uint32_t coding) {
-  if (coding != kCodingDeltaVarint && coding != kCodingSizedGroups)
-    throw std::logic_error("SliceEncoder::encode: unknown coding " + std::to_string(coding));
+  check_slice("encode", coding, records.size());
   const uint64_t groups = end_workgroup - first_workgroup;
   const uint64_t first_invocation = first_workgroup * per_group;
   const int shift = std::has_single_bit(per_group) ? std::countr_zero(per_group) : -1;
@@ -193,7 +199,6 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
   // Per workgroup: its record count and largest seq, and the runs of consecutive records of one workgroup
   // (one pass over the records, which also refuses what the coding cannot hold rather than writing it as
   // something else; a version-1 file stores such records as given, and its reader rejects them).
-  if (records.size() > 0xFFFFFFFFu) throw InputError("trace writer: a slice of 2^32 records or more");
   group_begin.assign(groups + 1, 0);
   max_seq.assign(groups, 0);
   runs.clear();
@@ -246,12 +251,10 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
 bool SliceEncoder::encode_parts(std::span<const std::span<const TraceRecord>> parts, uint64_t first_workgroup,
                                 uint64_t end_workgroup, uint64_t per_group, std::vector<uint8_t>& out,
                                 uint32_t coding) {
-  if (coding != kCodingDeltaVarint && coding != kCodingSizedGroups)
-    throw std::logic_error("SliceEncoder::encode_parts: unknown coding " + std::to_string(coding));
-  if (parts.size() > kMaxParts) return false;
   uint64_t total = 0;
   for (const auto& part : parts) total += part.size();
-  if (total > 0xFFFFFFFFu) throw InputError("trace writer: a slice of 2^32 records or more");
+  check_slice("encode_parts", coding, total);
+  if (parts.size() > kMaxParts) return false;
   const uint64_t groups = end_workgroup - first_workgroup;
   const uint64_t first_invocation = first_workgroup * per_group;
   const int shift = std::has_single_bit(per_group) ? std::countr_zero(per_group) : -1;
