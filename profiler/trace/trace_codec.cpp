@@ -23,7 +23,7 @@ void put_varint(uint8_t*& p, uint64_t v) {
   *p++ = uint8_t(v);
 }
 
-uint32_t zigzag(int64_t d) { return uint32_t((uint64_t(d) << 1) ^ uint64_t(d >> 63)); }
+uint64_t zigzag(int64_t d) { return (uint64_t(d) << 1) ^ uint64_t(d >> 63); }
 
 // What a workgroup's records are coded against (the coding's "previous record").
 struct CodeState {
@@ -38,8 +38,9 @@ struct CodeState {
   uint8_t control = uint8_t(std::min<uint64_t>(d, 7));
   const uint32_t info = r.info;
   if (info != s.prev_info) control |= 8;
-  const uint32_t zz = zigzag(int64_t(r.offset) - int64_t(s.prev_offset));
-  const uint32_t mode = uint32_t(std::bit_width(zz) + 7) >> 3;  // zz's bytes, 0..4 (4: the offset itself)
+  // A difference of 2^31 or more either way has a 33-bit zigzag: such an offset is stored as itself (mode 4).
+  const uint64_t zz = zigzag(int64_t(r.offset) - int64_t(s.prev_offset));
+  const uint32_t mode = std::min(uint32_t(std::bit_width(zz) + 7) >> 3, 4u);  // zz's bytes, 0..4 (4: the offset itself)
   control |= uint8_t(mode << 4);
   *p++ = control;
   if (d >= 7) put_varint(p, d - 7);
@@ -48,8 +49,8 @@ struct CodeState {
     *p++ = uint8_t(info >> 8);
     s.prev_info = info;
   }
-  const uint32_t v = mode == 4 ? r.offset : zz;
-  std::memcpy(p, &v, 4);  // little-endian; only the first `bytes` count
+  const uint32_t v = mode == 4 ? r.offset : uint32_t(zz);
+  std::memcpy(p, &v, 4);  // little-endian; only the first `mode` count
   p += mode == 4 ? 4u : mode;
   s.prev_offset = r.offset;
 }

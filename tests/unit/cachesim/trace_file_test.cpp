@@ -428,6 +428,42 @@ TEST(TraceFile, CompactCodingDoesNotDependOnTheRecordsOrder) {
   EXPECT_EQ(x, y);
 }
 
+// Offsets anywhere in 32 bits code exactly, in both codings and from parts: a difference of 2^31 or more
+// from the previous record's offset (its zigzag needs 33 bits) is stored as the offset itself.
+TEST(TraceFile, CompactCodingKeepsOffsetsThatDifferBy2To31OrMore) {
+  std::mt19937 rng(11);
+  const uint32_t edge[] = {0u, 0x80000001u, 0u, 0x80000000u, 0xFFFFFFFFu, 0x7FFFFFFFu, 0xFFFFFFFFu, 1u, 0x80000000u};
+  std::vector<TraceRecord> in;
+  for (uint32_t g = 0; g < 2; ++g) {
+    for (uint32_t lane = 0; lane < 64; ++lane) {
+      for (uint32_t seq = 0; seq < 9; ++seq) {
+        const uint32_t offset = g == 0 ? edge[(lane + seq) % 9] : uint32_t(rng());
+        in.push_back({g * 64 + lane, seq, HP_TRACE_INFO(1u, HP_TRACE_LOAD, 4u), offset});
+      }
+    }
+  }
+  auto key = [](const TraceRecord& r) { return std::tuple(r.invocation, r.seq, r.info, r.offset); };
+  std::vector<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>> want;
+  for (const auto& r : in) want.push_back(key(r));
+  std::sort(want.begin(), want.end());
+  for (const uint32_t coding : {kCodingDeltaVarint, kCodingSizedGroups}) {
+    SliceEncoder e;
+    std::vector<uint8_t> whole, from_parts;
+    e.encode(in, 0, 2, 64, whole, coding);
+    const std::span<const TraceRecord> parts[] = {std::span(in).first(64 * 9), std::span(in).subspan(64 * 9)};
+    ASSERT_TRUE(e.encode_parts(parts, 0, 2, 64, from_parts, coding));
+    EXPECT_EQ(whole, from_parts);
+    std::vector<TraceRecord> back(in.size());
+    decode_slice(
+        whole, in.size(), 0, 2, 64, back.data(), "test", [](const TraceRecord*, uint64_t, uint64_t) {}, nullptr,
+        coding);
+    std::vector<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>> got;
+    for (const auto& r : back) got.push_back(key(r));
+    std::sort(got.begin(), got.end());
+    EXPECT_EQ(want, got) << "coding " << coding;
+  }
+}
+
 // A workgroup whose seqs are dense but where one key repeats (the format allows it, a capture never makes
 // it): its records are placed into the slot table until the repeat shows, then it is sorted instead,
 // keeping the repeated key's records in the order they came; the other workgroups keep the table.
