@@ -6,6 +6,10 @@
 #include <cstring>
 #include <stdexcept>
 
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
 #include "error.hpp"
 
 namespace hp::trace {
@@ -32,14 +36,13 @@ struct CodeState {
 };
 
 // One record of the current step, at p.
-[[gnu::always_inline]] inline void put_record(uint8_t*& p, CodeState& s, const TraceRecord& r, int64_t lane) {
+[[gnu::always_inline]] inline void put_record(uint8_t*& p, CodeState& s, uint32_t info, uint32_t offset, int64_t lane) {
   const uint64_t d = uint64_t(lane - s.prev_lane);
   s.prev_lane = lane;
   uint8_t control = uint8_t(std::min<uint64_t>(d, 7));
-  const uint32_t info = r.info;
   if (info != s.prev_info) control |= 8;
   // A difference of 2^31 or more either way has a 33-bit zigzag: such an offset is stored as itself (mode 4).
-  const uint64_t zz = zigzag(int64_t(r.offset) - int64_t(s.prev_offset));
+  const uint64_t zz = zigzag(int64_t(offset) - int64_t(s.prev_offset));
   const uint32_t mode = std::min(uint32_t(std::bit_width(zz) + 7) >> 3, 4u);  // zz's bytes, 0..4 (4: the offset itself)
   control |= uint8_t(mode << 4);
   *p++ = control;
@@ -49,11 +52,119 @@ struct CodeState {
     *p++ = uint8_t(info >> 8);
     s.prev_info = info;
   }
-  const uint32_t v = mode == 4 ? r.offset : uint32_t(zz);
+  const uint32_t v = mode == 4 ? offset : uint32_t(zz);
   std::memcpy(p, &v, 4);  // little-endian; only the first `mode` count
-  p += mode == 4 ? 4u : mode;
-  s.prev_offset = r.offset;
+  p += mode;
+  s.prev_offset = offset;
 }
+
+// The lanes of a row of 64 occupancy bytes that are set, as bits.
+inline uint64_t occupied_lanes(const uint8_t* row) {
+#if defined(__SSE2__)
+  uint64_t m = 0;
+  for (int q = 0; q < 4; ++q) {
+    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(row + 16 * q));
+    m |= uint64_t(uint32_t(_mm_movemask_epi8(_mm_cmpeq_epi8(v, _mm_setzero_si128()))) ^ 0xFFFFu) << (16 * q);
+  }
+  return m;
+#else
+  uint64_t m = 0;
+  for (int l = 0; l < 64; ++l) m |= uint64_t(row[l] != 0) << l;
+  return m;
+#endif
+}
+
+#if defined(__x86_64__)
+// GCC 12's AVX-512 headers start several intrinsics from _mm512_undefined_epi32(), which -Wmaybe-uninitialized
+// reports as a use of an uninitialized value (GCC bug 105593); nothing here reads one.
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+// One step of up to 64 lanes with AVX-512 (F, BW, VBMI2): the step's records, in lane order, are taken from
+// a row of the tables with compress, then coded eight at a time, each record built in a 64-bit word (at most
+// 8 bytes where the lanes are fewer than 136: a lane delta of 7 or more then takes one varint byte) and the
+// words packed with a byte compress. The same bytes as put_record's, which the tests compare.
+[[gnu::target("avx512f,avx512bw,avx512vbmi2")]] uint8_t* code_step_avx512(uint8_t* p, CodeState& s, uint64_t lanes,
+                                                                          const uint32_t* info_row,
+                                                                          const uint32_t* offset_row) {
+  // Staged values, index 0 the previous record's (lane -1 at a step's start), then the step's in lane order.
+  alignas(64) uint32_t infos[96], offsets[96], lane_of[96];  // up to 1 + 64 values, then 16 zeros
+  infos[0] = s.prev_info;
+  offsets[0] = s.prev_offset;
+  lane_of[0] = uint32_t(-1);
+  uint32_t k = 1;
+  const __m512i iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  for (uint32_t c = 0; c < 4; ++c) {
+    const __mmask16 m = __mmask16(lanes >> (16 * c));
+    if (!m) continue;
+    _mm512_storeu_si512(infos + k, _mm512_maskz_compress_epi32(m, _mm512_loadu_si512(info_row + 16 * c)));
+    _mm512_storeu_si512(offsets + k, _mm512_maskz_compress_epi32(m, _mm512_loadu_si512(offset_row + 16 * c)));
+    _mm512_storeu_si512(lane_of + k,
+                        _mm512_maskz_compress_epi32(m, _mm512_add_epi32(iota, _mm512_set1_epi32(int(16 * c)))));
+    k += uint32_t(std::popcount(uint32_t(m)));
+  }
+  const uint32_t count = k - 1;
+  // Defined values past the last record, which the last eight are read with (their lengths are then 0).
+  _mm512_storeu_si512(infos + k, _mm512_setzero_si512());
+  _mm512_storeu_si512(offsets + k, _mm512_setzero_si512());
+  _mm512_storeu_si512(lane_of + k, _mm512_setzero_si512());
+  const __m512i byte_in_word = _mm512_set1_epi64(0x0706050403020100ll);
+  // pshufb indices (within each 128-bit lane) that copy each word's length byte over the word's eight bytes
+  const __m512i len_to_bytes = _mm512_set_epi64(0x0808080808080808ll, 0, 0x0808080808080808ll, 0, 0x0808080808080808ll,
+                                                0, 0x0808080808080808ll, 0);
+  for (uint32_t i = 0; i < count; i += 8) {
+    const __mmask8 valid = __mmask8(count - i >= 8 ? 0xFF : (1u << (count - i)) - 1);
+    const __m512i off =
+        _mm512_maskz_cvtepu32_epi64(0xFF, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(offsets + 1 + i)));
+    const __m512i prev_off =
+        _mm512_maskz_cvtepu32_epi64(0xFF, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(offsets + i)));
+    const __m512i info =
+        _mm512_maskz_cvtepu32_epi64(0xFF, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(infos + 1 + i)));
+    const __m512i prev_info =
+        _mm512_maskz_cvtepu32_epi64(0xFF, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(infos + i)));
+    const __m512i lane =
+        _mm512_maskz_cvtepi32_epi64(0xFF, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(lane_of + 1 + i)));
+    const __m512i prev_lane =
+        _mm512_maskz_cvtepi32_epi64(0xFF, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(lane_of + i)));
+    const __m512i d = _mm512_sub_epi64(lane, prev_lane);
+    const __m512i diff = _mm512_sub_epi64(off, prev_off);
+    const __m512i zz = _mm512_xor_si512(_mm512_slli_epi64(diff, 1), _mm512_srai_epi64(diff, 63));
+    const __m512i one = _mm512_set1_epi64(1);
+    __m512i mode = _mm512_maskz_mov_epi64(_mm512_cmpgt_epu64_mask(zz, _mm512_setzero_si512()), one);
+    mode = _mm512_mask_add_epi64(mode, _mm512_cmpgt_epu64_mask(zz, _mm512_set1_epi64(0xFF)), mode, one);
+    mode = _mm512_mask_add_epi64(mode, _mm512_cmpgt_epu64_mask(zz, _mm512_set1_epi64(0xFFFF)), mode, one);
+    const __mmask8 whole = _mm512_cmpgt_epu64_mask(zz, _mm512_set1_epi64(0xFFFFFF));
+    mode = _mm512_mask_add_epi64(mode, whole, mode, one);
+    const __m512i value = _mm512_mask_blend_epi64(whole, zz, off);
+    const __mmask8 new_info = _mm512_cmpneq_epi64_mask(info, prev_info);
+    const __mmask8 long_delta = _mm512_cmpge_epi64_mask(d, _mm512_set1_epi64(7));
+    __m512i word = _mm512_min_epi64(d, _mm512_set1_epi64(7));
+    word = _mm512_mask_or_epi64(word, new_info, word, _mm512_set1_epi64(8));
+    word = _mm512_or_si512(word, _mm512_slli_epi64(mode, 4));
+    word =
+        _mm512_mask_or_epi64(word, long_delta, word, _mm512_slli_epi64(_mm512_sub_epi64(d, _mm512_set1_epi64(7)), 8));
+    __m512i pos = _mm512_mask_add_epi64(one, long_delta, one, one);  // bytes so far: control, varint
+    word = _mm512_or_si512(word, _mm512_sllv_epi64(_mm512_maskz_mov_epi64(new_info, info), _mm512_slli_epi64(pos, 3)));
+    pos = _mm512_mask_add_epi64(pos, new_info, pos, _mm512_set1_epi64(2));
+    word = _mm512_or_si512(word, _mm512_sllv_epi64(value, _mm512_slli_epi64(pos, 3)));
+    const __m512i len = _mm512_maskz_add_epi64(valid, pos, mode);
+    const __mmask64 keep = _mm512_cmplt_epu8_mask(byte_in_word, _mm512_shuffle_epi8(len, len_to_bytes));
+    _mm512_storeu_si512(p, _mm512_maskz_compress_epi8(keep, word));
+    p += std::popcount(uint64_t(keep));
+  }
+  s.prev_info = infos[count];
+  s.prev_offset = offsets[count];
+  return p;
+}
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+const bool kCpuHasAvx512Vbmi2 =
+    __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vbmi2");
+#else
+const bool kCpuHasAvx512Vbmi2 = false;
+#endif
 
 // The refusals of SliceEncoder::encode, for record `index` of the slice (in the order given).
 [[noreturn]] void refuse_invocation(uint64_t index, uint32_t invocation, uint64_t first_workgroup,
@@ -74,6 +185,8 @@ void check_slice(const char* caller, uint32_t coding, uint64_t records) {
 }
 
 }  // namespace
+
+bool SliceEncoder::simd_available() { return kCpuHasAvx512Vbmi2; }
 
 // Codes workgroup g (relative to the slice), whose `n` records are the runs `segs` in record order (their
 // seqs at most max_seq; the invocations of lanes lane_base ..), at room + at; returns where it ends.
@@ -107,42 +220,83 @@ size_t SliceEncoder::code_group(size_t at, uint64_t g, std::span<const Segment> 
   };
   // The workgroup's records in (seq, lane, position) order. A GPU capture numbers each invocation's records
   // 0, 1, 2, ... so the keys are distinct and dense: a table of (largest seq + 1) x per_group slots, each
-  // record's index placed into its slot (in record order), read back in order (linear time, and the table
-  // small enough to stay in the host's caches while the workgroup is coded). A key that repeats (the format
+  // record's info word and offset placed into its slot and the slot marked occupied, read back seq by seq
+  // over the occupied lanes (linear time, and the table small enough to stay in the host's caches while the
+  // workgroup is coded; a seq of at most 64 lanes is coded with AVX-512 where the host has it). A key that repeats (the format
   // allows it), or a table much larger than the workgroup's records, takes a comparison sort of the
   // workgroup's keys instead; both give the same order.
   const uint64_t seqs = uint64_t(max_seq) + 1;
   bool placed = seqs * per_group <= 8 * n + 4096;
   if (placed) {
-    slot.assign(seqs * per_group, kEmpty);
-    row_count.assign(seqs, 0);  // records per seq: a step's size, without scanning its row
-    uint32_t* const table = slot.data();
-    uint32_t* const in_row = row_count.data();
-    for (uint32_t i = 0; i < n; ++i) {
+    // The tables are kept unoccupied between workgroups (a row is cleared once coded), so a workgroup
+    // touches only its own rows; 64 slots past the last row for the step coder's whole-vector reads.
+    const uint64_t slots = seqs * per_group + 64;
+    if (occupied.size() < slots) {
+      occupied.resize(slots, 0);
+      info_table.resize(slots);
+      offset_table.resize(slots);
+    }
+    uint8_t* const occ = occupied.data();
+    uint32_t* const infos = info_table.data();
+    uint32_t* const offsets = offset_table.data();
+    uint32_t i = 0;
+    for (; i < n; ++i) {
       const TraceRecord& r = records[i];
-      uint32_t& where = table[uint64_t(r.seq) * per_group + (r.invocation - lane_base)];
-      if (where != kEmpty) {
-        placed = false;  // a repeated key: this workgroup is sorted instead
-        break;
-      }
-      where = i;
-      ++in_row[r.seq];
+      const uint64_t at_slot = uint64_t(r.seq) * per_group + (r.invocation - lane_base);
+      if (occ[at_slot]) break;  // a repeated key: this workgroup is sorted instead
+      occ[at_slot] = 1;
+      infos[at_slot] = r.info;
+      offsets[at_slot] = r.offset;
+    }
+    if (i < n) {
+      placed = false;
+      for (uint32_t k = 0; k < i; ++k)
+        occ[uint64_t(records[k].seq) * per_group + (records[k].invocation - lane_base)] = 0;
     }
   }
   if (placed) {
-    const uint32_t* row = slot.data();
-    const uint32_t* count = row_count.data();
+    uint8_t* const occ = occupied.data();
+    const uint32_t* const infos = info_table.data();
+    const uint32_t* const offsets = offset_table.data();
+    // Each seq's lanes as bits, ceil(per_group / 64) words a seq.
+    const uint64_t words = (per_group + 63) / 64;
+    row_lanes.resize(seqs * words);
+    uint64_t* const lanes = row_lanes.data();
     uint64_t steps = 0;
-    for (uint64_t seq = 0; seq < seqs; ++seq) steps += count[seq] != 0;
-    put_varint(p, steps);
-    for (uint64_t seq = 0; seq < seqs; ++seq, row += per_group) {
-      if (count[seq] == 0) continue;
-      put_step_header(seq, count[seq]);
-      for (uint64_t lane = 0, left = count[seq]; left > 0; ++lane) {
-        if (row[lane] == kEmpty) continue;
-        put_record(p, s, records[row[lane]], int64_t(lane));
-        --left;
+    for (uint64_t seq = 0; seq < seqs; ++seq) {
+      uint64_t any = 0;
+      for (uint64_t w = 0; w < words; ++w) {
+        const uint64_t left = per_group - 64 * w;
+        uint64_t m = occupied_lanes(occ + seq * per_group + 64 * w);
+        if (left < 64) m &= (uint64_t(1) << left) - 1;
+        lanes[seq * words + w] = m;
+        any |= m;
       }
+      steps += any != 0;
+    }
+    put_varint(p, steps);
+    const bool simd = simd_ && kCpuHasAvx512Vbmi2 && per_group <= 64;
+    for (uint64_t seq = 0; seq < seqs; ++seq) {
+      const uint64_t* const row_bits = lanes + seq * words;
+      uint64_t count = 0;
+      for (uint64_t w = 0; w < words; ++w) count += uint64_t(std::popcount(row_bits[w]));
+      if (count == 0) continue;
+      put_step_header(seq, count);
+      const uint64_t row = seq * per_group;
+#if defined(__x86_64__)
+      if (simd) {
+        p = code_step_avx512(p, s, row_bits[0], infos + row, offsets + row);
+        std::memset(occ + row, 0, per_group);
+        continue;
+      }
+#endif
+      for (uint64_t w = 0; w < words; ++w) {
+        for (uint64_t b = row_bits[w]; b != 0; b &= b - 1) {
+          const uint64_t lane = 64 * w + uint64_t(std::countr_zero(b));
+          put_record(p, s, infos[row + lane], offsets[row + lane], int64_t(lane));
+        }
+      }
+      std::memset(occ + row, 0, per_group);
     }
   } else {
     // Keys (seq << 32 | lane, position), sorted (positions break ties: stable).
@@ -160,7 +314,10 @@ size_t SliceEncoder::code_group(size_t at, uint64_t g, std::span<const Segment> 
       const auto* j = k;
       while (j < k1 && (j->first >> 32) == seq) ++j;
       put_step_header(seq, uint64_t(j - k));
-      for (; k < j; ++k) put_record(p, s, records[k->second], int64_t(k->first & 0xFFFFFFFFu));
+      for (; k < j; ++k) {
+        const TraceRecord& r = records[k->second];
+        put_record(p, s, r.info, r.offset, int64_t(k->first & 0xFFFFFFFFu));
+      }
     }
   }
   state_prev_info_ = s.prev_info;
@@ -178,7 +335,7 @@ size_t SliceEncoder::code_group(size_t at, uint64_t g, std::span<const Segment> 
 // a step, 1 + 5 + 2 + 4 a record, and a slice has no more steps than records. Left uninitialised: zeroing the
 // bound would cost more than the coding.
 void SliceEncoder::reserve_room(uint64_t records, uint64_t groups) {
-  const size_t bound = 22 * records + 14 * groups + 16;
+  const size_t bound = 22 * records + 14 * groups + 16 + 64;
   if (room_size < bound) {
     room = std::make_unique_for_overwrite<uint8_t[]>(bound);
     room_size = bound;
@@ -229,11 +386,8 @@ void SliceEncoder::encode(std::span<const TraceRecord> records, uint64_t first_w
   for (const Run& r : runs) ++run_begin[r.group + 1];
   for (uint64_t g = 0; g < groups; ++g) run_begin[g + 1] += run_begin[g];
   run_order.resize(runs.size());
-  {
-    std::vector<uint32_t>& cursor = row_count;  // scratch here; row_count is reset before each use below
-    cursor.assign(run_begin.begin(), run_begin.end() - 1);
-    for (size_t k = 0; k < runs.size(); ++k) run_order[cursor[runs[k].group]++] = uint32_t(k);
-  }
+  cursor.assign(run_begin.begin(), run_begin.end() - 1);
+  for (size_t k = 0; k < runs.size(); ++k) run_order[cursor[runs[k].group]++] = uint32_t(k);
   reserve_room(records.size(), groups);
   size_t at = 0;
   for (uint64_t g = 0; g < groups; ++g) {

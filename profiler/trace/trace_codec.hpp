@@ -64,8 +64,17 @@ struct SliceEncoder {
   std::vector<Run> runs;
   std::vector<Segment> segments;
   std::vector<TraceRecord> gathered;
-  std::vector<uint32_t> group_begin, max_seq, run_begin, run_order, slot, row_count;
+  std::vector<uint32_t> group_begin, max_seq, run_begin, run_order, cursor;
+  // A workgroup's records by (seq, lane), slot seq * per_group + lane: occupied (0 between workgroups),
+  // the record's info word and offset; and each seq's occupied lanes as bits.
+  std::vector<uint8_t> occupied;
+  std::vector<uint32_t> info_table, offset_table;
+  std::vector<uint64_t> row_lanes;
   static constexpr uint32_t kEmpty = 0xFFFFFFFFu;
+  // Whether a step of at most 64 lanes is coded with AVX-512 where the host has it (on by default; the
+  // same bytes either way, which the tests check by turning it off).
+  void use_simd(bool on) { simd_ = on; }
+  static bool simd_available();
   std::unique_ptr<uint8_t[]> room;  // the coding's room, of room_size bytes
   size_t room_size = 0;
   std::vector<std::pair<uint64_t, uint32_t>> keys;
@@ -88,6 +97,7 @@ struct SliceEncoder {
   void reserve_room(uint64_t records, uint64_t groups);
   size_t code_group(size_t at, uint64_t g, std::span<const Segment> segs, uint64_t n, uint32_t max_seq,
                     uint64_t lane_base, uint64_t per_group, uint32_t coding);
+  bool simd_ = true;
   uint64_t next_g_ = 0;  // the workgroup after the last one coded (relative to the slice)
   uint32_t state_prev_info_ = 0, state_prev_offset_ = 0;  // the coding's previous record (coding 1: across workgroups)
 };

@@ -464,6 +464,48 @@ TEST(TraceFile, CompactCodingKeepsOffsetsThatDifferBy2To31OrMore) {
   }
 }
 
+// The AVX-512 step coder gives the portable coder's bytes: steps of every size from one lane to 64, lanes far
+// apart (a delta of 7 or more takes a varint byte), info words that change or repeat, offsets close, far and
+// 2^31 or more apart; workgroups of 64, 48 and 8 lanes, and of 100 (more than 64: always the portable coder).
+TEST(TraceFile, CompactCodingIsTheSameWithAndWithoutTheVectorCoder) {
+  if (!SliceEncoder::simd_available()) GTEST_SKIP() << "this host has no AVX-512 VBMI2: only the portable coder runs";
+  std::mt19937 rng(23);
+  for (const uint64_t per_group : {64u, 48u, 8u, 100u}) {
+    for (const uint32_t coding : {kCodingDeltaVarint, kCodingSizedGroups}) {
+      std::vector<TraceRecord> in;
+      const uint32_t groups = 40;
+      for (uint32_t g = 0; g < groups; ++g) {
+        // Workgroup g's steps: each seq takes a random share of the lanes, from one lane to all of them.
+        const uint32_t keep = 1 + rng() % 100;
+        for (uint32_t seq = 0; seq < 70; ++seq) {
+          const uint32_t share = seq < 64 ? seq + 1 : keep;
+          for (uint32_t lane = 0; lane < per_group; ++lane) {
+            if (rng() % 100 >= share * 100 / 64 && !(seq == 0 && lane == 0)) continue;
+            const uint32_t pick = rng() % 8;
+            const uint32_t offset = pick == 0   ? uint32_t(rng())
+                                    : pick == 1 ? 0x80000000u + rng() % 4
+                                    : pick == 2 ? rng() % 4
+                                                : 4096 * (g % 3) + 16 * (rng() % 64);
+            in.push_back({uint32_t((100 + g) * per_group + lane), seq,
+                          HP_TRACE_INFO(uint32_t(rng() % 3 == 0 ? 2 : 1), HP_TRACE_LOAD, 16u), offset});
+          }
+        }
+      }
+      std::shuffle(in.begin(), in.end(), rng);
+      SliceEncoder vector_coder, portable;
+      portable.use_simd(false);
+      std::vector<uint8_t> a, b;
+      vector_coder.encode(in, 100, 100 + groups, per_group, a, coding);
+      portable.encode(in, 100, 100 + groups, per_group, b, coding);
+      EXPECT_EQ(a, b) << per_group << " lanes, coding " << coding;
+      std::vector<TraceRecord> back(in.size());
+      decode_slice(
+          a, in.size(), 100, 100 + groups, per_group, back.data(), "test",
+          [](const TraceRecord*, uint64_t, uint64_t) {}, nullptr, coding);
+    }
+  }
+}
+
 // A workgroup whose seqs are dense but where one key repeats (the format allows it, a capture never makes
 // it): its records are placed into the slot table until the repeat shows, then it is sorted instead,
 // keeping the repeated key's records in the order they came; the other workgroups keep the table.
