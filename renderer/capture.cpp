@@ -97,16 +97,20 @@ unsigned checked_writer_threads(const CaptureOptions& o, const vk::Context& ctx)
 // runs the next slice into a free part. A sink that can stage a slice (TraceSink::stage_record_parts: the
 // trace file's coding) works on several slices at once, one per worker, and each part is free again once
 // its slice is staged; the staged slices, or the whole writes of a sink that cannot stage, reach the sink in
-// slice order, one at a time, each slice's progress call right after its write. An error stops the
-// writing: acquire() and drain() rethrow the first; the destructor joins the workers, so a capture that
-// throws leaves no thread behind.
+// slice order, one at a time, each slice's progress call right after its write. Beside the `workers`, one
+// helper takes slices only while the capture thread waits (for a free part, or in drain()): the device is
+// then idle, so on a CPU device the helper codes on a core its threads left, where a second writer running
+// beside them holds up their dispatches (docs/memory-traces.md). An error stops the writing: acquire() and
+// drain() rethrow the first; the destructor joins the workers, so a capture that throws leaves no thread
+// behind.
 class SliceWriter {
  public:
   SliceWriter(trace::TraceSink& sink, const std::array<gpu::TraceRecord*, kTraceBufferParts>& records,
               uint32_t region_capacity, unsigned workers)
       : sink_(sink), records_(records), region_capacity_(region_capacity) {
     for (uint32_t p = 0; p < kTraceBufferParts; ++p) free_.push_back(p);
-    for (unsigned w = 0; w < workers; ++w) workers_.emplace_back([this] { work(); });
+    for (unsigned w = 0; w < workers; ++w) workers_.emplace_back([this] { work(false); });
+    workers_.emplace_back([this] { work(true); });
   }
   SliceWriter(const SliceWriter&) = delete;
   SliceWriter& operator=(const SliceWriter&) = delete;
@@ -124,7 +128,12 @@ class SliceWriter {
   // A free part of the buffer for the next slice, once one is (rethrows a write's error).
   uint32_t acquire() {
     std::unique_lock lock(m_);
-    cv_.wait(lock, [&] { return error_ || !free_.empty(); });
+    if (!error_ && free_.empty()) {
+      ++device_waiting_;
+      cv_.notify_all();
+      cv_.wait(lock, [&] { return error_ || !free_.empty(); });
+      --device_waiting_;
+    }
     if (error_) std::rethrow_exception(error_);
     const uint32_t p = free_.front();
     free_.pop_front();
@@ -146,7 +155,10 @@ class SliceWriter {
   // Waits until every queued slice is written (rethrows a write's error).
   void drain() {
     std::unique_lock lock(m_);
+    ++device_waiting_;
+    cv_.notify_all();
     cv_.wait(lock, [&] { return error_ || committed_ == submitted_; });
+    --device_waiting_;
     if (error_) std::rethrow_exception(error_);
   }
 
@@ -160,12 +172,12 @@ class SliceWriter {
     std::function<void()> progress;
   };
 
-  void work() {
+  void work(bool helper) {
     for (;;) {
       Job j;
       {
         std::unique_lock lock(m_);
-        cv_.wait(lock, [&] { return stop_ || !queue_.empty(); });
+        cv_.wait(lock, [&] { return stop_ || (!queue_.empty() && (!helper || device_waiting_ > 0)); });
         if (queue_.empty()) return;
         j = std::move(queue_.front());
         queue_.pop_front();
@@ -241,6 +253,7 @@ class SliceWriter {
   std::deque<uint32_t> free_;  // parts the device may fill
   std::deque<Job> queue_;
   uint64_t submitted_ = 0, committed_ = 0;
+  unsigned device_waiting_ = 0;  // the capture thread waits for a free part or for the writes to end
   bool stop_ = false;
   std::exception_ptr error_;
   std::vector<std::thread> workers_;
