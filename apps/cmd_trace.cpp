@@ -170,11 +170,12 @@ void run_trace(const TraceArgs& a) {
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (!a.image_out.empty()) write_image(a.image_out, frame.read_color());
   for (const CapturedPass& c : captured) {
-    std::printf("%s: %llu records from %llu of %llu workgroups (%s), %u slice(s), %u re-run(s) after overflow\n",
-                c.pass.c_str(), (unsigned long long)c.records, (unsigned long long)c.sampled_workgroups,
-                (unsigned long long)c.workgroups,
-                a.sample_every == 1 ? "all" : ("1 in " + std::to_string(a.sample_every) + " sampled").c_str(), c.slices,
-                c.reruns);
+    std::printf(
+        "%s: %llu records from %llu of %llu workgroups (%s), %u slice(s), %u re-run(s) after overflow, %.2f s\n",
+        c.pass.c_str(), (unsigned long long)c.records, (unsigned long long)c.sampled_workgroups,
+        (unsigned long long)c.workgroups,
+        a.sample_every == 1 ? "all" : ("1 in " + std::to_string(a.sample_every) + " sampled").c_str(), c.slices,
+        c.reruns, c.seconds);
   }
   std::printf("trace of %s %ux%u on %s in %.2f s -> %s\n", scene.name.c_str(), settings.width, settings.height,
               ctx.info().name.c_str(), s, a.out.c_str());

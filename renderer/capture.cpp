@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <bit>
+#include <chrono>
 #include <condition_variable>
 #include <cstring>
 #include <deque>
@@ -283,6 +284,7 @@ struct Slicer {
     info.dispatch.workgroup_count[0] = wg.x;
     info.dispatch.workgroup_count[1] = wg.y;
     const uint32_t pass_index = sink.begin_pass(info);
+    const auto start = std::chrono::steady_clock::now();
     CapturedPass cp;
     cp.pass = step.name;
     cp.workgroups = uint64_t(wg.x) * wg.y;
@@ -372,6 +374,7 @@ struct Slicer {
     }
     writer.drain();
     if (step.finish) step.finish();
+    cp.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return cp;
   }
 };

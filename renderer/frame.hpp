@@ -123,6 +123,9 @@ struct CapturedPass {
   uint32_t slices = 0;  ///< dispatches that produced records
   uint32_t reruns = 0;  ///< slices that overflowed the buffer and were re-run smaller
   uint64_t workgroups = 0, sampled_workgroups = 0;
+  /// Wall time of the pass's capture, from its first slice to its last slice written: the cost of tracing
+  /// the pass, without the untraced passes the capture also runs (the G-buffer) or the file's close.
+  double seconds = 0;
 };
 
 class Frame {
