@@ -22,7 +22,8 @@
 //                        step's start; d = 0 repeats a lane); 7: the delta is 7 + a varint that follows
 //              bit 3     the info word follows (u16; else it is the previous record's, 0 at first)
 //              bits 4-6  offset: 0 the previous record's (0 at first), 1/2/3 a zigzag difference from
-//                        it in 1/2/3 bytes, 4 the offset itself in 4 bytes
+//                        it in 1/2/3 bytes, 4 the offset itself in 4 bytes (always where the difference
+//                        is 2^31 or more either way)
 //              bit 7     0
 //   varint: LEB128 (7 bits a byte, low first), at most 5 bytes; multi-byte fields little-endian.
 //
