@@ -83,8 +83,8 @@ inline uint64_t occupied_lanes(const uint8_t* row) {
 #endif
 // One step of up to 64 lanes with AVX-512 (F, BW, VBMI2): the step's records, in lane order, are taken from
 // a row of the tables with compress, then coded eight at a time, each record built in a 64-bit word (at most
-// 8 bytes where the lanes are fewer than 136: a lane delta of 7 or more then takes one varint byte) and the
-// words packed with a byte compress. The same bytes as put_record's, which the tests compare.
+// 8 bytes with up to 64 lanes: a lane delta of 7 or more then takes one varint byte) and the words packed
+// with a byte compress. The same bytes as put_record's, which the tests compare.
 [[gnu::target("avx512f,avx512bw,avx512vbmi2")]] uint8_t* code_step_avx512(uint8_t* p, CodeState& s, uint64_t lanes,
                                                                           const uint32_t* info_row,
                                                                           const uint32_t* offset_row) {
@@ -222,9 +222,9 @@ size_t SliceEncoder::code_group(size_t at, uint64_t g, std::span<const Segment> 
   // 0, 1, 2, ... so the keys are distinct and dense: a table of (largest seq + 1) x per_group slots, each
   // record's info word and offset placed into its slot and the slot marked occupied, read back seq by seq
   // over the occupied lanes (linear time, and the table small enough to stay in the host's caches while the
-  // workgroup is coded; a seq of at most 64 lanes is coded with AVX-512 where the host has it). A key that repeats (the format
-  // allows it), or a table much larger than the workgroup's records, takes a comparison sort of the
-  // workgroup's keys instead; both give the same order.
+  // workgroup is coded; a seq of at most 64 lanes is coded with AVX-512 where the host has it). A key that
+  // repeats (the format allows it), or a table much larger than the workgroup's records, takes a comparison
+  // sort of the workgroup's keys instead; both give the same order.
   const uint64_t seqs = uint64_t(max_seq) + 1;
   bool placed = seqs * per_group <= 8 * n + 4096;
   if (placed) {
@@ -332,8 +332,8 @@ size_t SliceEncoder::code_group(size_t at, uint64_t g, std::span<const Segment> 
 }
 
 // The coding's room for `records` records of `groups` workgroups: at most 5 + 4 + 5 bytes a workgroup, 5 + 5
-// a step, 1 + 5 + 2 + 4 a record, and a slice has no more steps than records. Left uninitialised: zeroing the
-// bound would cost more than the coding.
+// a step, 1 + 5 + 2 + 4 a record, and a slice has no more steps than records, and 64 bytes for the step coder's
+// whole-vector store past its last record. Left uninitialised: zeroing the bound would cost more than the coding.
 void SliceEncoder::reserve_room(uint64_t records, uint64_t groups) {
   const size_t bound = 22 * records + 14 * groups + 16 + 64;
   if (room_size < bound) {
