@@ -54,14 +54,21 @@ void hp_rec_n(uint n, uvec4 info, uvec4 offset) {
   uint lanes_on = subgroupBallotBitCount(lanes);
   uint base = 0u;
   if (subgroupElect()) base = atomicAdd(trace_head.region[hp_trace_region].count, lanes_on * n);
-  uint i = subgroupBroadcastFirst(base) + subgroupBallotExclusiveBitCount(lanes) * n;
+  uint first = subgroupBroadcastFirst(base);
+  uint i = first + subgroupBallotExclusiveBitCount(lanes) * n;
   // Past the region's capacity a record is dropped here but counted, so the host sees the overflow and
-  // re-runs the slice smaller: nothing is lost silently.
+  // re-runs the slice smaller: nothing is lost silently. Where the subgroup's whole reservation fits (a
+  // subgroup-uniform test), the lanes store without a test of their own: 3-4% less capture time for the
+  // shadow pass on lavapipe (docs/memory-traces.md).
   uint capacity = trace_head.region_capacity;
   uint at = hp_trace_region * capacity + i;
-  for (uint k = 0u; k < n; ++k) {
-    if (i + k < capacity) {
-      trace_records[at + k] = uvec4(hp_trace_invocation, hp_trace_seq + k, info[k], offset[k]);
+  if (first + lanes_on * n <= capacity) {
+    for (uint k = 0u; k < n; ++k) trace_records[at + k] = uvec4(hp_trace_invocation, hp_trace_seq + k, info[k], offset[k]);
+  } else {
+    for (uint k = 0u; k < n; ++k) {
+      if (i + k < capacity) {
+        trace_records[at + k] = uvec4(hp_trace_invocation, hp_trace_seq + k, info[k], offset[k]);
+      }
     }
   }
   hp_trace_seq += n;
