@@ -270,6 +270,7 @@ struct Slicer {
   uint32_t region_capacity;  // records per region
   uint32_t sampling;
   unsigned writers;  // threads that write the slices
+  uint32_t sharing;  // the workgroups of a work-sharing dispatch (CaptureOptions::share_work), or 0
   const CaptureOptions& options;
 
   // Captures one dispatch in slices: of workgroup rows for a 2D pass, of groups for a 1D one (the consume
@@ -326,6 +327,10 @@ struct Slicer {
                                                                                                   : 1;
     uint32_t n_max = std::clamp<uint32_t>(first_units, 1, units);
     uint32_t part = writer.acquire();  // the part of the buffer the next slice goes to
+    // In the work-sharing mode a device thread may take any share of a slice's tiles, so a slice is kept only
+    // where all its records would fit one region (the slicing, and so the file, then do not depend on how the
+    // threads shared it); one that cannot be made smaller (one row or group) is re-run without sharing.
+    bool unshared = false;
     for (uint32_t unit = 0; unit < units;) {
       const uint32_t n = std::min(n_max, units - unit);
       if (step.save) step.save();
@@ -334,8 +339,11 @@ struct Slicer {
       head->region_capacity = region_capacity;
       head->pass_id = pass_index;
       for (uint32_t r = 0; r < regions; ++r) head->region[r].count = 0;
+      const uint32_t share = step.shares_work && !unshared ? sharing : 0;
+      head->units = share ? uint32_t(uint64_t(n) * groups_per_unit * step.group_size.x * step.group_size.y) : 0;
+      head->work.count = 0;
       bind(part);
-      ctx.submit_and_wait([&](VkCommandBuffer cmd) { step.record_slice(cmd, unit, n, sampling); });
+      ctx.submit_and_wait([&](VkCommandBuffer cmd) { step.record_slice(cmd, unit, n, sampling, share); });
       std::array<uint32_t, HP_TRACE_MAX_REGIONS> counts{};
       uint64_t count = 0, fullest = 0;
       for (uint32_t r = 0; r < regions; ++r) {
@@ -343,7 +351,13 @@ struct Slicer {
         count += counts[r];
         fullest = std::max<uint64_t>(fullest, counts[r]);
       }
-      if (fullest > region_capacity) {
+      if (share ? count > region_capacity : fullest > region_capacity) {
+        if (n == 1 && share) {
+          if (step.restore) step.restore();
+          unshared = true;
+          ++cp.reruns;
+          continue;
+        }
         if (n == 1) {
           throw InputError(std::string("trace: one workgroup ") + (step.one_d ? "" : "row ") + "of the " + step.name +
                            " pass makes " + std::to_string(count) + " records, over the trace buffer's capacity of " +
@@ -354,12 +368,14 @@ struct Slicer {
                            " (raise the trace buffer size, or sample workgroups)");
         }
         if (step.restore) step.restore();
-        n_max = std::min(sized(n, fullest * regions), n - 1);  // re-run this slice smaller
+        n_max = std::min(sized(n, (share ? count : fullest) * regions), n - 1);  // re-run this slice smaller
         ++cp.reruns;
         continue;
       }
+      unshared = false;
       cp.records += count;
       ++cp.slices;
+      cp.shared_slices += share != 0;
       std::function<void()> progress;
       if (options.on_slice) {
         progress = [&on_slice = options.on_slice, name = step.name, records = cp.records, done = unit + n, units] {
@@ -422,7 +438,10 @@ std::vector<CapturedPass> Frame::render_captured(const CaptureOptions& o, trace:
     }
   };
   bind(0);
-  const Slicer slicer{ctx_, sink, heads, bind, regions, uint32_t(capacity / regions), sampling, writers, o};
+  // Work sharing where the device is the host's CPU with more than one thread, each with a region of its own.
+  const uint32_t device_threads = device_cpu_threads(ctx_);
+  const uint32_t sharing = o.share_work && device_threads > 1 && regions >= device_threads ? device_threads : 0;
+  const Slicer slicer{ctx_, sink, heads, bind, regions, uint32_t(capacity / regions), sampling, writers, sharing, o};
 
   upload_uniforms();
   rt_->begin_frame(sample_index_);

@@ -107,6 +107,11 @@ struct CaptureOptions {
   /// Threads that write the slices, 1 .. kTraceBufferParts - 1. 0 = capture_writer_threads of the host's
   /// cores and the device's CPU threads.
   uint32_t writer_threads = 0;
+  /// Work sharing on a CPU device of more than one thread: a pass that can (TracedStep::shares_work) runs
+  /// each slice as one workgroup per device thread, and these take the slice's tiles whole from a counter,
+  /// so that a thread the writers hold up leaves its share to the others instead of holding up the slice
+  /// (gpu::TraceBufferHeader::units). The records are the same. Needs a region per device thread.
+  bool share_work = true;
   bool tiled_images = true;  ///< G-buffer and outputs laid out in 8x8-texel tiles (else linear rows)
   /// Also run the enabled passes that are not traced, then accumulate and composite, so that the frame's
   /// image is whole (`trace --image`). Off: only the G-buffer and the traced passes run.
@@ -120,8 +125,9 @@ struct CaptureOptions {
 struct CapturedPass {
   std::string pass;
   uint64_t records = 0;
-  uint32_t slices = 0;  ///< dispatches that produced records
-  uint32_t reruns = 0;  ///< slices that overflowed the buffer and were re-run smaller
+  uint32_t slices = 0;         ///< dispatches that produced records
+  uint32_t reruns = 0;         ///< slices that overflowed the buffer and were re-run smaller
+  uint32_t shared_slices = 0;  ///< slices whose tiles the device threads shared (CaptureOptions::share_work)
   uint64_t workgroups = 0, sampled_workgroups = 0;
   /// Wall time of the pass's capture, from its first slice to its last slice written: the cost of tracing
   /// the pass, without the untraced passes the capture also runs (the G-buffer) or the file's close.

@@ -23,8 +23,13 @@ struct TracedStep {
   /// The full dispatch's workgroups, called when the step is captured (the consume pass reads the count).
   std::function<glm::uvec2()> workgroups;
   /// Records units [first, first + n) (rows, or groups when one_d) with the instrumented pipeline; `sampling`
-  /// is the workgroup sampling word (k | log2(burst) << 20). Its own submission.
-  std::function<void(VkCommandBuffer cmd, uint32_t first, uint32_t n, uint32_t sampling)> record_slice;
+  /// is the workgroup sampling word (k | log2(burst) << 20); `sharing`: 0, or (for a step that shares_work)
+  /// the workgroups of a work-sharing dispatch (gpu::TraceBufferHeader::units). Its own submission.
+  std::function<void(VkCommandBuffer cmd, uint32_t first, uint32_t n, uint32_t sampling, uint32_t sharing)>
+      record_slice;
+  /// Its instrumented shader can take a slice's 8x8 tiles whole, a subgroup at a time, from the trace
+  /// buffer's counter (hp_next_shared_tile, shaders/common/dispatch_order.glsl).
+  bool shares_work = false;
   /// For writes that are not idempotent (the compaction's atomic append): `save` runs before each slice,
   /// `restore` after an overflow, before the slice is re-run smaller.
   std::function<void()> save, restore;

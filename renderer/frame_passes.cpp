@@ -11,14 +11,14 @@ namespace {
 
 // A ray-tracing pass's traced dispatch over 8x8 groups, sliced by workgroup rows through RayParams.frame.z.
 TracedStep rt_step(RtResources& rt, std::string name, std::function<glm::uvec2()> workgroups,
-                   std::function<void(VkCommandBuffer, uint32_t, uint32_t)> record) {
+                   std::function<void(VkCommandBuffer, uint32_t, uint32_t, uint32_t)> record) {
   TracedStep s;
   s.name = std::move(name);
   s.workgroups = std::move(workgroups);
-  s.record_slice = [&rt, record = std::move(record)](VkCommandBuffer cmd, uint32_t first, uint32_t n,
-                                                     uint32_t sampling) {
+  s.record_slice = [&rt, record = std::move(record)](VkCommandBuffer cmd, uint32_t first, uint32_t n, uint32_t sampling,
+                                                     uint32_t sharing) {
     rt.set_slice(first, sampling);  // a host write before the submission
-    record(cmd, first, n);
+    record(cmd, first, n, sharing);
   };
   s.finish = [&rt] { rt.set_slice(0, 0); };
   return s;
@@ -44,7 +44,7 @@ void Frame::add_compaction_passes(std::vector<FramePass>& out) {
   compact.traced.after = [&cp](VkCommandBuffer cmd) { cp.record_args(cmd); };
   TracedStep cs = rt_step(
       rt, "compact", [&cp] { return cp.compact_workgroups(); },
-      [&cp](VkCommandBuffer cmd, uint32_t first, uint32_t n) { cp.record_traced_compact(cmd, first, n); });
+      [&cp](VkCommandBuffer cmd, uint32_t first, uint32_t n, uint32_t) { cp.record_traced_compact(cmd, first, n); });
   cs.save = [this, &rt] { compact_saved_ = rt.read_compacted_count(ctx_); };
   cs.restore = [this, &cp] {
     ctx_.submit_and_wait([&](VkCommandBuffer cmd) { cp.record_reset_count(cmd, compact_saved_); });
@@ -67,7 +67,7 @@ void Frame::add_compaction_passes(std::vector<FramePass>& out) {
       s.group_size = {RADIX_THREADS, 1};
       s.one_d = true;
       s.workgroups = [groups = step.groups] { return glm::uvec2(groups, 1u); };
-      s.record_slice = [&cp, step](VkCommandBuffer cmd, uint32_t first, uint32_t n, uint32_t sampling) {
+      s.record_slice = [&cp, step](VkCommandBuffer cmd, uint32_t first, uint32_t n, uint32_t sampling, uint32_t) {
         cp.record_traced_sort_step(cmd, step, first, n, sampling);
       };
       sort.traced.steps.push_back(std::move(s));
@@ -83,7 +83,7 @@ void Frame::add_compaction_passes(std::vector<FramePass>& out) {
   consume.traced.attach = [&cp](vk::Context& ctx, const vk::Buffer&) { cp.attach_trace_consume(ctx); };
   TracedStep s = rt_step(
       rt, "consume", [this, &rt] { return CompactionPath::consume_workgroups(rt.read_compacted_count(ctx_)); },
-      [&cp](VkCommandBuffer cmd, uint32_t, uint32_t n) { cp.record_traced_consume(cmd, n); });
+      [&cp](VkCommandBuffer cmd, uint32_t, uint32_t n, uint32_t) { cp.record_traced_consume(cmd, n); });
   s.group_size = {64, 1};  // HP_CONSUME_GROUP (shaders/common/compaction.glsl)
   s.one_d = true;
   consume.traced.steps.push_back(std::move(s));
@@ -119,9 +119,13 @@ std::vector<FramePass> Frame::build_passes() {
                       [&sp, next_covers](VkCommandBuffer cmd, bool alone) { sp.record(cmd, alone || !next_covers); }};
     shadows.traced.selected_by = TracedVariant::Switch::shadows;
     shadows.traced.attach = [&sp](vk::Context& ctx, const vk::Buffer&) { sp.attach_trace(ctx); };
-    shadows.traced.steps.push_back(rt_step(
+    TracedStep shadow_step = rt_step(
         *rt_, "shadows", [&sp] { return sp.workgroups(); },
-        [&sp](VkCommandBuffer cmd, uint32_t first, uint32_t n) { sp.record_traced_slice(cmd, first, n); }));
+        [&sp](VkCommandBuffer cmd, uint32_t first, uint32_t n, uint32_t sharing) {
+          sp.record_traced_slice(cmd, first, n, sharing);
+        });
+    shadow_step.shares_work = true;
+    shadows.traced.steps.push_back(std::move(shadow_step));
     shadows.dispatch = "8x8 groups over the image (and over the injected rows again)";
     shadows.reads = std::string("G-buffer, frame, ray params, ") + traversal_reads();
     shadows.writes = "shadow_mask, counters, shadow dump";
@@ -134,9 +138,13 @@ std::vector<FramePass> Frame::build_passes() {
                    [&rp](VkCommandBuffer cmd, bool) { rp.record(cmd); }};
     refl.traced.selected_by = TracedVariant::Switch::reflections;
     refl.traced.attach = [&rp](vk::Context& ctx, const vk::Buffer&) { rp.attach_trace(ctx); };
-    refl.traced.steps.push_back(rt_step(
+    TracedStep refl_step = rt_step(
         *rt_, "reflections", [&rp] { return rp.workgroups(); },
-        [&rp](VkCommandBuffer cmd, uint32_t first, uint32_t n) { rp.record_traced_slice(cmd, first, n); }));
+        [&rp](VkCommandBuffer cmd, uint32_t first, uint32_t n, uint32_t sharing) {
+          rp.record_traced_slice(cmd, first, n, sharing);
+        });
+    refl_step.shares_work = true;
+    refl.traced.steps.push_back(std::move(refl_step));
     refl.dispatch = "8x8 groups over the reflection grid";
     refl.reads = std::string("G-buffer, frame, ray params, ") + traversal_reads() + ", materials";
     refl.writes = "reflection, counters, reflection dump";

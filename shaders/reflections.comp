@@ -11,15 +11,10 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 #endif
 
-void main() {
-#ifdef HP_RT_PIPELINE
-  ivec2 q = hp_launch_pixel();  // dispatch_order.glsl
-#else
-  uvec2 wg = hp_tile_workgroup();  // dispatch_order.glsl
-  ivec2 q = ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy);
-#endif
+// Cell q of the reflection grid, invocation `local` of tile wg of a row of wgx tiles.
+void hp_reflection_cell(uvec2 wg, uint wgx, ivec2 q, uint local) {
   if (q.x >= int(rt.grid.x) || q.y >= int(rt.grid.y)) return;
-  HP_TRACE_BEGIN(wg, gl_NumWorkGroups.x, rt.frame.w);
+  HP_TRACE_BEGIN_AT(wg, wgx, rt.frame.w, local);
   uint cell = uint(q.y) * rt.grid.x + uint(q.x);
   HpStats st;
   st.nodes = 0u; st.tris = 0u;
@@ -45,4 +40,27 @@ void main() {
     reflection_dump[cell] = dump;
   }
   hp_count_reflection(was_cast, st, shadow_rays);
+}
+
+void main() {
+#ifdef HP_RT_PIPELINE
+  hp_reflection_cell(uvec2(0u), 0u, hp_launch_pixel(), 0u);  // dispatch_order.glsl
+#else
+#ifdef HP_TRACE
+  if (hp_trace_sharing()) {  // the slice's tiles, each taken whole by one subgroup (dispatch_order.glsl)
+    uint wgx = (rt.grid.x + 7u) / 8u;
+    uvec2 wg;
+    while (hp_next_shared_tile(wgx, wg)) {
+      for (uint c = 0u; c < 64u; c += gl_SubgroupSize) {
+        uint local = c + gl_SubgroupInvocationID;
+        hp_reflection_cell(wg, wgx, ivec2(wg * 8u + uvec2(local % 8u, local / 8u)), local);
+      }
+    }
+    return;
+  }
+#endif
+  uvec2 wg = hp_tile_workgroup();  // dispatch_order.glsl
+  hp_reflection_cell(wg, gl_NumWorkGroups.x, ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy),
+                     gl_LocalInvocationIndex);
+#endif
 }

@@ -14,16 +14,11 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 const float HP_FLT_MAX = 3.402823466e+38;
 
-void main() {
-#ifdef HP_RT_PIPELINE
-  ivec2 p = hp_launch_pixel();  // dispatch_order.glsl
-#else
-  uvec2 wg = hp_tile_workgroup();  // dispatch_order.glsl
-  ivec2 p = ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy);
-#endif
+// Pixel p, invocation `local` of tile wg of a row of wgx tiles.
+void hp_shadow_pixel(uvec2 wg, uint wgx, ivec2 p, uint local) {
   // A ragged edge is covered by rounding the dispatch up and skipping here (the study truncated it).
   if (p.x >= int(frame.extent.x) || p.y >= int(frame.extent.y)) return;
-  HP_TRACE_BEGIN(wg, gl_NumWorkGroups.x, rt.frame.w);
+  HP_TRACE_BEGIN_AT(wg, wgx, rt.frame.w, local);
   uint pix = uint(p.y) * frame.extent.x + uint(p.x);
   HpStats st;
   st.nodes = 0u; st.tris = 0u;
@@ -66,4 +61,27 @@ void main() {
     hp_counter_add(HP_COUNTER_SHADOW_NODES, st.nodes);
     hp_counter_add(HP_COUNTER_SHADOW_TRIS, st.tris);
   }
+}
+
+void main() {
+#ifdef HP_RT_PIPELINE
+  hp_shadow_pixel(uvec2(0u), 0u, hp_launch_pixel(), 0u);  // dispatch_order.glsl
+#else
+#ifdef HP_TRACE
+  if (hp_trace_sharing()) {  // the slice's tiles, each taken whole by one subgroup (dispatch_order.glsl)
+    uint wgx = (frame.extent.x + 7u) / 8u;
+    uvec2 wg;
+    while (hp_next_shared_tile(wgx, wg)) {
+      for (uint c = 0u; c < 64u; c += gl_SubgroupSize) {
+        uint local = c + gl_SubgroupInvocationID;
+        hp_shadow_pixel(wg, wgx, ivec2(wg * 8u + uvec2(local % 8u, local / 8u)), local);
+      }
+    }
+    return;
+  }
+#endif
+  uvec2 wg = hp_tile_workgroup();  // dispatch_order.glsl
+  hp_shadow_pixel(wg, gl_NumWorkGroups.x, ivec2(wg * gl_WorkGroupSize.xy + gl_LocalInvocationID.xy),
+                  gl_LocalInvocationIndex);
+#endif
 }

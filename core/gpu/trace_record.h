@@ -76,17 +76,24 @@ struct TraceRegionCount {
 };
 HP_CHECK_SIZE(TraceRegionCount, 64);
 
-// Head of the trace storage buffer; the records follow it (std430: a 1088-byte header, then the array;
+// Head of the trace storage buffer; the records follow it (std430: a 1152-byte header, then the array;
 // region r holds records [r * region_capacity, (r + 1) * region_capacity)).
 struct TraceBufferHeader {
   uint regions;          // 1..HP_TRACE_MAX_REGIONS
   uint region_capacity;  // records each region holds
   uint pass_id;
-  uint reserved[13];
+  // Work sharing (a CPU device): where `units` is not 0 the dispatch is one workgroup per region, whose
+  // subgroups take the slice's `units` invocations a workgroup's worth at a time from the counter
+  // `work.count`, so that a thread held up by the host's writers leaves its share to the others instead of
+  // holding up the slice. 0: each workgroup takes its own tile.
+  uint units;
+  uint reserved[12];
+  TraceRegionCount work;  // on a line of its own: the hooks read the line above at every record
   TraceRegionCount region[HP_TRACE_MAX_REGIONS];
 };
-HP_CHECK_SIZE(TraceBufferHeader, 64 + 64 * 16);
-HP_CHECK_LAYOUT(TraceBufferHeader, region, 64);
+HP_CHECK_SIZE(TraceBufferHeader, 64 + 64 + 64 * 16);
+HP_CHECK_LAYOUT(TraceBufferHeader, work, 64);
+HP_CHECK_LAYOUT(TraceBufferHeader, region, 128);
 
 #ifdef __cplusplus
 inline constexpr uint trace_size(uint info) { return (info & HP_TRACE_SIZE_MASK) + 1u; }

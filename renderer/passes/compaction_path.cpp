@@ -93,7 +93,7 @@ void CompactionPath::attach_trace_sort(vk::Context& ctx, const vk::Buffer& trace
 }
 
 void CompactionPath::record_traced_compact(VkCommandBuffer cmd, uint32_t first_row, uint32_t rows) const {
-  rt_.dispatch_traced_rows(cmd, compact_traced_, compact_workgroups(), first_row, rows,
+  rt_.dispatch_traced_rows(cmd, compact_traced_, compact_workgroups(), first_row, rows, 0,
                            "CompactionPath: attach_trace_compact first");
 }
 

@@ -24,8 +24,9 @@ void ReflectionPass::attach_trace(vk::Context& ctx) {
   if (!traced_.handle()) traced_ = rt_.create_traced_pipeline(ctx, reflections_traced_comp, reflections_rq_traced_comp);
 }
 
-void ReflectionPass::record_traced_slice(VkCommandBuffer cmd, uint32_t first_row, uint32_t rows) const {
-  rt_.dispatch_traced_rows(cmd, traced_, workgroups(), first_row, rows,
+void ReflectionPass::record_traced_slice(VkCommandBuffer cmd, uint32_t first_row, uint32_t rows,
+                                         uint32_t sharing) const {
+  rt_.dispatch_traced_rows(cmd, traced_, workgroups(), first_row, rows, sharing,
                            "ReflectionPass::record_traced_slice: attach_trace first");
 }
 

@@ -365,8 +365,13 @@ void RtResources::dispatch_traced(VkCommandBuffer cmd, const vk::Pipeline& p, ui
 }
 
 void RtResources::dispatch_traced_rows(VkCommandBuffer cmd, const vk::Pipeline& p, glm::uvec2 workgroups,
-                                       uint32_t first_row, uint32_t rows, const char* unattached) const {
+                                       uint32_t first_row, uint32_t rows, uint32_t sharing,
+                                       const char* unattached) const {
   if (!p.handle()) throw std::logic_error(unattached);
+  if (sharing) {
+    dispatch_traced(cmd, p, sharing, 1);
+    return;
+  }
   dispatch_traced(cmd, p, workgroups.x, std::min(rows, workgroups.y - first_row));
 }
 

@@ -90,10 +90,11 @@ class RtResources {
   /// A traced slice: binds `p`, dispatches gx x gy groups, then makes the records visible to the host.
   void dispatch_traced(VkCommandBuffer cmd, const vk::Pipeline& p, uint32_t gx, uint32_t gy) const;
   /// A traced slice of a dispatch of `workgroups` (8x8 each) sliced by rows of workgroups: rows
-  /// [first_row, first_row + rows), clipped to the dispatch. `unattached` is the logic_error's message when
-  /// the pass's instrumented pipeline `p` was not built.
+  /// [first_row, first_row + rows), clipped to the dispatch; or, where `sharing` is not 0, `sharing`
+  /// workgroups that take the slice's tiles between them (gpu::TraceBufferHeader::units). `unattached` is the
+  /// logic_error's message when the pass's instrumented pipeline `p` was not built.
   void dispatch_traced_rows(VkCommandBuffer cmd, const vk::Pipeline& p, glm::uvec2 workgroups, uint32_t first_row,
-                            uint32_t rows, const char* unattached) const;
+                            uint32_t rows, uint32_t sharing, const char* unattached) const;
   /// Binds the capture's trace buffer (a TraceBufferHeader then TraceRecords) at HP_BIND_TRACE_RECORDS.
   void attach_trace_buffer(const vk::Buffer& trace_buffer);
 

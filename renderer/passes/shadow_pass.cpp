@@ -31,8 +31,8 @@ void ShadowPass::attach_trace(vk::Context& ctx) {
   if (!traced_.handle()) traced_ = rt_.create_traced_pipeline(ctx, shadows_traced_comp, shadows_rq_traced_comp);
 }
 
-void ShadowPass::record_traced_slice(VkCommandBuffer cmd, uint32_t first_row, uint32_t rows) const {
-  rt_.dispatch_traced_rows(cmd, traced_, workgroups(), first_row, rows,
+void ShadowPass::record_traced_slice(VkCommandBuffer cmd, uint32_t first_row, uint32_t rows, uint32_t sharing) const {
+  rt_.dispatch_traced_rows(cmd, traced_, workgroups(), first_row, rows, sharing,
                            "ShadowPass::record_traced_slice: attach_trace first");
 }
 

@@ -20,7 +20,8 @@ class ShadowPass {
   /// Builds the instrumented pipeline (once; the trace buffer is RtResources::attach_trace_buffer's).
   void attach_trace(vk::Context& ctx);
   /// Workgroup rows [first_row, first_row + rows) traced (RtResources::set_slice gives the shaders the offset).
-  void record_traced_slice(VkCommandBuffer cmd, uint32_t first_row, uint32_t rows) const;
+  /// `sharing`: 0, or the workgroups of a work-sharing dispatch (gpu::TraceBufferHeader::units).
+  void record_traced_slice(VkCommandBuffer cmd, uint32_t first_row, uint32_t rows, uint32_t sharing) const;
 
  private:
   RtResources& rt_;

@@ -8,6 +8,7 @@
 #define HP_DISPATCH_ORDER_GLSL
 
 #include "common/rt_bindings.glsl"
+#include "common/trace_capture.glsl"
 
 // A bijection of [0, n), the bit-reversal permutation's first HP_SPREAD_LEVELS (= L) steps generalised to
 // any n: the first ceil(n/2) indices take the even positions and the others the odd ones, each half ordered
@@ -52,6 +53,19 @@ ivec2 hp_launch_pixel() {
 uvec2 hp_tile_workgroup() {
   return uvec2(gl_WorkGroupID.x, rt.frame.z + hp_spread(gl_WorkGroupID.y, gl_NumWorkGroups.y));
 }
+#ifdef HP_TRACE
+// A traced slice in the work-sharing mode (hp_trace_sharing, trace_capture.glsl): the next 8x8 tile of the
+// slice, which the calling subgroup takes whole, in rows of `tiles_x` tiles from row rt.frame.z; false when
+// none is left. A tile's records then come from one device thread, in its region, in tile order.
+bool hp_next_shared_tile(uint tiles_x, out uvec2 wg) {
+  uint first;
+  wg = uvec2(0u);
+  if (!hp_trace_take(64u, first)) return false;
+  uint tile = first / 64u;
+  wg = uvec2(tile % tiles_x, rt.frame.z + tile / tiles_x);
+  return true;
+}
+#endif
 #endif
 
 #endif

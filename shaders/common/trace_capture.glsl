@@ -29,9 +29,10 @@ uint hp_trace_region = 0u;      // the trace buffer region of this workgroup's b
 // passed in: this file is included before main's local_size layout, where gl_WorkGroupSize is still 1.
 // `sampling`: the low 20 bits are k, the bits above log2 of the burst length B: the workgroups of every k-th
 // burst of B consecutive workgroups (dispatch order) record (B = 1: every k-th workgroup).
-void hp_trace_begin(uvec2 workgroup, uint workgroups_x, uint sampling, uint group_invocations) {
+void hp_trace_begin(uvec2 workgroup, uint workgroups_x, uint sampling, uint group_invocations, uint local_index) {
   uint wg_linear = workgroup.y * workgroups_x + workgroup.x;
-  hp_trace_invocation = wg_linear * group_invocations + gl_LocalInvocationIndex;
+  hp_trace_invocation = wg_linear * group_invocations + local_index;
+  hp_trace_seq = 0u;  // in the work-sharing mode an invocation begins several tiles' invocations in turn
   uint k = sampling & 0xFFFFFu;
   hp_trace_on = k <= 1u || ((wg_linear >> (sampling >> 20)) % k) == 0u;
   // The region: this workgroup's block of the dispatch as run (gl_WorkGroupID, not the tile it works on),
@@ -79,13 +80,29 @@ void hp_rec_n(uint n, uvec4 info, uvec4 offset) {
 // n loads made together, in this order: buffers, offsets and sizes as uvec4 (the first n components count).
 #define HP_REC_LOADS(n, bufs, offs, sizes) \
   hp_rec_n((n), HP_TRACE_INFO(uvec4(bufs), HP_TRACE_LOAD, uvec4(sizes)), uvec4(offs))
-#define HP_TRACE_BEGIN(wg, wgx, k) hp_trace_begin((wg), (wgx), (k), gl_WorkGroupSize.x * gl_WorkGroupSize.y)
+#define HP_TRACE_BEGIN(wg, wgx, k) \
+  hp_trace_begin((wg), (wgx), (k), gl_WorkGroupSize.x * gl_WorkGroupSize.y, gl_LocalInvocationIndex)
+// The same for invocation `local` of tile `wg` taken in the work-sharing mode (TraceBufferHeader::units).
+#define HP_TRACE_BEGIN_AT(wg, wgx, k, local) \
+  hp_trace_begin((wg), (wgx), (k), gl_WorkGroupSize.x * gl_WorkGroupSize.y, (local))
+
+// The work-sharing mode of a capture slice (TraceBufferHeader::units).
+bool hp_trace_sharing() { return trace_head.units != 0u; }
+// The next workgroup's worth (`group` invocations) of the slice's invocations, from its first (relative to
+// the slice); false when none is left. Subgroup-uniform.
+bool hp_trace_take(uint group, out uint first) {
+  uint u = 0u;
+  if (subgroupElect()) u = atomicAdd(trace_head.work.count, group);
+  first = subgroupBroadcastFirst(u);
+  return first < trace_head.units;
+}
 #else
 #define HP_REC_LOAD(buf, off, size)
 #define HP_REC_STORE(buf, off, size)
 #define HP_REC_ATOMIC(buf, off, size)
 #define HP_REC_LOADS(n, bufs, offs, sizes)
 #define HP_TRACE_BEGIN(wg, wgx, k)
+#define HP_TRACE_BEGIN_AT(wg, wgx, k, local)
 #endif
 
 #endif

@@ -7,6 +7,7 @@
 #include "error.hpp"
 #include "frame.hpp"
 #include "gpu/trace_buffers.h"
+#include "rt_scene.hpp"
 #include "scene/load.hpp"
 
 #include <algorithm>
@@ -286,6 +287,48 @@ TEST(Capture, RegionsCodedWhereTheyLieOrSideBySideGiveTheFileOfTheRegionsPutToge
   EXPECT_GT(files[0].size(), 1000u);
   EXPECT_TRUE(files[0] == files[2]) << "staged";
   EXPECT_TRUE(files[1] == files[2]) << "coded where they lie";
+}
+
+// On a CPU device of more than one thread the shadow and reflection slices are shared out tile by tile
+// (CaptureOptions::share_work); the file is the one the fixed split makes, byte for byte, with a roomy
+// buffer and with one so small that a slice's records must fit one region and single rows are re-run
+// without sharing.
+TEST(Capture, SharedTilesGiveTheFileOfTheFixedSplit) {
+  HP_REQUIRE_VULKAN(ctx);
+  if (device_cpu_threads(*ctx) < 2) GTEST_SKIP() << "the device is not a CPU device of two threads or more: no sharing";
+  const Scene scene = load_scene("builtin:pica");
+  const FrameSettings s = small(96, 112);
+  for (const uint64_t buffer : {uint64_t(0), slice_buffer(120000)}) {
+    std::vector<std::vector<char>> files;
+    std::vector<uint32_t> reruns;
+    for (const bool share : {true, false}) {
+      CaptureOptions o;
+      o.share_work = share;
+      o.buffer_bytes = buffer;
+      const fs::path file = fs::temp_directory_path() / ("hp_capture_" + std::to_string(::getpid()) + "_share.hptrace");
+      Frame frame(*ctx, scene, scene.camera, s);
+      {
+        trace::TraceWriter writer(file, frame.trace_header(o.tiled_images));
+        const std::vector<CapturedPass> passes = frame.render_captured(o, writer);
+        ASSERT_EQ(passes.size(), 2u);
+        reruns.push_back(passes[0].reruns + passes[1].reruns);
+        for (const CapturedPass& p : passes) {
+          if (share) {
+            EXPECT_GT(p.shared_slices, 0u) << p.pass;
+          } else {
+            EXPECT_EQ(p.shared_slices, 0u) << p.pass;
+          }
+        }
+        writer.finish();
+      }
+      std::ifstream in(file, std::ios::binary);
+      files.emplace_back(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+      fs::remove(file);
+    }
+    EXPECT_GT(files[0].size(), 1000u);
+    EXPECT_TRUE(files[0] == files[1]) << "buffer " << buffer;
+    if (buffer) EXPECT_GT(reruns[0], 0u) << "the small buffer makes slices re-run";
+  }
 }
 
 // Audit find (2026-11-30): a capture ran every enabled pass and the composite even when only one pass was
