@@ -320,11 +320,12 @@ struct Slicer {
     // for disk space: the next acquire() rethrows) follows its write.
     SliceWriter writer(sink, recs, region_capacity, writers);
     // The first slice: the whole pass where it is expected to fit (at 1920x1080 pica's passes make 23-38
-    // records per invocation), else the probe.
+    // records per invocation; a shared slice must fit one region), else the probe.
+    const uint64_t room = step.shares_work && sharing ? region_capacity : capacity;
     const uint64_t traced_invocations = cp.sampled_workgroups * uint64_t(step.group_size.x) * step.group_size.y;
     const uint32_t first_units = options.first_slice_units ? options.first_slice_units
-                                 : traced_invocations * kExpectedRecordsPerInvocation <= capacity ? units
-                                                                                                  : 1;
+                                 : traced_invocations * kExpectedRecordsPerInvocation <= room ? units
+                                                                                              : 1;
     uint32_t n_max = std::clamp<uint32_t>(first_units, 1, units);
     uint32_t part = writer.acquire();  // the part of the buffer the next slice goes to
     // In the work-sharing mode a device thread may take any share of a slice's tiles, so a slice is kept only

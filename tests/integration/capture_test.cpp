@@ -327,7 +327,9 @@ TEST(Capture, SharedTilesGiveTheFileOfTheFixedSplit) {
     }
     EXPECT_GT(files[0].size(), 1000u);
     EXPECT_TRUE(files[0] == files[1]) << "buffer " << buffer;
-    if (buffer) EXPECT_GT(reruns[0], 0u) << "the small buffer makes slices re-run";
+    if (buffer) {
+      EXPECT_GT(reruns[0], 0u) << "the small buffer makes slices re-run";
+    }
   }
 }
 
