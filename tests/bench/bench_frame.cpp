@@ -29,6 +29,10 @@
 // ray-generation shaders are the same sources), the driver's acceleration structure built from the compute
 // BVH's leaf order. The label names the device; "as_build_ms" and "as_mib" the structure's build and size.
 // Run: build/tests/bench/hp_bench_frame [--benchmark_filter=...] ; HP_BENCH_WIDTH/HEIGHT override 1280x720.
+// HP_BENCH_RAY_COPIES=N (default 1) casts each dumped ray N times in a row in the Trace and Cpu rows: with
+// N = 8 the eight lanes of a vector trace the same ray, which measures a vector step without divergence
+// (docs/gpu-passes.md, "Where the rest of the gap is"). The rates count every copy; the work per ray and the
+// lane-use model stay those of the rays as cast.
 #include "bvh/traverse.hpp"
 #include "frame.hpp"
 #include "passes/ray_batch.hpp"
@@ -155,9 +159,10 @@ Setup& setup(const std::string& spec, Pass pass, Traversal traversal,
     dumper.render();
     const auto dump = pass == Pass::shadows ? dumper.rt_passes()->read_shadow_dump(context())
                                             : dumper.rt_passes()->read_reflection_dump(context());
+    const uint32_t copies = std::max(1u, env_or("HP_BENCH_RAY_COPIES", 1));
     for (const auto& d : dump) {
       if (d.hit.z == 0) continue;
-      s.rays.push_back(dumped_ray(d));
+      s.rays.insert(s.rays.end(), copies, dumped_ray(d));
     }
     // The dump is per cell of the pass's grid: the full frame (reflections at scale 1 here).
     measure_work(s, dump, fs.width, pass);
