@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <string_view>
 #include <thread>
 
 
@@ -61,12 +62,19 @@ uint32_t dispatch_spread_levels(const vk::Context& ctx) {
   return levels;
 }
 
+bool exact_traversal_division(const vk::Context& ctx) {
+  if (const char* env = std::getenv("HP_EXACT_DIVISION"); env != nullptr && *env != '\0')
+    return std::string_view(env) != "0";
+  return ctx.info().driver_name != "llvmpipe";
+}
+
 RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, GeometryLayout layout, bool shading,
                  bool allow_geometry_texels, bool slot_map, bool bvh_nodes, std::optional<uint32_t> spread_levels)
     : layout_(layout),
       object_leaves_(g.bvh.granularity == bvh::Granularity::object),
       wide_nodes_(bvh_nodes && g.node_layout == bvh::NodeLayout::wide4),
-      spread_levels_(spread_levels ? *spread_levels : dispatch_spread_levels(ctx)) {
+      spread_levels_(spread_levels ? *spread_levels : dispatch_spread_levels(ctx)),
+      exact_division_(exact_traversal_division(ctx)) {
   const auto& leaf = g.leaf;
   const size_t slots = leaf.triangles.size();
   const uint64_t max_range = ctx.properties().limits.maxStorageBufferRange;
@@ -236,9 +244,10 @@ RtSpecialization::RtSpecialization(const RtScene& scene, uint32_t rt_flags, bool
              rt_flags,
              as_remap ? 1u : 0u,
              scene.wide_nodes() ? 1u : 0u,
-             scene.spread_levels()},
-      entries{{0, 0, 4}, {1, 4, 4}, {2, 8, 4}, {3, 12, 4}, {4, 16, 4}, {5, 20, 4}, {6, 24, 4}},
-      info{7, entries, sizeof(values), values} {}
+             scene.spread_levels(),
+             scene.exact_division() ? 1u : 0u},
+      entries{{0, 0, 4}, {1, 4, 4}, {2, 8, 4}, {3, 12, 4}, {4, 16, 4}, {5, 20, 4}, {6, 24, 4}, {7, 28, 4}},
+      info{8, entries, sizeof(values), values} {}
 
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
                                 const RtScene& scene, uint32_t rt_flags, bool as_remap) {

@@ -25,7 +25,7 @@ class RtScene {
   /// `bvh_nodes`: upload the BVH nodes (false for the driver traversals, which read the driver's structure:
   /// the node bindings then hold a small dummy).
   /// `spread_levels`: the passes' dispatch order (spread_levels()); by default the device's
-  /// (dispatch_spread_levels).
+  /// (dispatch_spread_levels). The traversal's division is the device's (exact_traversal_division).
   RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& geometry, GeometryLayout layout, bool shading,
           bool allow_geometry_texels = true, bool slot_map = true, bool bvh_nodes = true,
           std::optional<uint32_t> spread_levels = std::nullopt);
@@ -37,6 +37,8 @@ class RtScene {
   /// Levels of the order in which the traced passes' workgroups take their tiles and rays
   /// (shaders/common/dispatch_order.glsl; specialization constant 6).
   uint32_t spread_levels() const { return spread_levels_; }
+  /// The traversal divides in double precision and rounds once (specialization constant 7).
+  bool exact_division() const { return exact_division_; }
   /// The traversal fetches the geometry through texel views (positions(), indices(), soup() seen as
   /// R32G32B32A32_UINT, a vertex or a triangle's three indices per texel: bindings 29-31) rather than storage
   /// loads. Off where the device cannot read that format as a uniform texel buffer, a buffer exceeds
@@ -90,6 +92,7 @@ class RtScene {
   bool object_leaves_;
   bool wide_nodes_;
   uint32_t spread_levels_;
+  bool exact_division_;
   uint64_t uploaded_bytes_ = 0;
   uint64_t positions_bytes_ = 0, indices_bytes_ = 0, soup_bytes_ = 0, normals_bytes_ = 0, soup_normals_bytes_ = 0;
   vk::Buffer nodes_, positions_, indices_, soup_, object_first_, slot_scene_, normals_, soup_normals_, slot_material_,
@@ -110,17 +113,25 @@ unsigned device_cpu_threads(const vk::Context& ctx);
 /// covers the whole image; on a GPU 0, the image order.
 uint32_t dispatch_spread_levels(const vk::Context& ctx);
 
+/// Whether the compute traversal on `ctx`'s device takes its quotients in double precision, rounded once to
+/// float (hp_div in shaders/common/traversal.glsl), so that they are the correctly rounded quotients of the C++
+/// reference: on every device but lavapipe, whose float division is IEEE's (LLVM's fdiv on the host CPU). Vulkan
+/// allows a 32-bit division 2.5 ulp of error, and NVIDIA's uses it. HP_EXACT_DIVISION=1 (or 0) in the
+/// environment forces it on (off): the tests check the double-precision path on lavapipe with it.
+bool exact_traversal_division(const vk::Context& ctx);
+
 /// The specialization of a ray-tracing shader for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =
 /// soup layout, 1 = object leaves, 2 = geometry fetched as texels), for what a frame records (constant_id 3 =
 /// `rt_flags`, HP_RT_COUNTERS | HP_RT_DUMP_RAYS | HP_RT_REFLECTION_SHADOWS ...), for the driver traversal's
 /// primitive -> slot table (constant_id 4, common/driver_traversal.glsl), for the node layout (constant_id 5 =
-/// wide4 nodes) and for the dispatch order (constant_id 6 = spread levels). Not copyable: `info` points into it.
+/// wide4 nodes), for the dispatch order (constant_id 6 = spread levels) and for the division (constant_id 7 =
+/// exact_traversal_division). Not copyable: `info` points into it.
 struct RtSpecialization {
   RtSpecialization(const RtScene& scene, uint32_t rt_flags, bool as_remap);
   RtSpecialization(const RtSpecialization&) = delete;
   RtSpecialization& operator=(const RtSpecialization&) = delete;
-  uint32_t values[7];
-  VkSpecializationMapEntry entries[7];
+  uint32_t values[8];
+  VkSpecializationMapEntry entries[8];
   VkSpecializationInfo info;
 };
 

@@ -27,6 +27,9 @@ layout(constant_id = 5) const uint HP_WIDE_NODES = 0;
 // Levels of the order in which workgroups take their tiles or rays (common/dispatch_order.glsl): 0 on a GPU
 // (the image order), ceil(log2(threads)) on a CPU driver that gives each thread one block of workgroups.
 layout(constant_id = 6) const uint HP_SPREAD_LEVELS = 0;
+// How the traversal divides (hp_div, common/traversal.glsl): 0 = the device's 32-bit division, 1 = the quotient
+// taken in double precision and rounded once to float (exact_traversal_division in renderer/rt_scene.hpp).
+layout(constant_id = 7) const uint HP_EXACT_DIVISION = 0;
 
 layout(set = 0, binding = HP_BIND_RT_FRAME) uniform FrameBlock { FrameUniforms frame; };
 layout(set = 0, binding = HP_BIND_RT_PARAMS) uniform RayBlock { RayParams rt; };

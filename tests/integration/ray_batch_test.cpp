@@ -160,6 +160,7 @@ void check_scene(const std::string& spec, GeometryLayout layout, bvh::Granularit
   const RtGeometry g = build_rt_geometry(scene, opts);
   const RtScene rts(*ctx, scene, g, layout, false, texels);
   EXPECT_EQ(rts.wide_nodes(), nodes == bvh::NodeLayout::wide4);
+  EXPECT_EQ(rts.exact_division(), exact_traversal_division(*ctx));
   if (!texels) {
     EXPECT_FALSE(rts.geometry_texels());
   }
@@ -199,6 +200,26 @@ TEST(RayBatch, Wide4NodesEqualTheirReferenceAndTheBinaryHits) {
   const std::string path = std::string(HP_SHARED_DIR) + "/scenes/DamagedHelmet/DamagedHelmet.gltf";
   if (std::filesystem::exists(path)) {
     check_scene(path, GeometryLayout::indexed, bvh::Granularity::triangle, 10000, true, bvh::NodeLayout::wide4);
+  }
+}
+
+// The quotients taken in double precision and rounded once (HP_EXACT_DIVISION, on for every device but
+// lavapipe) are the correctly rounded ones, so they give the reference's hits bit for bit here too.
+TEST(RayBatch, TheDoublePrecisionQuotientsEqualTheReferenceToo) {
+  HP_REQUIRE_VULKAN(ctx);
+  const char* old = std::getenv("HP_EXACT_DIVISION");
+  const std::string saved = old ? old : "";
+  setenv("HP_EXACT_DIVISION", "0", 1);
+  EXPECT_FALSE(exact_traversal_division(*ctx));
+  setenv("HP_EXACT_DIVISION", "1", 1);
+  EXPECT_TRUE(exact_traversal_division(*ctx));
+  check_scene("builtin:pica", GeometryLayout::indexed, bvh::Granularity::triangle, 20000);
+  check_scene("builtin:pica", GeometryLayout::indexed, bvh::Granularity::triangle, 5000, true, bvh::NodeLayout::wide4);
+  check_scene("builtin:cornell", GeometryLayout::soup, bvh::Granularity::object, 5000);
+  if (old) {
+    setenv("HP_EXACT_DIVISION", saved.c_str(), 1);
+  } else {
+    unsetenv("HP_EXACT_DIVISION");
   }
 }
 
