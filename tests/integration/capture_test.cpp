@@ -273,8 +273,12 @@ TEST(Capture, RegionsCodedWhereTheyLieOrSideBySideGiveTheFileOfTheRegionsPutToge
       writer.finish();
       const uint32_t slices = passes[0].slices + passes[1].slices;
       if (way == Way::in_place) {
-        // Most slices' regions are in run order; the others were moved together.
-        EXPECT_GT(uint32_t(sink.done_that_way), slices / 2);
+        // On a CPU device a region is filled by one thread in its run order, so most slices' regions are in
+        // run order; the others were moved together. A GPU runs the workgroups of the four regions side by
+        // side in no set order (on an H200 every slice was moved together): the file must still be the same.
+        if (ctx->properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU) {
+          EXPECT_GT(uint32_t(sink.done_that_way), slices / 2);
+        }
         EXPECT_EQ(uint32_t(sink.done_that_way + sink.put_together), slices);
       } else {
         EXPECT_EQ(uint32_t(sink.done_that_way), slices) << "way " << int(way);

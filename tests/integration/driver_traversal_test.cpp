@@ -94,15 +94,30 @@ double color_mismatch(const Rendered& a, const Rendered& b, const char* what) {
   return double(differ) / double(n);
 }
 
+// Whether `ctx`'s driver compiles a ray-generation shader and a compute shader of the same source into the
+// same arithmetic, so that both make the same rays bit for bit: lavapipe does. NVIDIA's compiler does not
+// (H200, driver 580.159.04, 2026-12-04: 16,486 of the 19,993 reflection rays of the pica frame below came out
+// of the ray-generation shader one to a few ulps apart, at most 3.6e-7 in a component of the unit direction).
+bool same_rays_bit_for_bit(const vk::Context& ctx) { return ctx.info().driver_name == "llvmpipe"; }
+
 // Closest hits on the same rays: the same scene triangle, or a tie (the driver may name either triangle at
-// one t); returns the fraction that disagree.
-double closest_mismatch(const std::vector<gpu::RayDump>& a, const std::vector<gpu::RayDump>& b, const char* what) {
-  size_t rays = 0, differ = 0, ties = 0;
+// one t); returns the fraction that disagree. The same ray: bit for bit where `bitwise`, else directions
+// within 1e-6 in each component (and the same tmax).
+double closest_mismatch(const std::vector<gpu::RayDump>& a, const std::vector<gpu::RayDump>& b, const char* what,
+                        bool bitwise) {
+  size_t rays = 0, differ = 0, ties = 0, same_bits = 0;
   for (size_t i = 0; i < a.size(); ++i) {
     if (a[i].hit.z == 0) continue;
     EXPECT_EQ(b[i].hit.z, 1) << what << ": ray " << i << " cast by one traversal only";
-    EXPECT_EQ(std::bit_cast<glm::uvec4>(a[i].dir_tmax), std::bit_cast<glm::uvec4>(b[i].dir_tmax))
-        << what << ": not the same ray";
+    const bool bits = std::bit_cast<glm::uvec4>(a[i].dir_tmax) == std::bit_cast<glm::uvec4>(b[i].dir_tmax);
+    same_bits += bits;
+    if (bitwise) {
+      EXPECT_TRUE(bits) << what << ": ray " << i << " not the same ray";
+    } else {
+      const glm::vec4 d = glm::abs(a[i].dir_tmax - b[i].dir_tmax);
+      EXPECT_TRUE(std::max({d.x, d.y, d.z}) <= 1e-6f && a[i].dir_tmax.w == b[i].dir_tmax.w)
+          << what << ": ray " << i << " not the same ray";
+    }
     ++rays;
     if (a[i].hit.x == b[i].hit.x) continue;
     const float ta = std::bit_cast<float>(a[i].hit.y), tb = std::bit_cast<float>(b[i].hit.y);
@@ -114,7 +129,8 @@ double closest_mismatch(const std::vector<gpu::RayDump>& a, const std::vector<gp
       std::printf("  %s: ray %zu: triangle %d t %.9g vs triangle %d t %.9g\n", what, i, a[i].hit.x, ta, b[i].hit.x, tb);
     }
   }
-  std::printf("%s: %zu closest-hit rays, %zu differ, %zu ties\n", what, rays, differ, ties);
+  std::printf("%s: %zu closest-hit rays (%zu the same bit for bit), %zu differ, %zu ties\n", what, rays, same_bits,
+              differ, ties);
   EXPECT_GT(rays, 100u) << what << ": too few rays to prove anything";
   // A tie is a ray through a shared edge or vertex: rare (11 of 20,000 random rays on pica). Many of them
   // mean the driver's primitives are mapped to the wrong slots.
@@ -131,7 +147,9 @@ TEST_P(DriverTraversal, PicaFrameAgreesWithTheComputeTraversal) {
   const Rendered compute = render(*ctx, scene, settings(240, 136, Traversal::compute));
   const Rendered driver = render(*ctx, scene, settings(240, 136, GetParam()));
   EXPECT_LE(shadow_mismatch(compute, driver, to_string(GetParam())), 1e-3);
-  EXPECT_LE(closest_mismatch(compute.reflections, driver.reflections, to_string(GetParam())), 1e-3);
+  EXPECT_LE(closest_mismatch(compute.reflections, driver.reflections, to_string(GetParam()),
+                             same_rays_bit_for_bit(*ctx)),
+            1e-3);
   EXPECT_LE(color_mismatch(compute, driver, to_string(GetParam())), 1e-3);
   // The same rays are cast (shadow rays, reflection rays, the reflection hits' shadow rays); the driver's
   // node and triangle work is opaque and not counted.
@@ -167,7 +185,7 @@ TEST_P(DriverTraversal, TriangleOrdersAndCompactionGiveTheSameFrame) {
     }
     // The primitive -> slot table maps the driver's answers back: shading and dumps see the same slots.
     EXPECT_LE(shadow_mismatch(leaf, other, what.c_str()), 1e-3);
-    EXPECT_LE(closest_mismatch(leaf.reflections, other.reflections, what.c_str()), 1e-3);
+    EXPECT_LE(closest_mismatch(leaf.reflections, other.reflections, what.c_str(), true), 1e-3);
     EXPECT_LE(color_mismatch(leaf, other, what.c_str()), 1e-3);
     if (s.rt.as_compaction) {
       EXPECT_LE(other.as.blas_bytes, other.as.blas_built_bytes);
@@ -189,8 +207,14 @@ TEST_P(DriverTraversal, CompactedAndSortedReflectionsEqualTheDirectPath) {
   s.rt.sort = SortKey::direction;
   const Rendered compact = render(*ctx, scene, s);
   EXPECT_EQ(compact.counters.reflection_rays, direct.counters.reflection_rays);
-  // The same rays through the same acceleration structure: the same answers, only in another order.
-  EXPECT_EQ(compact.color.rgba, direct.color.rgba);
+  // The same rays through the same acceleration structure: the same answers, only in another order. Where
+  // the driver compiles the two ray-generation shaders into different arithmetic, the rays (and so the
+  // colours) may differ in their last bits: within 1e-3 on 99.9% of the pixels there.
+  if (same_rays_bit_for_bit(*ctx)) {
+    EXPECT_EQ(compact.color.rgba, direct.color.rgba);
+  } else {
+    EXPECT_LE(color_mismatch(compact, direct, "compact against direct"), 1e-3);
+  }
 }
 
 // Rays of every direction through the scene's box, against the reference traversal.
