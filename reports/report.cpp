@@ -325,12 +325,16 @@ std::string cell_section(const CellResult& c, std::vector<ReportFile>& charts) {
   const double frames = double(c.timing.timings.measured().size());
   if (!k.empty()) {
     s += "\n| pass | rays per frame | nodes per ray | triangles per ray | Mrays/s |\n|---|---|---|---|---|\n";
+    // The driver's traversal counts no nodes or triangles: a dash, not a zero.
+    const bool opaque = driver_traversal(c);
+    const auto work = [&](const std::string& pass, const char* counter_name) {
+      return opaque ? std::string("—") : fmt("%.2f", per_ray(k, pass, counter_name).value_or(0.0));
+    };
     for (const PassStat& p : stats) {
       if (!has_pass(k, p.pass) || k.get(p.pass, counter::rays_cast) == 0) continue;
       const double rays = double(k.get(p.pass, counter::rays_cast));
-      s += "| " + p.pass + " | " + md::count(rays / frames) + " | " +
-           fmt("%.2f", per_ray(k, p.pass, counter::nodes_visited).value_or(0.0)) + " | " +
-           fmt("%.2f", per_ray(k, p.pass, counter::triangles_tested).value_or(0.0)) + " | " +
+      s += "| " + p.pass + " | " + md::count(rays / frames) + " | " + work(p.pass, counter::nodes_visited) + " | " +
+           work(p.pass, counter::triangles_tested) + " | " +
            fmt("%.2f", p.summary.median > 0 ? rays / frames / p.summary.median * 1e3 : 0.0) + " |\n";
     }
   }

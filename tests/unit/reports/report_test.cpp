@@ -265,6 +265,11 @@ TEST(Report, DriverTraversalsAreComparedNotAssumedIdentical) {
       r.markdown,
       std::regex(R"(\| ray-query \(leaf\) \| shadows \|[^\n]*\| \+\d+\.\d% \| 1\.\d\d \| 8\.50 \| 6\.00 \|)")))
       << r.markdown;
+  // A cell's work table: the compute cell's nodes and triangles per ray, a dash for the driver's (not counted).
+  EXPECT_TRUE(std::regex_search(r.markdown, std::regex(R"(\| shadows \| 10,000 \| \d+\.\d\d \| \d+\.\d\d \|)")))
+      << r.markdown;
+  EXPECT_TRUE(std::regex_search(r.markdown, std::regex(R"(\| shadows \| 10,000 \| — \| — \|)"))) << r.markdown;
+  EXPECT_EQ(r.markdown.find("| shadows | 10,000 | 0.00 | 0.00 |"), std::string::npos) << r.markdown;
   EXPECT_NE(r.markdown.find("## Cells not run on this device"), std::string::npos);
   EXPECT_NE(r.markdown.find("- `abc` (as_order=leaf, traversal=pipeline): 'GPU' has no ray-tracing pipelines"),
             std::string::npos)
