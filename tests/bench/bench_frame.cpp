@@ -172,6 +172,15 @@ Setup& setup(const std::string& spec, Pass pass, Traversal traversal,
   return *slot;
 }
 
+// Warm-up before a timed row: at least two runs (the first frames on lavapipe are slower) and at least a
+// quarter of a second of them. A GPU left idle while the host builds a setup drops its clocks (the H200 to
+// 345 MHz from 1980), and a sub-millisecond pass timed right after two runs read up to 3x slower there.
+template <typename Run>
+void warm_up(Run&& run) {
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 0; i < 2 || std::chrono::steady_clock::now() - start < std::chrono::milliseconds(250); ++i) run();
+}
+
 // The driver's acceleration structure of a driver-traversal setup, as counters.
 void as_counters(benchmark::State& state, const Setup& s) {
   if (const AccelStructure* as = s.frame->accel_structure()) {
@@ -184,7 +193,7 @@ void gpu_pass(benchmark::State& state, const std::string& spec, Pass pass, Trave
               bvh::NodeLayout layout) {
   Setup& s = setup(spec, pass, traversal, layout);
   const char* name = pass == Pass::shadows ? "shadows" : "reflections";
-  for (int i = 0; i < 2; ++i) s.frame->render();  // warm-up (first frames on lavapipe are slower)
+  warm_up([&] { s.frame->render(); });
   for (auto _ : state) {
     const FrameTiming t = s.frame->render();
     for (const auto& p : t.passes) {
@@ -204,7 +213,7 @@ void trace_pass(benchmark::State& state, const std::string& spec, Pass pass, Tra
                                                traversal);
   }
   const auto mode = pass == Pass::shadows ? bvh::HitMode::any : bvh::HitMode::closest;
-  for (int i = 0; i < 2; ++i) s.batch->trace(context(), mode);  // warm-up, as for the passes
+  warm_up([&] { s.batch->trace(context(), mode); });
   for (auto _ : state) state.SetIterationTime(double(s.batch->trace(context(), mode)) * 1e-9);
   state.counters["rays"] = benchmark::Counter(double(s.rays.size()), benchmark::Counter::kIsIterationInvariantRate);
   as_counters(state, s);
@@ -231,7 +240,7 @@ void cpu_pass(benchmark::State& state, const std::string& spec, Pass pass) {
 void capture_pass(benchmark::State& state, const std::string& spec, Pass pass) {
   Setup& s = setup(spec, pass, Traversal::compute);
   const char* name = pass == Pass::shadows ? "shadows" : "reflections";
-  for (int i = 0; i < 2; ++i) s.frame->render();  // warm-up
+  warm_up([&] { s.frame->render(); });
   std::vector<double> untraced;
   for (int i = 0; i < 6; ++i) {
     for (const auto& p : s.frame->render().passes) {
