@@ -62,11 +62,13 @@ uint32_t dispatch_spread_levels(const vk::Context& ctx) {
   return levels;
 }
 
-bool exact_traversal_division(const vk::Context& ctx) {
+bool exact_traversal_division(std::string_view driver_name) {
   if (const char* env = std::getenv("HP_EXACT_DIVISION"); env != nullptr && *env != '\0')
     return std::string_view(env) != "0";
-  return ctx.info().driver_name != "llvmpipe";
+  return driver_name != "llvmpipe";
 }
+
+bool exact_traversal_division(const vk::Context& ctx) { return exact_traversal_division(ctx.info().driver_name); }
 
 RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, GeometryLayout layout, bool shading,
                  bool allow_geometry_texels, bool slot_map, bool bvh_nodes, std::optional<uint32_t> spread_levels)

@@ -9,6 +9,7 @@
 
 #include <optional>
 #include <span>
+#include <string_view>
 #include <vector>
 
 #include <string>
@@ -119,6 +120,8 @@ uint32_t dispatch_spread_levels(const vk::Context& ctx);
 /// allows a 32-bit division 2.5 ulp of error, and NVIDIA's uses it. HP_EXACT_DIVISION=1 (or 0) in the
 /// environment forces it on (off): the tests check the double-precision path on lavapipe with it.
 bool exact_traversal_division(const vk::Context& ctx);
+/// The same decision for a driver by its name (VkPhysicalDeviceDriverProperties::driverName), as `devices` shows it.
+bool exact_traversal_division(std::string_view driver_name);
 
 /// The specialization of a ray-tracing shader for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =
 /// soup layout, 1 = object leaves, 2 = geometry fetched as texels), for what a frame records (constant_id 3 =
