@@ -21,10 +21,35 @@
 #include <cstdlib>
 #include <filesystem>
 #include <limits>
+#include <optional>
 #include <random>
+#include <string>
 
 namespace hp {
 namespace {
+
+// Sets an environment variable for one scope and puts back what was there (or its absence) at the end,
+// also when a fatal assertion leaves the test early.
+class ScopedEnv {
+ public:
+  explicit ScopedEnv(const char* name) : name_(name) {
+    if (const char* v = std::getenv(name)) saved_ = v;
+  }
+  ~ScopedEnv() {
+    if (saved_) {
+      setenv(name_, saved_->c_str(), 1);
+    } else {
+      unsetenv(name_);
+    }
+  }
+  ScopedEnv(const ScopedEnv&) = delete;
+  ScopedEnv& operator=(const ScopedEnv&) = delete;
+  void set(const char* value) const { setenv(name_, value, 1); }
+
+ private:
+  const char* name_;
+  std::optional<std::string> saved_;
+};
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
@@ -207,20 +232,14 @@ TEST(RayBatch, Wide4NodesEqualTheirReferenceAndTheBinaryHits) {
 // lavapipe) are the correctly rounded ones, so they give the reference's hits bit for bit here too.
 TEST(RayBatch, TheDoublePrecisionQuotientsEqualTheReferenceToo) {
   HP_REQUIRE_VULKAN(ctx);
-  const char* old = std::getenv("HP_EXACT_DIVISION");
-  const std::string saved = old ? old : "";
-  setenv("HP_EXACT_DIVISION", "0", 1);
+  const ScopedEnv env("HP_EXACT_DIVISION");
+  env.set("0");
   EXPECT_FALSE(exact_traversal_division(*ctx));
-  setenv("HP_EXACT_DIVISION", "1", 1);
+  env.set("1");
   EXPECT_TRUE(exact_traversal_division(*ctx));
   check_scene("builtin:pica", GeometryLayout::indexed, bvh::Granularity::triangle, 20000);
   check_scene("builtin:pica", GeometryLayout::indexed, bvh::Granularity::triangle, 5000, true, bvh::NodeLayout::wide4);
   check_scene("builtin:cornell", GeometryLayout::soup, bvh::Granularity::object, 5000);
-  if (old) {
-    setenv("HP_EXACT_DIVISION", saved.c_str(), 1);
-  } else {
-    unsetenv("HP_EXACT_DIVISION");
-  }
 }
 
 TEST(RayBatch, CornellObjectBvhEqualsTheReferenceBitForBit) {
@@ -301,17 +320,11 @@ TEST(RayBatch, EveryDispatchOrderTracesEachRayOnce) {
 TEST(RayBatch, TheDispatchOrderFollowsTheDevicesThreads) {
   HP_REQUIRE_VULKAN(ctx);
   const bool cpu = ctx->properties().deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
-  const char* old = std::getenv("LP_NUM_THREADS");
-  const std::string saved = old ? old : "";
+  const ScopedEnv env("LP_NUM_THREADS");
   for (const auto& [threads, levels] :
        std::vector<std::pair<const char*, uint32_t>>{{"1", 0u}, {"2", 1u}, {"5", 3u}, {"16", 4u}, {"0", 0u}}) {
-    setenv("LP_NUM_THREADS", threads, 1);
+    env.set(threads);
     EXPECT_EQ(dispatch_spread_levels(*ctx), cpu ? levels : 0u) << "LP_NUM_THREADS=" << threads;
-  }
-  if (old) {
-    setenv("LP_NUM_THREADS", saved.c_str(), 1);
-  } else {
-    unsetenv("LP_NUM_THREADS");
   }
 }
 
