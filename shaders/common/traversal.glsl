@@ -324,18 +324,29 @@ HpHit hp_trace_binary(HpRay r, bool any_hit, inout HpStats stats) {
         last = first + count;
         break;
       }
-      if (in_box) {
-        uint axis = n.prim_axis & HP_BVH_AXIS_MASK;
-        uint near_child = node + 1u;
-        uint far_child = uint(n.offset);
-        if (r.neg[axis] != 0) { uint tmp = near_child; near_child = far_child; far_child = tmp; }
-        // The builder bounds the depth by HP_BVH_STACK_SIZE, so this never drops a node.
-        if (st.sp < HP_BVH_STACK_SIZE) hp_push(st, far_child, lane);
-        node = near_child;
-        continue;
-      }
-      if (st.sp == 0) { done = true; break; }
-      node = hp_pop(st, lane);
+      if (!in_box && st.sp == 0) { done = true; break; }
+      // An interior node the ray enters: push the far child, visit the near one. A missed node: pop. Either
+      // way one shift of the stack's register window, as selects, not two masked blocks (docs/gpu-passes.md).
+      // The builder bounds the depth by HP_BVH_STACK_SIZE, so the push is never dropped.
+      uint axis = n.prim_axis & HP_BVH_AXIS_MASK;
+      bool swap = r.neg[axis] != 0;
+      uint near_child = swap ? uint(n.offset) : node + 1u;
+      uint far_child = swap ? node + 1u : uint(n.offset);
+      bool push = in_box && st.sp < HP_BVH_STACK_SIZE;
+      bool pop = !in_box;
+      if (push && st.sp >= 8) hp_stack[uint(st.sp - 8) * HP_TRAVERSAL_MAX_GROUP + lane] = st.s7;
+      uint o0 = st.s0, o1 = st.s1, o2 = st.s2, o3 = st.s3, o4 = st.s4, o5 = st.s5, o6 = st.s6, o7 = st.s7;
+      st.s0 = push ? far_child : (pop ? o1 : o0);
+      st.s1 = push ? o0 : (pop ? o2 : o1);
+      st.s2 = push ? o1 : (pop ? o3 : o2);
+      st.s3 = push ? o2 : (pop ? o4 : o3);
+      st.s4 = push ? o3 : (pop ? o5 : o4);
+      st.s5 = push ? o4 : (pop ? o6 : o5);
+      st.s6 = push ? o5 : (pop ? o7 : o6);
+      st.s7 = push ? o6 : o7;
+      st.sp += push ? 1 : (pop ? -1 : 0);
+      if (pop && st.sp >= 8) st.s7 = hp_stack[uint(st.sp - 8) * HP_TRAVERSAL_MAX_GROUP + lane];
+      node = in_box ? near_child : o0;
     }
     if (hp_test_leaf(r, first, last, any_hit, best, best_t, stats)) return best;
     if (!done) {
