@@ -221,11 +221,13 @@ bool hp_watertight(HpRay r, vec3 p0, vec3 p1, vec3 p2, out float t, out float u,
 #endif
 shared uint hp_stack[HP_BVH_STACK_SIZE * HP_TRAVERSAL_MAX_GROUP];
 
-// The traversal stack: its top 8 entries live in registers (s0 the top), the deeper ones in hp_stack.
-// A push shifts the registers down and spills the 8th to memory only when the stack is deeper than 8; a
-// pop shifts them up and refills the 8th from memory likewise. Same LIFO order and bound as one array,
-// but most pushes and pops touch no memory: shared-memory accesses at per-lane addresses are a loop over
-// the lanes on a CPU driver (lavapipe), register shifts are whole-vector selects.
+// The traversal stack: its top 8 entries live in registers (s0 the top), the deeper ones in hp_stack, an
+// entry at stack position i (0 the bottom) in row i. A step that pushes shifts the registers down and
+// spills those that leave the window; a pop shifts them up and refills the 8th. Same LIFO order and bound
+// as one array, but most pushes and pops touch no memory: shared-memory accesses at per-lane addresses are
+// a loop over the lanes on a CPU driver (lavapipe), register shifts are whole-vector selects. The steps of
+// hp_trace_binary and hp_trace_wide push (or, in the binary one, pop) by one shift written out in place:
+// selects, where separate push and pop calls under their own `if`s would each be a masked block on llvmpipe.
 struct HpStack {
   uint s0, s1, s2, s3, s4, s5, s6, s7;
   int sp;
@@ -236,13 +238,6 @@ HpStack hp_stack_empty() {
   st.s0 = 0u; st.s1 = 0u; st.s2 = 0u; st.s3 = 0u; st.s4 = 0u; st.s5 = 0u; st.s6 = 0u; st.s7 = 0u;
   st.sp = 0;
   return st;
-}
-
-void hp_push(inout HpStack st, uint x, uint lane) {
-  if (st.sp >= 8) hp_stack[uint(st.sp - 8) * HP_TRAVERSAL_MAX_GROUP + lane] = st.s7;
-  st.s7 = st.s6; st.s6 = st.s5; st.s5 = st.s4; st.s4 = st.s3;
-  st.s3 = st.s2; st.s2 = st.s1; st.s1 = st.s0; st.s0 = x;
-  st.sp++;
 }
 
 uint hp_pop(inout HpStack st, uint lane) {
