@@ -6,6 +6,8 @@
 // the binary reference's).
 #include "vulkan_env.hpp"
 
+#include "common/scoped_env.hpp"
+
 #include "bvh/traverse.hpp"
 #include "error.hpp"
 #include "frame.hpp"
@@ -21,35 +23,13 @@
 #include <cstdlib>
 #include <filesystem>
 #include <limits>
-#include <optional>
 #include <random>
 #include <string>
 
 namespace hp {
 namespace {
 
-// Sets an environment variable for one scope and puts back what was there (or its absence) at the end,
-// also when a fatal assertion leaves the test early.
-class ScopedEnv {
- public:
-  explicit ScopedEnv(const char* name) : name_(name) {
-    if (const char* v = std::getenv(name)) saved_ = v;
-  }
-  ~ScopedEnv() {
-    if (saved_) {
-      setenv(name_, saved_->c_str(), 1);
-    } else {
-      unsetenv(name_);
-    }
-  }
-  ScopedEnv(const ScopedEnv&) = delete;
-  ScopedEnv& operator=(const ScopedEnv&) = delete;
-  void set(const char* value) const { setenv(name_, value, 1); }
-
- private:
-  const char* name_;
-  std::optional<std::string> saved_;
-};
+using test::ScopedEnv;
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();

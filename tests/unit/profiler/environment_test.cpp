@@ -1,10 +1,10 @@
 #include <gtest/gtest.h>
 
-#include <cstdlib>
 #include <optional>
 #include <regex>
 #include <string>
 
+#include "common/scoped_env.hpp"
 #include "timing/environment.hpp"
 
 namespace hp {
@@ -44,13 +44,11 @@ TEST(Environment, LoadAverageIsParsedOrAbsent) {
 
 TEST(Environment, LpNumThreadsIsReadOrUnset) {
   // Restores the caller's value: the rest of the process (lavapipe included) reads it too.
-  const char* before = std::getenv("LP_NUM_THREADS");
-  const std::string saved = before != nullptr ? before : "";
-  ASSERT_EQ(setenv("LP_NUM_THREADS", "3", 1), 0);
+  const test::ScopedEnv env("LP_NUM_THREADS");
+  ASSERT_EQ(env.set("3"), 0);
   EXPECT_EQ(capture_environment().lp_num_threads, "3");
-  ASSERT_EQ(unsetenv("LP_NUM_THREADS"), 0);
+  ASSERT_EQ(env.unset(), 0);
   EXPECT_EQ(capture_environment().lp_num_threads, "unset");
-  if (before != nullptr) setenv("LP_NUM_THREADS", saved.c_str(), 1);
 }
 
 TEST(Environment, CpuModelParsing) {
