@@ -249,41 +249,52 @@ uint hp_pop(inout HpStack st, uint lane) {
   return x;
 }
 
-// Tests leaf primitives [first, last) (object slots where HP_OBJECT_LEAVES) against the ray, keeping the
-// closest hit in `best` (ties to the smallest scene index). Returns true when any_hit and a hit in range was
-// found (`best` holds it).
-bool hp_test_leaf(HpRay r, uint first, uint last, bool any_hit, inout HpHit best, inout float best_t,
-                  inout HpStats stats) {
+// Tests primitive slot k against the ray, keeping the closest hit in `best` (ties to the smallest scene index).
+// Returns true when any_hit and k is a hit in range (`best` holds it).
+bool hp_test_triangle(HpRay r, uint k, bool any_hit, inout HpHit best, inout float best_t, inout HpStats stats) {
+  stats.tris++;
+  vec3 p0, p1, p2;
+  hp_fetch_triangle(k, p0, p1, p2);
+  float t, u, v;
+  if (!hp_watertight(r, p0, p1, p2, t, u, v)) return false;
+  if (!(t >= r.tmin)) return false;
+  if (any_hit) {
+    if (!(t <= r.tmax)) return false;
+    best.slot = int(k); best.t = t; best.u = u; best.v = v;
+    return true;
+  }
+  // The reference's test is t < best_t || (t == best_t && scene(k) < best_scene), with best_scene =
+  // UINT32_MAX before the first hit; the scene indices are only read on a tie (rare), which spares a
+  // per-lane load per triangle.
+  bool better = t < best_t;
+  if (!better && t == best_t) {
+    HP_REC_LOAD(HP_TBUF_SLOT_SCENE, k * 4u, 4u);
+    if (best.slot >= 0) HP_REC_LOAD(HP_TBUF_SLOT_SCENE, uint(best.slot) * 4u, 4u);
+    better = best.slot < 0 || hp_slot_scene(k) < hp_slot_scene(uint(best.slot));
+  }
+  if (better) {
+    best_t = t;
+    best.slot = int(k); best.t = t; best.u = u; best.v = v;
+  }
+  return false;
+}
+
+// The primitive slots of leaf range [first, last): object slots map to their triangles where HP_OBJECT_LEAVES.
+void hp_leaf_slots(inout uint first, inout uint last) {
   if (HP_OBJECT_LEAVES != 0u && first != last) {
     HP_REC_LOADS(2u, HP_TBUF_OBJECT_FIRST, uvec4(first, last, 0u, 0u) * 4u, 4u);
     first = object_first[first];
     last = object_first[last];
   }
+}
+
+// Tests leaf primitives [first, last) against the ray (hp_test_triangle). Returns true when any_hit and a hit
+// in range was found (`best` holds it).
+bool hp_test_leaf(HpRay r, uint first, uint last, bool any_hit, inout HpHit best, inout float best_t,
+                  inout HpStats stats) {
+  hp_leaf_slots(first, last);
   for (uint k = first; k < last; ++k) {
-    stats.tris++;
-    vec3 p0, p1, p2;
-    hp_fetch_triangle(k, p0, p1, p2);
-    float t, u, v;
-    if (!hp_watertight(r, p0, p1, p2, t, u, v)) continue;
-    if (!(t >= r.tmin)) continue;
-    if (any_hit) {
-      if (!(t <= r.tmax)) continue;
-      best.slot = int(k); best.t = t; best.u = u; best.v = v;
-      return true;
-    }
-    // The reference's test is t < best_t || (t == best_t && scene(k) < best_scene), with best_scene =
-    // UINT32_MAX before the first hit; the scene indices are only read on a tie (rare), which spares a
-    // per-lane load per triangle.
-    bool better = t < best_t;
-    if (!better && t == best_t) {
-      HP_REC_LOAD(HP_TBUF_SLOT_SCENE, k * 4u, 4u);
-      if (best.slot >= 0) HP_REC_LOAD(HP_TBUF_SLOT_SCENE, uint(best.slot) * 4u, 4u);
-      better = best.slot < 0 || hp_slot_scene(k) < hp_slot_scene(uint(best.slot));
-    }
-    if (better) {
-      best_t = t;
-      best.slot = int(k); best.t = t; best.u = u; best.v = v;
-    }
+    if (hp_test_triangle(r, k, any_hit, best, best_t, stats)) return true;
   }
   return false;
 }
@@ -444,7 +455,21 @@ HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
       if (st.sp == 0) { done = true; break; }
       entry = hp_pop(st, lane);
     }
-    if (hp_test_leaf(r, first, last, any_hit, best, best_t, stats)) return best;
+    // The leaf's triangles, then those of each leaf popped right after it, in one loop: a popped leaf is
+    // tested without another box test either way, so the order, the hits and the counters are those of a
+    // leaf at a time, but the lanes of a vector wait for the longest run of triangles, not for the longest
+    // leaf of each run in turn (docs/gpu-passes.md).
+    hp_leaf_slots(first, last);
+    for (uint k = first; k < last;) {
+      if (hp_test_triangle(r, k, any_hit, best, best_t, stats)) return best;
+      ++k;
+      if (k == last && st.sp > 0 && (st.s0 & HP_WIDE_LEAF) != 0u) {
+        uint e = hp_pop(st, lane);
+        k = e & HP_WIDE_FIRST_MASK;
+        last = k + ((e >> HP_WIDE_COUNT_SHIFT) & HP_WIDE_COUNT_MASK);
+        hp_leaf_slots(k, last);
+      }
+    }
     if (!done) {
       if (st.sp == 0) break;
       entry = hp_pop(st, lane);
