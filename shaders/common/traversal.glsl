@@ -389,7 +389,7 @@ HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
     // The node loop and the leaf loop below test their exit at the bottom (do-while, entered under an if).
     // llvmpipe runs a loop until no lane is left in it, and a lane that leaves at a top test leaves the rest
     // of that last trip to run masked: a whole node step (four texel fetches) or triangle test for nothing,
-    // once per loop. Exiting where the next entry is known saves it: 5-11% faster on lavapipe
+    // once per loop. Exiting where the next entry is known saves it: 3-10% faster on lavapipe
     // (docs/gpu-passes.md), the same steps per ray.
     if ((entry & HP_WIDE_LEAF) == 0u) do {
       // A 64-byte node is four 16-byte loads on a GPU.
