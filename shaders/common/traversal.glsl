@@ -372,6 +372,12 @@ bool hp_wide_slot(HpRay r, vec3 origin, vec3 step, uvec4 t1, uvec4 t2, uint sh, 
   return hp_slab(r, lo, hi, t_hi);
 }
 
+// A wide leaf's child word as its primitive range [first, last).
+void hp_wide_leaf_range(uint word, out uint first, out uint last) {
+  first = word & HP_WIDE_FIRST_MASK;
+  last = first + ((word >> HP_WIDE_COUNT_SHIFT) & HP_WIDE_COUNT_MASK);
+}
+
 // The same traversal over the wide4 layout (gpu::WideNode), operation for operation the C++ twin in
 // renderer/bvh/wide.cpp: a visited node tests its four child boxes with the closest t so far, the first hit
 // child in the binary order (the ray's signs on the split axes of the node and its two binary children) is
@@ -458,10 +464,7 @@ HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
         entry = hp_pop(st, lane);
       }
     } while ((entry & HP_WIDE_LEAF) == 0u);
-    if (!done) {
-      first = entry & HP_WIDE_FIRST_MASK;
-      last = first + ((entry >> HP_WIDE_COUNT_SHIFT) & HP_WIDE_COUNT_MASK);
-    }
+    if (!done) hp_wide_leaf_range(entry, first, last);
     // The leaf's triangles, then those of each leaf popped right after it, in one loop: a popped leaf is
     // tested without another box test either way, so the order, the hits and the counters are those of a
     // leaf at a time, but the lanes of a vector wait for the longest run of triangles, not for the longest
@@ -472,9 +475,7 @@ HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
       if (hp_test_triangle(r, k, any_hit, best, best_t, stats)) return best;
       ++k;
       if (k == last && st.sp > 0 && (st.s0 & HP_WIDE_LEAF) != 0u) {
-        uint e = hp_pop(st, lane);
-        k = e & HP_WIDE_FIRST_MASK;
-        last = k + ((e >> HP_WIDE_COUNT_SHIFT) & HP_WIDE_COUNT_MASK);
+        hp_wide_leaf_range(hp_pop(st, lane), k, last);
         hp_leaf_slots(k, last);
       }
     } while (k < last);
