@@ -250,7 +250,8 @@ void add_devices_command(CLI::App& app) {
                         {"timestamp_valid_bits", d.timestamp_valid_bits},
                         {"max_storage_buffer_range", d.max_storage_buffer_range},
                         {"traversals", traversals},
-                        {"traversal_division", exact_traversal_division(d.driver_name) ? "double" : "float"}});
+                        {"traversal_division", exact_traversal_division(d.driver_name) ? "double" : "float"},
+                        {"traversal_texel_reads", storage_texel_reads(d.driver_name) ? "storage" : "uniform"}});
       }
       std::printf("%s\n", list.dump(1).c_str());
       return;
@@ -259,12 +260,14 @@ void add_devices_command(CLI::App& app) {
       const auto& d = devices[i];
       std::printf(
           "%zu: %s [%s] driver %s %s (%s), Vulkan %s, subgroup %u, timestamp period %.3f ns (%u valid bits), "
-          "max storage buffer %llu MiB, traversals: compute%s%s, traversal division: %s\n",
+          "max storage buffer %llu MiB, traversals: compute%s%s, traversal division: %s, traversal texel reads: %s\n",
           i, d.name.c_str(), d.type.c_str(), d.driver_name.c_str(), d.driver_version.c_str(), d.driver_info.c_str(),
           d.api_version.c_str(), d.subgroup_size, d.timestamp_period_ns, d.timestamp_valid_bits,
           static_cast<unsigned long long>(d.max_storage_buffer_range >> 20), d.ray_query ? ", ray-query" : "",
           d.ray_tracing_pipeline ? ", pipeline" : "",
-          exact_traversal_division(d.driver_name) ? "double (rounded once to float)" : "float");
+          exact_traversal_division(d.driver_name) ? "double (rounded once to float)" : "float",
+          storage_texel_reads(d.driver_name) ? "storage texel buffers (imageLoad)"
+                                             : "uniform texel buffers (texelFetch)");
     }
   });
 }

@@ -62,13 +62,27 @@ uint32_t dispatch_spread_levels(const vk::Context& ctx) {
   return levels;
 }
 
+namespace {
+
+// A per-driver choice of the traversal's code, which `variable` (=1 or =0) in the environment overrides.
+bool driver_choice(const char* variable, bool by_driver) {
+  if (const char* env = std::getenv(variable); env != nullptr && *env != '\0') return std::string_view(env) != "0";
+  return by_driver;
+}
+
+}  // namespace
+
 bool exact_traversal_division(std::string_view driver_name) {
-  if (const char* env = std::getenv("HP_EXACT_DIVISION"); env != nullptr && *env != '\0')
-    return std::string_view(env) != "0";
-  return driver_name != "llvmpipe";
+  return driver_choice("HP_EXACT_DIVISION", driver_name != "llvmpipe");
 }
 
 bool exact_traversal_division(const vk::Context& ctx) { return exact_traversal_division(ctx.info().driver_name); }
+
+bool storage_texel_reads(std::string_view driver_name) {
+  return driver_choice("HP_STORAGE_TEXELS", driver_name == "llvmpipe");
+}
+
+bool storage_texel_reads(const vk::Context& ctx) { return storage_texel_reads(ctx.info().driver_name); }
 
 RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, GeometryLayout layout, bool shading,
                  bool allow_geometry_texels, bool slot_map, bool bvh_nodes, std::optional<uint32_t> spread_levels)
@@ -76,7 +90,8 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
       object_leaves_(g.bvh.granularity == bvh::Granularity::object),
       wide_nodes_(bvh_nodes && g.node_layout == bvh::NodeLayout::wide4),
       spread_levels_(spread_levels ? *spread_levels : dispatch_spread_levels(ctx)),
-      exact_division_(exact_traversal_division(ctx)) {
+      exact_division_(exact_traversal_division(ctx)),
+      storage_texels_(storage_texel_reads(ctx)) {
   const auto& leaf = g.leaf;
   const size_t slots = leaf.triangles.size();
   const uint64_t max_range = ctx.properties().limits.maxStorageBufferRange;
@@ -100,7 +115,12 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
                      std::to_string(node_bytes / 16) + " texels, over this device's maxTexelBufferElements of " +
                      std::to_string(max_texels));
   }
-  constexpr VkBufferUsageFlags kNodeUsage = kStorage | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT;
+  // Every view the traversal reads as texels is bound both ways, a uniform and a storage texel buffer
+  // (bindings 26 and 39, ...; R32G32B32A32_UINT supports both on every Vulkan device): which one the shader
+  // reads is a specialization constant (storage_texels()).
+  constexpr VkBufferUsageFlags kTexelUsage =
+      VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_TEXEL_BUFFER_BIT;
+  constexpr VkBufferUsageFlags kNodeUsage = kStorage | kTexelUsage;
   if (bvh_nodes) {
     uploaded_bytes_ += node_bytes;
     nodes_ = wide ? vk::upload_vector(ctx, g.wide.nodes, kNodeUsage) : vk::upload_vector(ctx, g.bvh.nodes, kNodeUsage);
@@ -165,7 +185,7 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
                 uint64_t(slots), uint64_t(scene.materials.size()) * 2});
   geometry_texels_ = allow_geometry_texels && (quad.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT) != 0 &&
                      most_texels <= max_texels && most_texels * 16 <= max_range;
-  const VkBufferUsageFlags texel_usage = geometry_texels_ ? VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT : 0;
+  const VkBufferUsageFlags texel_usage = geometry_texels_ ? kTexelUsage : 0;
   // The sizes of the geometry as the shaders address it (12 bytes a vertex, index triple or normal; an
   // unused buffer's dummy): the trace's buffer table, whatever the layout uploaded.
   const auto addressed_bytes = [&](const auto& triples) {  // float or uint32_t items
@@ -186,8 +206,9 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   normals_ = geometry(normals);
   soup_normals_ = geometry(soup_normals);
   slot_scene_ = upload(ctx, slot_map ? leaf.scene_index : std::vector<uint32_t>{}, uploaded_bytes_, texel_usage);
-  // Without texels, the texel bindings (HP_BIND_RT_*_TEXELS) still need valid views: any small texel buffer does (never read).
-  if (!geometry_texels_) texel_dummy_ = vk::Buffer(ctx, 48, VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT, false);
+  // Without texels, the texel bindings (HP_BIND_RT_*_TEXELS and *_IMAGE) still need valid views: any small texel
+  // buffer does (never read).
+  if (!geometry_texels_) texel_dummy_ = vk::Buffer(ctx, 48, kTexelUsage, false);
   const auto view = [&](const vk::Buffer& b, VkFormat f) {
     return vk::BufferView(ctx, geometry_texels_ ? b : texel_dummy_, f);
   };
@@ -222,6 +243,9 @@ void RtScene::add_traversal_bindings(std::vector<VkDescriptorSetLayoutBinding>& 
                      HP_BIND_RT_SOUP_TEXELS, HP_BIND_RT_SLOT_SCENE_TEXELS}) {
     b.push_back({i, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 1, cs, nullptr});
   }
+  for (uint32_t i : {HP_BIND_RT_NODE_IMAGE, HP_BIND_RT_POSITION_IMAGE, HP_BIND_RT_INDEX_IMAGE, HP_BIND_RT_SOUP_IMAGE}) {
+    b.push_back({i, VK_DESCRIPTOR_TYPE_STORAGE_TEXEL_BUFFER, 1, cs, nullptr});
+  }
 }
 
 void RtScene::write_traversal_bindings(vk::DescriptorSet& ds) const {
@@ -237,6 +261,11 @@ void RtScene::write_traversal_bindings(vk::DescriptorSet& ds) const {
   ds.write_texel_buffer(HP_BIND_RT_INDEX_TEXELS, tb, index_texels());
   ds.write_texel_buffer(HP_BIND_RT_SOUP_TEXELS, tb, soup_texels());
   ds.write_texel_buffer(HP_BIND_RT_SLOT_SCENE_TEXELS, tb, slot_scene_texels());
+  const VkDescriptorType si = VK_DESCRIPTOR_TYPE_STORAGE_TEXEL_BUFFER;
+  ds.write_texel_buffer(HP_BIND_RT_NODE_IMAGE, si, node_texels());
+  ds.write_texel_buffer(HP_BIND_RT_POSITION_IMAGE, si, position_texels());
+  ds.write_texel_buffer(HP_BIND_RT_INDEX_IMAGE, si, index_texels());
+  ds.write_texel_buffer(HP_BIND_RT_SOUP_IMAGE, si, soup_texels());
 }
 
 RtSpecialization::RtSpecialization(const RtScene& scene, uint32_t rt_flags, bool as_remap)
@@ -247,9 +276,10 @@ RtSpecialization::RtSpecialization(const RtScene& scene, uint32_t rt_flags, bool
              as_remap ? 1u : 0u,
              scene.wide_nodes() ? 1u : 0u,
              scene.spread_levels(),
-             scene.exact_division() ? 1u : 0u},
-      entries{{0, 0, 4}, {1, 4, 4}, {2, 8, 4}, {3, 12, 4}, {4, 16, 4}, {5, 20, 4}, {6, 24, 4}, {7, 28, 4}},
-      info{8, entries, sizeof(values), values} {}
+             scene.exact_division() ? 1u : 0u,
+             scene.storage_texels() ? 1u : 0u},
+      entries{{0, 0, 4}, {1, 4, 4}, {2, 8, 4}, {3, 12, 4}, {4, 16, 4}, {5, 20, 4}, {6, 24, 4}, {7, 28, 4}, {8, 32, 4}},
+      info{9, entries, sizeof(values), values} {}
 
 vk::Pipeline create_rt_pipeline(vk::Context& ctx, std::span<const uint32_t> spirv, VkPipelineLayout layout,
                                 const RtScene& scene, uint32_t rt_flags, bool as_remap) {

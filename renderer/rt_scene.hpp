@@ -40,6 +40,9 @@ class RtScene {
   uint32_t spread_levels() const { return spread_levels_; }
   /// The traversal divides in double precision and rounds once (specialization constant 7).
   bool exact_division() const { return exact_division_; }
+  /// The traversal reads the node and geometry texels through storage texel buffers (imageLoad, bindings 39-42)
+  /// rather than uniform ones (texelFetch, 26 and 29-31): specialization constant 8, storage_texel_reads.
+  bool storage_texels() const { return storage_texels_; }
   /// The traversal fetches the geometry through texel views (positions(), indices(), soup() seen as
   /// R32G32B32A32_UINT, a vertex or a triangle's three indices per texel: bindings 29-31) rather than storage
   /// loads. Off where the device cannot read that format as a uniform texel buffer, a buffer exceeds
@@ -94,6 +97,7 @@ class RtScene {
   bool wide_nodes_;
   uint32_t spread_levels_;
   bool exact_division_;
+  bool storage_texels_;
   uint64_t uploaded_bytes_ = 0;
   uint64_t positions_bytes_ = 0, indices_bytes_ = 0, soup_bytes_ = 0, normals_bytes_ = 0, soup_normals_bytes_ = 0;
   vk::Buffer nodes_, positions_, indices_, soup_, object_first_, slot_scene_, normals_, soup_normals_, slot_material_,
@@ -123,18 +127,27 @@ bool exact_traversal_division(const vk::Context& ctx);
 /// The same decision for a driver by its name (VkPhysicalDeviceDriverProperties::driverName), as `devices` shows it.
 bool exact_traversal_division(std::string_view driver_name);
 
+/// Whether the compute traversal on `ctx`'s device reads its node and geometry texels with imageLoad from storage
+/// texel buffers rather than texelFetch from uniform ones (the same views, the same bytes): on lavapipe, where it
+/// is the faster of the two (docs/gpu-passes.md); GPUs keep texelFetch, the path measured on them.
+/// HP_STORAGE_TEXELS=1 (or 0) in the environment forces it on (off), for the tests and A/B runs.
+bool storage_texel_reads(const vk::Context& ctx);
+/// The same decision for a driver by its name, as `devices` shows it.
+bool storage_texel_reads(std::string_view driver_name);
+
 /// The specialization of a ray-tracing shader for `scene` (shaders/common/rt_bindings.glsl: constant_id 0 =
 /// soup layout, 1 = object leaves, 2 = geometry fetched as texels), for what a frame records (constant_id 3 =
 /// `rt_flags`, HP_RT_COUNTERS | HP_RT_DUMP_RAYS | HP_RT_REFLECTION_SHADOWS ...), for the driver traversal's
 /// primitive -> slot table (constant_id 4, common/driver_traversal.glsl), for the node layout (constant_id 5 =
-/// wide4 nodes), for the dispatch order (constant_id 6 = spread levels) and for the division (constant_id 7 =
-/// exact_traversal_division). Not copyable: `info` points into it.
+/// wide4 nodes), for the dispatch order (constant_id 6 = spread levels), for the division (constant_id 7 =
+/// exact_traversal_division) and for the texel reads (constant_id 8 = storage_texel_reads). Not copyable: `info`
+/// points into it.
 struct RtSpecialization {
   RtSpecialization(const RtScene& scene, uint32_t rt_flags, bool as_remap);
   RtSpecialization(const RtSpecialization&) = delete;
   RtSpecialization& operator=(const RtSpecialization&) = delete;
-  uint32_t values[8];
-  VkSpecializationMapEntry entries[8];
+  uint32_t values[9];
+  VkSpecializationMapEntry entries[9];
   VkSpecializationInfo info;
 };
 

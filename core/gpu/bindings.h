@@ -44,6 +44,10 @@
 #define HP_BIND_RT_MATERIAL_TEXELS 36       // materials as RGBA32_UINT texels, two per material
 #define HP_BIND_RT_TLAS 37                  // the driver's top-level acceleration structure (ray-query, pipeline)
 #define HP_BIND_RT_AS_SLOT 38               // AS primitive index -> leaf-order slot (AsOrder other than leaf)
+#define HP_BIND_RT_NODE_IMAGE 39            // the views of 26, 29, 30 and 31 as storage texel buffers, read where
+#define HP_BIND_RT_POSITION_IMAGE 40        // HP_STORAGE_TEXELS (RtScene::storage_texels)
+#define HP_BIND_RT_INDEX_IMAGE 41
+#define HP_BIND_RT_SOUP_IMAGE 42
 
 // ---- the radix sort's set (shaders/sort/radix_common.glsl, RadixSort), plus HP_BIND_TRACE_RECORDS -------
 #define HP_BIND_SORT_KEYS_IN 0              // keys read by a digit pass
@@ -82,15 +86,16 @@ constexpr bool bindings_distinct(const std::array<uint32_t, N>& b) {
 
 /// The bindings the traversal reads (common/traversal.glsl; RtScene::add_traversal_bindings), in both sets
 /// that hold it.
-inline constexpr std::array<uint32_t, 10> kTraversalBindings = {
+inline constexpr std::array<uint32_t, 14> kTraversalBindings = {
     HP_BIND_RT_POSITIONS,       HP_BIND_RT_INDICES,       HP_BIND_RT_SOUP,         HP_BIND_RT_OBJECT_FIRST,
     HP_BIND_RT_SLOT_SCENE,      HP_BIND_RT_NODE_TEXELS,   HP_BIND_RT_POSITION_TEXELS, HP_BIND_RT_INDEX_TEXELS,
-    HP_BIND_RT_SOUP_TEXELS,     HP_BIND_RT_SLOT_SCENE_TEXELS};
+    HP_BIND_RT_SOUP_TEXELS,     HP_BIND_RT_SLOT_SCENE_TEXELS, HP_BIND_RT_NODE_IMAGE,  HP_BIND_RT_POSITION_IMAGE,
+    HP_BIND_RT_INDEX_IMAGE,     HP_BIND_RT_SOUP_IMAGE};
 /// The driver traversal's bindings (common/driver_traversal.glsl), in both sets that hold it, where the
 /// traversal is the driver's.
 inline constexpr std::array<uint32_t, 2> kDriverTraversalBindings = {HP_BIND_RT_TLAS, HP_BIND_RT_AS_SLOT};
-/// 0..38 but the ray batch's 27 and 28.
-inline constexpr std::array<uint32_t, 37> kRtSetBindings = {
+/// 0..42 but the ray batch's 27 and 28.
+inline constexpr std::array<uint32_t, 41> kRtSetBindings = {
     HP_BIND_RT_FRAME,           HP_BIND_RT_PARAMS,           HP_BIND_RT_NODES,
     HP_BIND_RT_POSITIONS,       HP_BIND_RT_INDICES,          HP_BIND_RT_SOUP,
     HP_BIND_RT_OBJECT_FIRST,    HP_BIND_RT_SLOT_SCENE,       HP_BIND_RT_NORMALS,
@@ -103,12 +108,14 @@ inline constexpr std::array<uint32_t, 37> kRtSetBindings = {
     HP_BIND_RT_POSITION_TEXELS, HP_BIND_RT_INDEX_TEXELS,     HP_BIND_RT_SOUP_TEXELS,
     HP_BIND_RT_NORMAL_TEXELS,   HP_BIND_RT_SOUP_NORMAL_TEXELS, HP_BIND_RT_SLOT_SCENE_TEXELS,
     HP_BIND_RT_SLOT_MATERIAL_TEXELS, HP_BIND_RT_MATERIAL_TEXELS, HP_BIND_RT_TLAS,
-    HP_BIND_RT_AS_SLOT};
-inline constexpr std::array<uint32_t, 14> kBatchSetBindings = {
+    HP_BIND_RT_AS_SLOT,         HP_BIND_RT_NODE_IMAGE,       HP_BIND_RT_POSITION_IMAGE,
+    HP_BIND_RT_INDEX_IMAGE,     HP_BIND_RT_SOUP_IMAGE};
+inline constexpr std::array<uint32_t, 18> kBatchSetBindings = {
     HP_BIND_RT_POSITIONS,   HP_BIND_RT_INDICES,         HP_BIND_RT_SOUP,            HP_BIND_RT_OBJECT_FIRST,
     HP_BIND_RT_SLOT_SCENE,  HP_BIND_RT_NODE_TEXELS,     HP_BIND_RT_POSITION_TEXELS, HP_BIND_RT_INDEX_TEXELS,
     HP_BIND_RT_SOUP_TEXELS, HP_BIND_RT_SLOT_SCENE_TEXELS, HP_BIND_BATCH_RAYS,       HP_BIND_BATCH_RESULTS,
-    HP_BIND_RT_TLAS,        HP_BIND_RT_AS_SLOT};
+    HP_BIND_RT_TLAS,        HP_BIND_RT_AS_SLOT,         HP_BIND_RT_NODE_IMAGE,      HP_BIND_RT_POSITION_IMAGE,
+    HP_BIND_RT_INDEX_IMAGE, HP_BIND_RT_SOUP_IMAGE};
 inline constexpr std::array<uint32_t, 7> kSortSetBindings = {
     HP_BIND_SORT_KEYS_IN,    HP_BIND_SORT_VALUES_IN, HP_BIND_SORT_KEYS_OUT, HP_BIND_SORT_VALUES_OUT,
     HP_BIND_SORT_HISTOGRAMS, HP_BIND_SORT_COUNT,     HP_BIND_TRACE_RECORDS};

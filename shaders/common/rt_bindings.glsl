@@ -30,6 +30,10 @@ layout(constant_id = 6) const uint HP_SPREAD_LEVELS = 0;
 // How the traversal divides (hp_div, common/traversal.glsl): 0 = the device's 32-bit division, 1 = the quotient
 // taken in double precision and rounded once to float (exact_traversal_division in renderer/rt_scene.hpp).
 layout(constant_id = 7) const uint HP_EXACT_DIVISION = 0;
+// How the traversal reads the node and geometry texels: 0 = texelFetch from the uniform texel buffers (bindings
+// 26, 29-31), 1 = imageLoad from the same views as storage texel buffers (bindings 39-42; RtScene::storage_texels:
+// faster on lavapipe, common/traversal.glsl).
+layout(constant_id = 8) const uint HP_STORAGE_TEXELS = 0;
 
 layout(set = 0, binding = HP_BIND_RT_FRAME) uniform FrameBlock { FrameUniforms frame; };
 layout(set = 0, binding = HP_BIND_RT_PARAMS) uniform RayBlock { RayParams rt; };

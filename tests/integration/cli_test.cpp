@@ -187,9 +187,10 @@ TEST(Cli, DevicesAsJson) {
   EXPECT_EQ(list[0]["traversals"][0], "compute");
   EXPECT_GT(list[0]["subgroup_size"].get<int>(), 0);
   EXPECT_NE(run("devices").output.find(list[0]["name"].get<std::string>()), std::string::npos);
-  // How the compute traversal divides: in float on lavapipe, in double elsewhere (docs/gpu-passes.md).
+  // How the compute traversal divides and reads its texels, on lavapipe and elsewhere (docs/gpu-passes.md).
   for (const auto& d : list) {
     EXPECT_EQ(d["traversal_division"], d["driver_name"] == "llvmpipe" ? "float" : "double") << d.dump();
+    EXPECT_EQ(d["traversal_texel_reads"], d["driver_name"] == "llvmpipe" ? "storage" : "uniform") << d.dump();
   }
 }
 

@@ -166,6 +166,7 @@ void check_scene(const std::string& spec, GeometryLayout layout, bvh::Granularit
   const RtScene rts(*ctx, scene, g, layout, false, texels);
   EXPECT_EQ(rts.wide_nodes(), nodes == bvh::NodeLayout::wide4);
   EXPECT_EQ(rts.exact_division(), exact_traversal_division(*ctx));
+  EXPECT_EQ(rts.storage_texels(), storage_texel_reads(*ctx));
   if (!texels) {
     EXPECT_FALSE(rts.geometry_texels());
   }
@@ -220,6 +221,21 @@ TEST(RayBatch, TheDoublePrecisionQuotientsEqualTheReferenceToo) {
   check_scene("builtin:pica", GeometryLayout::indexed, bvh::Granularity::triangle, 20000);
   check_scene("builtin:pica", GeometryLayout::indexed, bvh::Granularity::triangle, 5000, true, bvh::NodeLayout::wide4);
   check_scene("builtin:cornell", GeometryLayout::soup, bvh::Granularity::object, 5000);
+}
+
+// The node and geometry texels read both ways, through storage texel buffers (imageLoad: lavapipe's default)
+// and uniform ones (texelFetch: every other device's), whichever this device does not use by default included.
+TEST(RayBatch, BothTexelReadsEqualTheReference) {
+  HP_REQUIRE_VULKAN(ctx);
+  const ScopedEnv env("HP_STORAGE_TEXELS");
+  for (const char* value : {"0", "1"}) {
+    env.set(value);
+    EXPECT_EQ(storage_texel_reads(*ctx), *value == '1');
+    check_scene("builtin:pica", GeometryLayout::indexed, bvh::Granularity::triangle, 5000);
+    check_scene("builtin:pica", GeometryLayout::soup, bvh::Granularity::triangle, 5000, true, bvh::NodeLayout::wide4);
+    check_scene("builtin:cornell", GeometryLayout::indexed, bvh::Granularity::object, 5000, true,
+                bvh::NodeLayout::wide4);
+  }
 }
 
 TEST(RayBatch, CornellObjectBvhEqualsTheReferenceBitForBit) {
