@@ -32,8 +32,8 @@ layout(set = 0, binding = HP_BIND_RT_SOUP_TEXELS) uniform utextureBuffer soup_te
 layout(set = 0, binding = HP_BIND_RT_SLOT_SCENE_TEXELS) uniform utextureBuffer slot_scene_texels;
 // The same four views as storage texel buffers, read instead where HP_STORAGE_TEXELS is set (the device's
 // choice, RtScene::storage_texels). On lavapipe (Mesa 25.0.7) an imageLoad of these views is faster than a
-// texelFetch of the same bytes: the compute traversal alone 6-22% on the shadow rays of five scenes, the
-// same rays and hits (docs/gpu-passes.md). GPUs keep texelFetch, the path measured there.
+// texelFetch of the same bytes: the compute traversal alone 2-23% per row (five scenes, shadows and
+// reflections), the same rays and hits (docs/gpu-passes.md). GPUs keep texelFetch, the path measured there.
 layout(set = 0, binding = HP_BIND_RT_NODE_IMAGE, rgba32ui) uniform readonly uimageBuffer node_images;
 layout(set = 0, binding = HP_BIND_RT_POSITION_IMAGE, rgba32ui) uniform readonly uimageBuffer position_images;
 layout(set = 0, binding = HP_BIND_RT_INDEX_IMAGE, rgba32ui) uniform readonly uimageBuffer index_images;
