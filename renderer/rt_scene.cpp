@@ -185,7 +185,9 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
                 uint64_t(slots), uint64_t(scene.materials.size()) * 2});
   geometry_texels_ = allow_geometry_texels && (quad.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT) != 0 &&
                      most_texels <= max_texels && most_texels * 16 <= max_range;
-  const VkBufferUsageFlags texel_usage = geometry_texels_ ? kTexelUsage : 0;
+  const VkBufferUsageFlags texel_usage = geometry_texels_ ? VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT : 0;
+  // The traversal's geometry (positions, indices, soup) is also bound as storage texel buffers (bindings 40-42).
+  const VkBufferUsageFlags traversal_texel_usage = geometry_texels_ ? kTexelUsage : 0;
   // The sizes of the geometry as the shaders address it (12 bytes a vertex, index triple or normal; an
   // unused buffer's dummy): the trace's buffer table, whatever the layout uploaded.
   const auto addressed_bytes = [&](const auto& triples) {  // float or uint32_t items
@@ -196,15 +198,15 @@ RtScene::RtScene(vk::Context& ctx, const Scene& scene, const RtGeometry& g, Geom
   soup_bytes_ = addressed_bytes(soup);
   normals_bytes_ = addressed_bytes(normals);
   soup_normals_bytes_ = addressed_bytes(soup_normals);
-  const auto geometry = [&](const auto& triples) {
-    if (geometry_texels_) return upload(ctx, quads(triples), uploaded_bytes_, texel_usage);
+  const auto geometry = [&](const auto& triples, VkBufferUsageFlags usage) {
+    if (geometry_texels_) return upload(ctx, quads(triples), uploaded_bytes_, usage);
     return upload(ctx, triples, uploaded_bytes_);
   };
-  positions_ = geometry(positions);
-  indices_ = geometry(indices);
-  soup_ = geometry(soup);
-  normals_ = geometry(normals);
-  soup_normals_ = geometry(soup_normals);
+  positions_ = geometry(positions, traversal_texel_usage);
+  indices_ = geometry(indices, traversal_texel_usage);
+  soup_ = geometry(soup, traversal_texel_usage);
+  normals_ = geometry(normals, texel_usage);
+  soup_normals_ = geometry(soup_normals, texel_usage);
   slot_scene_ = upload(ctx, slot_map ? leaf.scene_index : std::vector<uint32_t>{}, uploaded_bytes_, texel_usage);
   // Without texels, the texel bindings (HP_BIND_RT_*_TEXELS and *_IMAGE) still need valid views: any small texel
   // buffer does (never read).
