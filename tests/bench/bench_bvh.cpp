@@ -8,6 +8,9 @@
 // Mrays/s, nodes/ray, tris/ray, hit_% (traversal); differ_from_binary (trace8 closest: rays whose hit is not
 // bit for bit the binary traversal's, counted once outside the timing; must be 0).
 //
+// With --benchmark_repetitions=N the build rows also print _min and _max (bench_extremes.hpp): the best build of
+// N is the _min row's time and the _max row's Mtri/s.
+//
 // Scenes come from hp_scene (builtin:sphere-1m, builtin:terrain-1m, HP_SHARED_DIR/scenes/*) when it is built;
 // without it, a procedural 1M-triangle sphere and terrain stand in and the shared scenes are skipped.
 //
@@ -17,6 +20,7 @@
 // prints ours, Embree's and ours / Embree per scene and row (medians over repetitions). disagree_per_M:
 // closest hits whose triangle differs from ours, per million rays (counted once, outside the timing).
 #include "../unit/bvh/bvh_test_scenes.hpp"
+#include "bench_extremes.hpp"
 #include "bvh/bvh.hpp"
 #include "bvh/bvh8.hpp"
 #include "bvh/traverse.hpp"
@@ -424,10 +428,12 @@ int main(int argc, char** argv) {
   for (const auto& sp : scenes) {
     const BenchScene* s = sp.get();
     // Single-thread builds report CPU time (robust to other load on the machine); threaded ones wall time.
-    benchmark::RegisterBenchmark(("build/" + s->name + "/threads:1").c_str(), build_bench, s, 1, false)
+    hp::bench::with_extremes(
+        benchmark::RegisterBenchmark(("build/" + s->name + "/threads:1").c_str(), build_bench, s, 1, false))
         ->Unit(benchmark::kMillisecond);
-    benchmark::RegisterBenchmark(("build/" + s->name + "/threads:" + std::to_string(all)).c_str(), build_bench, s, all,
-                                 false)
+    hp::bench::with_extremes(
+        benchmark::RegisterBenchmark(("build/" + s->name + "/threads:" + std::to_string(all)).c_str(), build_bench, s,
+                                     all, false))
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
     benchmark::RegisterBenchmark(("build_full_sweep/" + s->name + "/threads:" + std::to_string(all)).c_str(),

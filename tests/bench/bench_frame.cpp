@@ -29,10 +29,13 @@
 // ray-generation shaders are the same sources), the driver's acceleration structure built from the compute
 // BVH's leaf order. The label names the device; "as_build_ms" and "as_mib" the structure's build and size.
 // Run: build/tests/bench/hp_bench_frame [--benchmark_filter=...] ; HP_BENCH_WIDTH/HEIGHT override 1280x720.
+// With --benchmark_repetitions=N the Gpu, Trace and Cpu rows also print _min and _max (bench_extremes.hpp):
+// the best rate of N repetitions is the _max row's "rays".
 // HP_BENCH_RAY_COPIES=N (default 1) casts each dumped ray N times in a row in the Trace and Cpu rows: with
 // N = 8 the eight lanes of a vector trace the same ray, which measures a vector step without divergence
 // (docs/gpu-passes.md, "Where the rest of the gap is"). Their rates count every copy; the Gpu rows (which
 // render the pass), the work per ray and the lane-use model stay those of the rays as cast.
+#include "bench_extremes.hpp"
 #include "bvh/traverse.hpp"
 #include "frame.hpp"
 #include "passes/ray_batch.hpp"
@@ -323,19 +326,21 @@ const bool registered = [] {
           const std::string suffix = t != Traversal::compute               ? std::string("/") + to_string(t)
                                      : layout != bvh::NodeLayout::binary32 ? std::string("/") + to_string(layout)
                                                                            : std::string();
-          benchmark::RegisterBenchmark(("Gpu/" + p + "/" + short_name(spec) + suffix).c_str(), gpu_pass, spec, pass, t,
-                                       layout)
+          hp::bench::with_extremes(benchmark::RegisterBenchmark(("Gpu/" + p + "/" + short_name(spec) + suffix).c_str(),
+                                                                gpu_pass, spec, pass, t, layout))
               ->UseManualTime()
               ->Unit(benchmark::kMillisecond)
               ->Iterations(6);
-          benchmark::RegisterBenchmark(("Trace/" + p + "/" + short_name(spec) + suffix).c_str(), trace_pass, spec, pass,
-                                       t, layout)
+          hp::bench::with_extremes(
+              benchmark::RegisterBenchmark(("Trace/" + p + "/" + short_name(spec) + suffix).c_str(), trace_pass, spec,
+                                           pass, t, layout))
               ->UseManualTime()
               ->Unit(benchmark::kMillisecond)
               ->Iterations(6);
         }
       }
-      benchmark::RegisterBenchmark(("Cpu/" + p + "/" + short_name(spec)).c_str(), cpu_pass, spec, pass)
+      hp::bench::with_extremes(
+          benchmark::RegisterBenchmark(("Cpu/" + p + "/" + short_name(spec)).c_str(), cpu_pass, spec, pass))
           ->UseRealTime()
           ->Unit(benchmark::kMillisecond)
           ->Iterations(6);
