@@ -107,6 +107,7 @@ bool hp_prepare(vec3 org, vec3 dir, float tmin, float tmax, out HpRay r) {
 }
 
 float hp_widen_far(float t) { return t >= 0.0 ? t * HP_FAR_UP : t * HP_FAR_DOWN; }
+vec4 hp_widen_far(vec4 t) { return mix(t * HP_FAR_DOWN, t * HP_FAR_UP, greaterThanEqual(t, vec4(0.0))); }
 
 bool hp_slab(HpRay r, vec3 bmin, vec3 bmax, float t_hi) {
   float tn = r.tmin;
@@ -390,12 +391,33 @@ HpHit hp_trace_binary(HpRay r, bool any_hit, inout HpStats stats) {
   return best;
 }
 
-// One slot of a wide node: its box decoded (origin + q * step, rounded once: `precise` keeps the products
-// out of FMAs, as -ffp-contract=off does in bvh/wide.cpp) and slab-tested against [tmin, t_hi].
-bool hp_wide_slot(HpRay r, vec3 origin, vec3 step, uvec4 t1, uvec4 t2, uint sh, float t_hi) {
-  precise vec3 lo = origin + vec3((uvec3(t1.x, t1.z, t2.x) >> sh) & 255u) * step;
-  precise vec3 hi = origin + vec3((uvec3(t1.y, t1.w, t2.y) >> sh) & 255u) * step;
-  return hp_slab(r, lo, hi, t_hi);
+// The four slots of a wide node slab-tested together against [tmin, t_hi], axis by axis as the C++ twin's
+// slab4 (bvh/wide.cpp): each slot's planes decoded as origin + q * step, rounded once (`precise` keeps the
+// products out of FMAs, as -ffp-contract=off does there). Per slot and axis the operations are those of
+// hp_slab, in the same order, so the bits are too. Axis by axis, only one axis's node data and ray data are
+// live at a time beside the four slots' running bounds: llvmpipe spilled the slot-by-slot form, which needs
+// every axis at once (docs/gpu-passes.md).
+bvec4 hp_wide_boxes(HpRay r, uvec4 t0, uvec4 t1, uvec4 t2, float t_hi) {
+  const uvec4 shifts = uvec4(0u, 8u, 16u, 24u);
+  uvec3 lo_words = uvec3(t1.x, t1.z, t2.x), hi_words = uvec3(t1.y, t1.w, t2.y);
+  vec4 tn = vec4(r.tmin);
+  vec4 tf = vec4(1.0 / 0.0);
+  for (int a = 0; a < 3; ++a) {
+    float origin = uintBitsToFloat(t0[a]);
+    float step = uintBitsToFloat(((t0.w >> (8u * uint(a))) & 255u) << 23u);
+    precise vec4 lo = origin + vec4((uvec4(lo_words[a]) >> shifts) & 255u) * step;
+    precise vec4 hi = origin + vec4((uvec4(hi_words[a]) >> shifts) & 255u) * step;
+    bool negative = r.neg[a] != 0;
+    vec4 near_planes = negative ? hi : lo;
+    vec4 far_planes = negative ? lo : hi;
+    precise vec4 t_near = (near_planes - r.org[a]) * r.inv[a];
+    precise vec4 t_far = (far_planes - r.org[a]) * r.inv[a];
+    // A NaN bound (0 * inf) makes the comparison false and leaves the running bound as it is.
+    tn = mix(tn, t_near, greaterThan(t_near, tn));
+    tf = mix(tf, t_far, lessThan(t_far, tf));
+  }
+  tf = mix(tf, vec4(t_hi), lessThan(vec4(t_hi), tf));
+  return lessThanEqual(tn, hp_widen_far(tf));
 }
 
 // A wide leaf's child word as its primitive range [first, last).
@@ -431,12 +453,11 @@ HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
       uvec4 t2 = hp_node_texel(entry * 4u + 2u);
       uvec4 t3 = hp_node_texel(entry * 4u + 3u);
       stats.nodes++;
-      vec3 origin = uintBitsToFloat(t0.xyz);
-      vec3 step = uintBitsToFloat((uvec3(t0.w, t0.w >> 8u, t0.w >> 16u) & 255u) << 23u);
-      bool h0 = hp_wide_slot(r, origin, step, t1, t2, 0u, best_t) && t3.x != 0u;
-      bool h1 = hp_wide_slot(r, origin, step, t1, t2, 8u, best_t) && t3.y != 0u;
-      bool h2 = hp_wide_slot(r, origin, step, t1, t2, 16u, best_t) && t3.z != 0u;
-      bool h3 = hp_wide_slot(r, origin, step, t1, t2, 24u, best_t) && t3.w != 0u;
+      bvec4 in_box = hp_wide_boxes(r, t0, t1, t2, best_t);
+      bool h0 = in_box.x && t3.x != 0u;
+      bool h1 = in_box.y && t3.y != 0u;
+      bool h2 = in_box.z && t3.z != 0u;
+      bool h3 = in_box.w && t3.w != 0u;
       bool fp = r.neg[(t0.w >> 24u) & 3u] != 0;
       bool fl = r.neg[(t0.w >> 26u) & 3u] != 0;
       bool fr = r.neg[(t0.w >> 28u) & 3u] != 0;
