@@ -126,23 +126,19 @@ bool hp_slab(HpRay r, vec3 bmin, vec3 bmax, float t_hi) {
   return tn <= tf;
 }
 
-// Texel i of the node buffer, or of a geometry buffer in its texel layout, through the view HP_STORAGE_TEXELS picks.
-uvec4 hp_node_texel(uint i) {
-  if (HP_STORAGE_TEXELS != 0u) return imageLoad(node_images, int(i));
-  return texelFetch(node_texels, int(i));
-}
-uvec4 hp_position_texel(uint i) {
-  if (HP_STORAGE_TEXELS != 0u) return imageLoad(position_images, int(i));
-  return texelFetch(position_texels, int(i));
-}
-uvec4 hp_index_texel(uint i) {
-  if (HP_STORAGE_TEXELS != 0u) return imageLoad(index_images, int(i));
-  return texelFetch(index_texels, int(i));
-}
-uvec4 hp_soup_texel(uint i) {
-  if (HP_STORAGE_TEXELS != 0u) return imageLoad(soup_images, int(i));
-  return texelFetch(soup_texels, int(i));
-}
+// Texel i of the node buffer, or of a geometry buffer in its texel layout, through the view HP_STORAGE_TEXELS
+// picks: one function per buffer, since GLSL cannot pass a format-qualified image as a parameter (without
+// shaderStorageImageReadWithoutFormat). The macro writes the four; each reads exactly one of its two views.
+#define HP_TEXEL_READER(name, images, texels)                      \
+  uvec4 name(uint i) {                                             \
+    if (HP_STORAGE_TEXELS != 0u) return imageLoad(images, int(i)); \
+    return texelFetch(texels, int(i));                             \
+  }
+HP_TEXEL_READER(hp_node_texel, node_images, node_texels)
+HP_TEXEL_READER(hp_position_texel, position_images, position_texels)
+HP_TEXEL_READER(hp_index_texel, index_images, index_texels)
+HP_TEXEL_READER(hp_soup_texel, soup_images, soup_texels)
+#undef HP_TEXEL_READER
 
 uvec3 hp_triple(uvec2 w, uint single, bool odd) {
   return odd ? uvec3(single, w) : uvec3(w, single);
