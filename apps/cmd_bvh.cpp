@@ -100,7 +100,7 @@ void cast_on_cpu(const BvhArgs& a, const RtGeometry& g, const std::vector<bvh::R
   for (const auto& h : hits) hit_count += h.hit();
   const double n = rays.empty() ? 1.0 : static_cast<double>(rays.size());
   std::printf(
-      "rays: %zu (%s, %s nodes), %zu hits (%.2f%%), %.2f ms (%.2f M rays/s), %.1f nodes and %.1f triangles per ray\n",
+      "rays: %zu (%s, %s nodes), %zu hits (%.2f%%), %.2f ms (%.2f M rays/s), %.2f nodes and %.2f triangles per ray\n",
       rays.size(), a.any_hit ? "any hit" : "closest hit", to_string(g.node_layout), hit_count,
       100.0 * static_cast<double>(hit_count) / n, cast_ms,
       cast_ms > 0 ? static_cast<double>(rays.size()) / cast_ms / 1e3 : 0.0, static_cast<double>(ts.nodes_visited) / n,

@@ -49,14 +49,17 @@ HP_CHECK_LAYOUT(BvhNode, prim_axis, 28);
 #define HP_BVH_STACK_SIZE 64
 
 // BVH node of the 4-wide layout (node layout "wide4", bvh::NodeLayout): 64 bytes, four 16-byte texels. A wide
-// node stands for a binary node P and holds P's grandchildren in slots [LL, LR, RL, RR], L = P's first child
-// (P + 1), R = its second; a child of P that is a leaf takes slot LL (RL) itself, its partner slot left empty.
-// Visiting the slots in the order the ray's signs on the split axes of P, L and R give is the binary order.
+// node stands for a binary interior node P and holds up to four slots: a cut of P's subtree (binary nodes
+// below P covering each of its leaves once), chosen for the least SAH cost (bvh/wide.cpp), in left-to-right
+// order, the empty slots last.
 //   w[0].xyz: the quantization origin (P's box min, float bits);
-//   w[0].w:   bits 0-23 an 8-bit float exponent per axis (the axis' step is 2^(e - 127)), bits 24-25 P's split
-//             axis, 26-27 L's, 28-29 R's;
-//   w[1] = (lo.x, hi.x, lo.y, hi.y), w[2] = (lo.z, hi.z, 0, 0): byte i of each word is slot i's bound in steps,
+//   w[0].w:   bits 0-23 an 8-bit float exponent per axis (the axis' step is 2^(e - 127)); bits 24-31 zero;
+//   w[1] = (lo.x, hi.x, lo.y, hi.y), w[2].xy = (lo.z, hi.z): byte i of each word is slot i's bound in steps,
 //             decoded as origin + q * step (one rounding; q * step is exact) and never inside the binary box;
+//   w[2].zw:  the visiting order per ray octant (octant = x<0 | y<0 << 1 | z<0 << 2), a byte each: octants 0-3
+//             in w[2].z, 4-7 in w[2].w, byte bits 2i..2i+1 = the slot visited i-th. It is the binary
+//             traversal's order (at each binary node the second child first where the ray is negative on the
+//             node's split axis), the empty slots after the occupied ones;
 //   w[3]:     the slots' child words: 0 = empty; interior = wide node index; leaf = HP_WIDE_LEAF |
 //             count << HP_WIDE_COUNT_SHIFT | first primitive (count 1..15, as the binary leaf's offset/count).
 struct WideNode {

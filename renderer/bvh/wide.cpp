@@ -10,8 +10,10 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace hp::bvh {
 namespace {
@@ -72,9 +74,10 @@ class Converter {
       // One slot: the root leaf, framed by its own box.
       out_.nodes.push_back(gpu::WideNode{});
       const int slots[4] = {0, -1, -1, -1};
-      fill(0, root, slots, 0, 0, 0, 0);
+      fill(0, 0, slots, 0);
       return;
     }
+    plan();
     emit(0, 0);
   }
 
@@ -82,26 +85,15 @@ class Converter {
   /// Emits the wide node of binary interior node p; `stack_before` = entries its ancestors may have pushed.
   uint32_t emit(uint32_t p, int stack_before) {
     const gpu::BvhNode& n = bvh_.nodes[p];
-    const uint32_t l = p + 1, r = static_cast<uint32_t>(n.offset);
     int slots[4] = {-1, -1, -1, -1};
-    uint32_t axes[2] = {0, 0};
-    const uint32_t sides[2] = {l, r};
-    for (int s = 0; s < 2; ++s) {
-      const gpu::BvhNode& c = bvh_.nodes[sides[s]];
-      if (node_is_leaf(c)) {
-        slots[2 * s] = static_cast<int>(sides[s]);
-      } else {
-        slots[2 * s] = static_cast<int>(sides[s] + 1);
-        slots[2 * s + 1] = c.offset;
-        axes[s] = node_axis(c);
-      }
-    }
+    int occupied = 0;
+    const int split = best_[p].split[3];
+    cut(p + 1, split, slots, occupied);
+    cut(static_cast<uint32_t>(n.offset), 4 - split, slots, occupied);
     const uint32_t index = static_cast<uint32_t>(out_.nodes.size());
     out_.nodes.push_back(gpu::WideNode{});
-    int occupied = 0;
-    for (int s : slots) occupied += s >= 0 ? 1 : 0;
     const int stack_here = stack_before + occupied - 1;
-    fill(index, n, slots, node_axis(n), axes[0], axes[1], stack_here);
+    fill(index, p, slots, stack_here);
     for (int k = 0; k < 4; ++k) {
       if (slots[k] < 0 || node_is_leaf(bvh_.nodes[slots[k]])) continue;
       const uint32_t child = emit(static_cast<uint32_t>(slots[k]), stack_here);
@@ -110,10 +102,84 @@ class Converter {
     return index;
   }
 
+  /// The cheapest way to stand for each binary subtree with at most k slots (k = 1..3), and an interior
+  /// node's cost as a wide node: the wide tree's SAH cost is the sum of its nodes' box areas (the leaves'
+  /// cost is the same for every collapse), so the cheapest collapse is found bottom up (Ylitie, Karras and
+  /// Laine 2017, "Efficient incoherent ray traversal on GPUs through compressed wide BVHs", section 4, for
+  /// four slots). cost[k] = the least sum of wide-node areas below and including the slots; split[k] = 0
+  /// where node itself is the one slot, else how many of the k slots go to its first child. split[3] is the
+  /// wide node's own split of four slots.
+  struct Choice {
+    double cost[4] = {0, 0, 0, 0};  // [1..3] with at most k slots, [0] as a wide node of its own
+    int split[4] = {0, 0, 0, 0};
+  };
+  void plan() {
+    best_.resize(bvh_.nodes.size());
+    // Children come after their parent in the depth-first layout, so a backward pass sees them first.
+    for (std::size_t i = bvh_.nodes.size(); i-- > 0;) {
+      const gpu::BvhNode& n = bvh_.nodes[i];
+      Choice& c = best_[i];
+      if (node_is_leaf(n)) continue;  // a leaf is one slot and no wide node: cost 0
+      const Choice& l = best_[i + 1];
+      const Choice& r = best_[static_cast<std::size_t>(n.offset)];
+      // As a wide node: its box plus the cheapest four-slot split between the children.
+      double own = std::numeric_limits<double>::infinity();
+      for (int a = 1; a <= 3; ++a) {
+        const double v = l.cost[a] + r.cost[4 - a];
+        if (v < own) own = v, c.split[3] = a;
+      }
+      c.cost[0] = box_area(n) + own;
+      // As at most k slots: itself (one slot, a wide node below), or opened into its children.
+      c.cost[1] = c.cost[0];
+      for (int k = 2; k <= 3; ++k) {
+        c.cost[k] = c.cost[0];
+        c.split[k - 1] = 0;
+        for (int a = 1; a < k; ++a) {
+          const double v = l.cost[a] + r.cost[k - a];
+          if (v < c.cost[k]) c.cost[k] = v, c.split[k - 1] = a;
+        }
+      }
+    }
+  }
+
+  /// Appends the slots standing for binary node b with at most k of them, in left-to-right order.
+  void cut(uint32_t b, int k, int (&slots)[4], int& occupied) const {
+    const gpu::BvhNode& n = bvh_.nodes[b];
+    const int a = k >= 2 && !node_is_leaf(n) ? best_[b].split[k - 1] : 0;
+    if (a == 0) {
+      slots[occupied++] = static_cast<int>(b);
+      return;
+    }
+    cut(b + 1, a, slots, occupied);
+    cut(static_cast<uint32_t>(n.offset), k - a, slots, occupied);
+  }
+
+  /// Half the area of a binary node's box (the SAH's measure), in double.
+  static double box_area(const gpu::BvhNode& c) {
+    const glm::dvec3 e = glm::dvec3(c.bmax) - glm::dvec3(c.bmin);
+    return e.x * e.y + e.y * e.z + e.z * e.x;
+  }
+
+  /// Appends to `order` (2 bits per position) the slots of the binary subtree under node b in the binary
+  /// traversal's order for a ray of octant `octant` (bit a set: negative on axis a): at each binary node the
+  /// second child first where the ray is negative on its split axis.
+  void order_slots(uint32_t b, uint32_t octant, const int (&slots)[4], uint32_t& order, int& pos) const {
+    for (int k = 0; k < 4; ++k) {
+      if (slots[k] == static_cast<int>(b)) {
+        order |= static_cast<uint32_t>(k) << (2 * pos++);
+        return;
+      }
+    }
+    const gpu::BvhNode& n = bvh_.nodes[b];
+    const bool second_first = ((octant >> node_axis(n)) & 1u) != 0;
+    order_slots(second_first ? static_cast<uint32_t>(n.offset) : b + 1, octant, slots, order, pos);
+    order_slots(second_first ? b + 1 : static_cast<uint32_t>(n.offset), octant, slots, order, pos);
+  }
+
   /// Writes wide node `index`: frame = `frame`'s box, the slots' quantized boxes, leaf words (interior
   /// words are set by emit once the child exists).
-  void fill(uint32_t index, const gpu::BvhNode& frame, const int (&slots)[4], uint32_t ax_p, uint32_t ax_l,
-            uint32_t ax_r, int stack_here) {
+  void fill(uint32_t index, uint32_t p, const int (&slots)[4], int stack_here) {
+    const gpu::BvhNode& frame = bvh_.nodes[p];
     if (stack_here > HP_BVH_STACK_SIZE) {
       throw InputError("node layout wide4: the tree needs " + std::to_string(stack_here) +
                        " traversal stack entries, over HP_BVH_STACK_SIZE (" + std::to_string(HP_BVH_STACK_SIZE) +
@@ -124,8 +190,22 @@ class Converter {
     uint32_t e[3];
     for (int a = 0; a < 3; ++a) e[a] = frame_exponent(frame.bmin[a], frame.bmax[a]);
     w.w[0] = glm::uvec4(std::bit_cast<uint32_t>(frame.bmin.x), std::bit_cast<uint32_t>(frame.bmin.y),
-                        std::bit_cast<uint32_t>(frame.bmin.z),
-                        e[0] | e[1] << 8 | e[2] << 16 | ax_p << 24 | ax_l << 26 | ax_r << 28);
+                        std::bit_cast<uint32_t>(frame.bmin.z), e[0] | e[1] << 8 | e[2] << 16);
+    // The visiting order per ray octant, a byte each (octants 0-3 in w[2].z, 4-7 in w[2].w): the occupied
+    // slots in the binary order, then the empty ones.
+    for (uint32_t octant = 0; octant < 8; ++octant) {
+      uint32_t order = 0;
+      int pos = 0;
+      if (slots[1] < 0) {
+        order_slots(static_cast<uint32_t>(slots[0]), octant, slots, order, pos);  // the root leaf alone
+      } else {
+        order_slots(p, octant, slots, order, pos);
+      }
+      for (int k = 0; k < 4; ++k) {
+        if (slots[k] < 0) order |= static_cast<uint32_t>(k) << (2 * pos++);
+      }
+      w.w[2][2 + octant / 4] |= order << (8 * (octant % 4));
+    }
     for (int k = 0; k < 4; ++k) {
       if (slots[k] < 0) continue;
       const gpu::BvhNode& c = bvh_.nodes[slots[k]];
@@ -154,6 +234,7 @@ class Converter {
 
   const Bvh& bvh_;
   WideBvh& out_;
+  std::vector<Choice> best_;
 };
 
 inline bool neg(const PreparedRay& r, uint32_t axis) { return r.near_at[axis] >= 4; }
@@ -206,6 +287,7 @@ Hit traverse(const WideBvh& bvh, const LeafOrderTriangles& lt, const Ray& ray, T
   uint32_t stack[HP_BVH_STACK_SIZE];
   int sp = 0;
   uint32_t entry = 0;  // the root, an interior node
+  const uint32_t octant = (neg(r, 0) ? 1u : 0u) | (neg(r, 1) ? 2u : 0u) | (neg(r, 2) ? 4u : 0u);
   for (;;) {
     if ((entry & HP_WIDE_LEAF) != 0) {
       const uint32_t first = entry & HP_WIDE_FIRST_MASK;
@@ -218,12 +300,10 @@ Hit traverse(const WideBvh& bvh, const LeafOrderTriangles& lt, const Ray& ray, T
       const int mask = slab4(r, n, best_t);
       bool hit[4];
       for (int k = 0; k < 4; ++k) hit[k] = n.w[3][k] != 0 && ((mask >> k) & 1) != 0;
-      // The binary order: the pair on the near side of P's split first, each pair by its own split axis.
-      const uint32_t meta = n.w[0].w;
-      const int l0 = neg(r, (meta >> 26) & 3) ? 1 : 0;
-      const int r0 = neg(r, (meta >> 28) & 3) ? 3 : 2;
-      int order[4] = {l0, 1 - l0, r0, 5 - r0};
-      if (neg(r, (meta >> 24) & 3)) order[0] = r0, order[1] = 5 - r0, order[2] = l0, order[3] = 1 - l0;
+      // The binary order: the node's visiting order for the ray's octant (make_wide).
+      const uint32_t ow = n.w[2][2 + octant / 4] >> (8 * (octant % 4));
+      const int order[4] = {static_cast<int>(ow & 3u), static_cast<int>((ow >> 2) & 3u),
+                            static_cast<int>((ow >> 4) & 3u), static_cast<int>((ow >> 6) & 3u)};
       // The first hit child in that order is next; the other hit children are pushed, the last first.
       bool have = false;
       uint32_t next = 0;

@@ -1,5 +1,6 @@
-// The 4-wide node layout ("wide4", NodeLayout::wide4): the binary tree two levels at a time, each wide node
-// holding a binary node's grandchildren with their boxes quantized to 8 bits (gpu::WideNode in
+// The 4-wide node layout ("wide4", NodeLayout::wide4): the binary tree collapsed into nodes of up to four
+// slots, each wide node holding a cut of a binary node's subtree chosen for the least SAH cost, with the
+// slots' boxes quantized to 8 bits (gpu::WideNode in
 // core/gpu/shared_types.h says the bytes). The GPU passes read it when a scene asks for it
 // (shaders/common/traversal.glsl, hp_trace_wide); the traversal here is its C++ twin, operation for
 // operation, so the two agree bit for bit, counters included.
@@ -8,7 +9,7 @@
 // to the smallest scene index, hence bit for bit the binary tree's hit; any hit = a miss exactly when the
 // binary tree misses. The work differs: a visited wide node is one node (its four child boxes are tested
 // together, with the closest t so far), a popped leaf is tested without its box again. Children are visited
-// in the binary order (by the ray's signs on the three split axes), hit children after the first pushed.
+// in the binary order (stored per ray octant in the node), hit children after the first pushed.
 #pragma once
 
 #include "bvh/bvh.hpp"

@@ -401,11 +401,12 @@ bvec4 hp_wide_boxes(HpRay r, uvec4 t0, uvec4 t1, uvec4 t2, float t_hi) {
   for (int a = 0; a < 3; ++a) {
     float origin = uintBitsToFloat(t0[a]);
     float step = uintBitsToFloat(((t0.w >> (8u * uint(a))) & 255u) << 23u);
-    precise vec4 lo = origin + vec4((uvec4(lo_words[a]) >> shifts) & 255u) * step;
-    precise vec4 hi = origin + vec4((uvec4(hi_words[a]) >> shifts) & 255u) * step;
+    // The near and far planes picked as quantized words, before decoding: two selects, not eight.
     bool negative = r.neg[a] != 0;
-    vec4 near_planes = negative ? hi : lo;
-    vec4 far_planes = negative ? lo : hi;
+    uint near_word = negative ? hi_words[a] : lo_words[a];
+    uint far_word = negative ? lo_words[a] : hi_words[a];
+    precise vec4 near_planes = origin + vec4((uvec4(near_word) >> shifts) & 255u) * step;
+    precise vec4 far_planes = origin + vec4((uvec4(far_word) >> shifts) & 255u) * step;
     precise vec4 t_near = (near_planes - r.org[a]) * r.inv[a];
     precise vec4 t_far = (far_planes - r.org[a]) * r.inv[a];
     // A NaN bound (0 * inf) makes the comparison false and leaves the running bound as it is.
@@ -424,7 +425,7 @@ void hp_wide_leaf_range(uint word, out uint first, out uint last) {
 
 // The same traversal over the wide4 layout (gpu::WideNode), operation for operation the C++ twin in
 // renderer/bvh/wide.cpp: a visited node tests its four child boxes with the closest t so far, the first hit
-// child in the binary order (the ray's signs on the split axes of the node and its two binary children) is
+// child in the binary order (the node's visiting order for the ray's octant, gpu::WideNode w[2].zw) is
 // visited next and the other hit children are pushed, the last first. Stack entries are child words: a
 // leaf's word carries its primitive range, so a popped leaf is tested without another fetch.
 HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
@@ -433,6 +434,7 @@ HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
   uint lane = gl_LocalInvocationIndex;
   HpStack st = hp_stack_empty();
   uint entry = 0u;  // the root, an interior node
+  uint octant = uint(r.neg.x) | uint(r.neg.y) << 1u | uint(r.neg.z) << 2u;
   bool done = false;
   while (!done) {
     uint first = 0u, last = 0u;
@@ -450,33 +452,24 @@ HpHit hp_trace_wide(HpRay r, bool any_hit, inout HpStats stats) {
       uvec4 t3 = hp_node_texel(entry * 4u + 3u);
       stats.nodes++;
       bvec4 in_box = hp_wide_boxes(r, t0, t1, t2, best_t);
-      bool h0 = in_box.x && t3.x != 0u;
-      bool h1 = in_box.y && t3.y != 0u;
-      bool h2 = in_box.z && t3.z != 0u;
-      bool h3 = in_box.w && t3.w != 0u;
-      bool fp = r.neg[(t0.w >> 24u) & 3u] != 0;
-      bool fl = r.neg[(t0.w >> 26u) & 3u] != 0;
-      bool fr = r.neg[(t0.w >> 28u) & 3u] != 0;
-      // Each pair in its own order, then the pairs in the node's.
-      uint la = fl ? t3.y : t3.x, lb = fl ? t3.x : t3.y;
-      bool hla = fl ? h1 : h0, hlb = fl ? h0 : h1;
-      uint ra = fr ? t3.w : t3.z, rb = fr ? t3.z : t3.w;
-      bool hra = fr ? h3 : h2, hrb = fr ? h2 : h3;
-      uint c0 = fp ? ra : la, c1 = fp ? rb : lb, c2 = fp ? la : ra, c3 = fp ? lb : rb;
-      bool y0 = fp ? hra : hla, y1 = fp ? hrb : hlb, y2 = fp ? hla : hra, y3 = fp ? hlb : hrb;
+      // The hit children's words (0 where missed or empty: a child word is never 0), and the visiting order
+      // for the ray's octant (the binary order, make_wide): slot o_i is visited i-th.
+      uvec4 hit_words = mix(uvec4(0u), t3, in_box);
+      uint ord = ((octant & 4u) != 0u ? t2.w : t2.z) >> ((octant & 3u) * 8u);
+      uint c0 = hit_words[ord & 3u], c1 = hit_words[(ord >> 2u) & 3u];
+      uint c2 = hit_words[(ord >> 4u) & 3u], c3 = hit_words[(ord >> 6u) & 3u];
+      bool y0 = c0 != 0u, y1 = c1 != 0u, y2 = c2 != 0u, y3 = c3 != 0u;
       // The hit children in visiting order, compacted: l0 is visited next, l1..lm are pushed in one step with
       // l1 on top (the stack the C++ twin's pushes of lm, ..., l1 leave). One step with selects rather than
       // up to three pushes under their own branches, each a masked block for llvmpipe: 3-14% faster traversal
       // on lavapipe (docs/gpu-passes.md). bvh::make_wide bounds the pushes by HP_BVH_STACK_SIZE, so the clamp
       // never drops an entry.
-      uint l0 = 0u, l1 = 0u, l2 = 0u, l3 = 0u;
-      uint k = 0u;
-      l0 = y0 ? c0 : l0; k += y0 ? 1u : 0u;
-      l0 = (y1 && k == 0u) ? c1 : l0; l1 = (y1 && k == 1u) ? c1 : l1; k += y1 ? 1u : 0u;
-      l0 = (y2 && k == 0u) ? c2 : l0; l1 = (y2 && k == 1u) ? c2 : l1; l2 = (y2 && k == 2u) ? c2 : l2;
-      k += y2 ? 1u : 0u;
-      l0 = (y3 && k == 0u) ? c3 : l0; l1 = (y3 && k == 1u) ? c3 : l1; l2 = (y3 && k == 2u) ? c3 : l2;
-      l3 = (y3 && k == 3u) ? c3 : l3; k += y3 ? 1u : 0u;
+      // Shifted in from the last: a hit child moves the ones after it down by one (a missed one is 0).
+      uint l0 = c3, l1 = 0u, l2 = 0u, l3 = 0u;
+      if (y2) { l1 = l0; l0 = c2; }
+      if (y1) { l2 = l1; l1 = l0; l0 = c1; }
+      if (y0) { l3 = l2; l2 = l1; l1 = l0; l0 = c0; }
+      uint k = (y0 ? 1u : 0u) + (y1 ? 1u : 0u) + (y2 ? 1u : 0u) + (y3 ? 1u : 0u);
       bool have = k != 0u;
       uint next = l0;
       int m = min(k > 1u ? int(k) - 1 : 0, HP_BVH_STACK_SIZE - st.sp);
