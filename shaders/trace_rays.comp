@@ -14,7 +14,9 @@
 layout(local_size_x = 64) in;  // HP_TRAVERSAL_MAX_GROUP: the traversal stack's shared columns
 #endif
 
-layout(std430, set = 0, binding = HP_BIND_BATCH_RAYS) readonly buffer BatchRays { BatchRay batch_rays[]; };
+// A BatchRay is two RGBA32UI texels: on lavapipe an image load is one call for the eight lanes, a
+// storage-buffer load at a per-invocation address a loop over the lanes (RayBatchTracer).
+layout(set = 0, binding = HP_BIND_BATCH_RAYS, rgba32ui) uniform readonly uimageBuffer batch_rays;
 layout(std430, set = 0, binding = HP_BIND_BATCH_RESULTS) writeonly buffer BatchResults { BatchResult batch_results[]; };
 layout(push_constant) uniform BatchParams {
   uint count;
@@ -33,7 +35,9 @@ void main() {
   uint i = group * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
 #endif
   if (i >= batch.count) return;
-  BatchRay ray = batch_rays[i];
+  BatchRay ray;
+  ray.origin_tmin = uintBitsToFloat(imageLoad(batch_rays, int(2u * i)));
+  ray.dir_tmax = uintBitsToFloat(imageLoad(batch_rays, int(2u * i + 1u)));
   BatchResult res;
   res.hit = ivec4(-1, 0, 0, 0);
   res.work = uvec4(0u);

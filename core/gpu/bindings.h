@@ -32,7 +32,7 @@
 #define HP_BIND_RT_SORT_VALUES 24           // compacted ray index per key
 #define HP_BIND_RT_RAY_COUNT 25             // appended ray count, then the consume pass's indirect dispatch
 #define HP_BIND_RT_NODE_TEXELS 26           // BVH nodes as RGBA32UI texels, two per node
-#define HP_BIND_BATCH_RAYS 27               // RayBatchTracer's set only: the rays (BatchRay)
+#define HP_BIND_BATCH_RAYS 27               // RayBatchTracer's set only: the rays (BatchRay), RGBA32UI texels
 #define HP_BIND_BATCH_RESULTS 28            // RayBatchTracer's set only: the answers (BatchResult)
 #define HP_BIND_RT_POSITION_TEXELS 29       // positions as R32G32B32A32_UINT texels (HP_GEOMETRY_TEXELS)
 #define HP_BIND_RT_INDEX_TEXELS 30          // a slot's three indices per R32G32B32A32_UINT texel

@@ -22,7 +22,8 @@ namespace hp {
 namespace {
 
 constexpr VkShaderStageFlags kCS = VK_SHADER_STAGE_COMPUTE_BIT;
-constexpr uint32_t kGroup = 64;  // trace_rays.comp's local_size_x
+constexpr uint32_t kGroup = 64;                                 // trace_rays.comp's local_size_x
+constexpr uint64_t kTexelsPerRay = sizeof(gpu::BatchRay) / 16;  // RGBA32UI texels
 
 struct BatchParams {
   uint32_t count, any_hit, groups_x;
@@ -31,9 +32,17 @@ struct BatchParams {
 }  // namespace
 
 glm::uvec2 RayBatchTracer::check_limits(uint64_t rays, const VkPhysicalDeviceLimits& limits) {
-  const uint64_t bytes = rays * sizeof(gpu::BatchRay);
+  // The rays are read as a storage texel buffer (two RGBA32UI texels each), the answers written to a storage
+  // buffer.
+  const uint64_t texels = rays * kTexelsPerRay;
+  if (texels > limits.maxTexelBufferElements) {
+    throw InputError("ray batch: " + std::to_string(rays) + " rays need " + std::to_string(texels) +
+                     " texels, over this device's maxTexelBufferElements of " +
+                     std::to_string(limits.maxTexelBufferElements));
+  }
+  const uint64_t bytes = rays * sizeof(gpu::BatchResult);
   if (bytes > limits.maxStorageBufferRange) {
-    throw InputError("ray batch: " + std::to_string(rays) + " rays need " + std::to_string(bytes) +
+    throw InputError("ray batch: " + std::to_string(rays) + " answers need " + std::to_string(bytes) +
                      " bytes, over this device's maxStorageBufferRange of " +
                      std::to_string(limits.maxStorageBufferRange));
   }
@@ -66,24 +75,30 @@ RayBatchTracer::RayBatchTracer(vk::Context& ctx, const RtScene& scene, std::span
     packed[i].dir_tmax = glm::vec4(rays[i].dir, rays[i].tmax);
   }
   if (packed.empty()) packed.resize(1);  // a buffer cannot be empty; count_ = 0 reads none of it
-  rays_ = vk::upload_vector(ctx, packed, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT);
+  rays_ = vk::upload_vector(ctx, packed, VK_BUFFER_USAGE_STORAGE_TEXEL_BUFFER_BIT);
   results_ = vk::Buffer(ctx, std::max<uint64_t>(count_, 1) * sizeof(gpu::BatchResult),
                         VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT, false);
+  ray_texels_ = vk::BufferView(ctx, rays_, VK_FORMAT_R32G32B32A32_UINT);
 
   // The bindings the traversal reads, then the batch's own.
+  // The rays through a texel view: lavapipe loads a storage buffer at a per-invocation address lane by lane
+  // (a bounds check and a scalar load per word, 64 per vector of eight rays), an image texel in one call.
+  // The answers stay a storage buffer: lavapipe's image store costs about as much as the lane-by-lane store
+  // (docs/gpu-passes.md).
   const VkDescriptorType SB = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  const VkDescriptorType ST = VK_DESCRIPTOR_TYPE_STORAGE_TEXEL_BUFFER;
   const bool rt_pipeline = traversal == Traversal::pipeline;
   stages_ = kCS | (rt_pipeline ? VkShaderStageFlags(VK_SHADER_STAGE_RAYGEN_BIT_KHR) : VkShaderStageFlags(0));
   std::vector<VkDescriptorSetLayoutBinding> b;
   RtScene::add_traversal_bindings(b, stages_);
   if (as) AccelStructure::add_bindings(b, stages_);
-  b.push_back({HP_BIND_BATCH_RAYS, SB, 1, stages_, nullptr});
+  b.push_back({HP_BIND_BATCH_RAYS, ST, 1, stages_, nullptr});
   b.push_back({HP_BIND_BATCH_RESULTS, SB, 1, stages_, nullptr});
   descriptors_ = vk::DescriptorSet(ctx, b, sizeof(BatchParams), stages_);
   auto& ds = descriptors_;
   scene.write_traversal_bindings(ds);
   if (as) as->write_bindings(ds);
-  ds.write_buffer(HP_BIND_BATCH_RAYS, SB, rays_.handle());
+  ds.write_texel_buffer(HP_BIND_BATCH_RAYS, ST, ray_texels_.handle());
   ds.write_buffer(HP_BIND_BATCH_RESULTS, SB, results_.handle());
   const bool remap = as && as->remapped();
   if (rt_pipeline) {

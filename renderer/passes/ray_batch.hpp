@@ -42,13 +42,15 @@ class RayBatchTracer {
   size_t size() const { return count_; }
 
   /// The dispatch for `rays` rays under `limits` (workgroups in x, then y); throws InputError naming the
-  /// limit a batch that size would break (maxStorageBufferRange, maxComputeWorkGroupCount).
+  /// limit a batch that size would break (maxTexelBufferElements, maxStorageBufferRange,
+  /// maxComputeWorkGroupCount).
   static glm::uvec2 check_limits(uint64_t rays, const VkPhysicalDeviceLimits& limits);
 
  private:
   uint32_t count_ = 0;
   uint32_t groups_x_ = 0, groups_y_ = 0;
   vk::Buffer rays_, results_;
+  vk::BufferView ray_texels_;  // after the buffers: destroyed before them
   vk::DescriptorSet descriptors_;
   vk::Pipeline pipeline_;
   vk::RtPipeline rt_pipeline_;  // Traversal::pipeline

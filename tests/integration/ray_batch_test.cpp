@@ -326,7 +326,8 @@ TEST(RayBatch, TheDispatchOrderFollowsTheDevicesThreads) {
 
 TEST(RayBatch, LimitsAreCheckedWithTheLimitNamed) {
   VkPhysicalDeviceLimits limits{};
-  limits.maxStorageBufferRange = 1u << 20;  // 32768 rays of 32 bytes
+  limits.maxTexelBufferElements = 1u << 16;  // 32768 rays of two texels
+  limits.maxStorageBufferRange = 1u << 30;
   limits.maxComputeWorkGroupCount[0] = 8;
   limits.maxComputeWorkGroupCount[1] = 4;
   EXPECT_NO_THROW(RayBatchTracer::check_limits(32 * 64, limits));
@@ -337,6 +338,15 @@ TEST(RayBatch, LimitsAreCheckedWithTheLimitNamed) {
     EXPECT_NE(std::string(e.what()).find("maxComputeWorkGroupCount"), std::string::npos) << e.what();
   }
   limits.maxComputeWorkGroupCount[1] = 1000;
+  try {
+    RayBatchTracer::check_limits(32769, limits);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("maxTexelBufferElements"), std::string::npos) << e.what();
+  }
+  limits.maxTexelBufferElements = 1u << 30;
+  limits.maxStorageBufferRange = 1u << 20;  // 32768 answers of 32 bytes
+  EXPECT_NO_THROW(RayBatchTracer::check_limits(32768, limits));
   try {
     RayBatchTracer::check_limits(32769, limits);
     ADD_FAILURE() << "no error";
