@@ -8,6 +8,7 @@
 #include <emmintrin.h>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -77,7 +78,8 @@ class Converter {
       fill(0, 0, slots, 0);
       return;
     }
-    plan();
+    split_.resize(bvh_.nodes.size());
+    plan(0);
     emit(0, 0);
   }
 
@@ -87,7 +89,7 @@ class Converter {
     const gpu::BvhNode& n = bvh_.nodes[p];
     int slots[4] = {-1, -1, -1, -1};
     int occupied = 0;
-    const int split = best_[p].split[3];
+    const int split = split_[p][3];
     cut(p + 1, split, slots, occupied);
     cut(static_cast<uint32_t>(n.offset), 4 - split, slots, occupied);
     const uint32_t index = static_cast<uint32_t>(out_.nodes.size());
@@ -106,46 +108,46 @@ class Converter {
   /// node's cost as a wide node: the wide tree's SAH cost is the sum of its nodes' box areas (the leaves'
   /// cost is the same for every collapse), so the cheapest collapse is found bottom up (Ylitie, Karras and
   /// Laine 2017, "Efficient incoherent ray traversal on GPUs through compressed wide BVHs", section 4, for
-  /// four slots). cost[k] = the least sum of wide-node areas below and including the slots; split[k] = 0
-  /// where node itself is the one slot, else how many of the k slots go to its first child. split[3] is the
-  /// wide node's own split of four slots.
-  struct Choice {
-    double cost[4] = {0, 0, 0, 0};  // [1..3] with at most k slots, [0] as a wide node of its own
-    int split[4] = {0, 0, 0, 0};
+  /// four slots). plan(b) returns b's costs, cost[k] = the least sum of wide-node areas below and including
+  /// the slots with at most k slots, cost[0] as a wide node of its own; it keeps only the splits, split_[b][k]
+  /// = 0 where b itself is the one slot, else how many of the k + 1 slots go to its first child, and
+  /// split_[b][3] the wide node's own split of four slots. Depth first, so the costs live on the recursion's
+  /// stack (the tree's depth, at most 64) and the splits take 4 bytes a node: a cost table for every node
+  /// was fresh memory whose page faults cost more than the arithmetic on this VM.
+  struct Costs {
+    double cost[4] = {0, 0, 0, 0};
   };
-  void plan() {
-    best_.resize(bvh_.nodes.size());
-    // Children come after their parent in the depth-first layout, so a backward pass sees them first.
-    for (std::size_t i = bvh_.nodes.size(); i-- > 0;) {
-      const gpu::BvhNode& n = bvh_.nodes[i];
-      Choice& c = best_[i];
-      if (node_is_leaf(n)) continue;  // a leaf is one slot and no wide node: cost 0
-      const Choice& l = best_[i + 1];
-      const Choice& r = best_[static_cast<std::size_t>(n.offset)];
-      // As a wide node: its box plus the cheapest four-slot split between the children.
-      double own = std::numeric_limits<double>::infinity();
-      for (int a = 1; a <= 3; ++a) {
-        const double v = l.cost[a] + r.cost[4 - a];
-        if (v < own) own = v, c.split[3] = a;
-      }
-      c.cost[0] = box_area(n) + own;
-      // As at most k slots: itself (one slot, a wide node below), or opened into its children.
-      c.cost[1] = c.cost[0];
-      for (int k = 2; k <= 3; ++k) {
-        c.cost[k] = c.cost[0];
-        c.split[k - 1] = 0;
-        for (int a = 1; a < k; ++a) {
-          const double v = l.cost[a] + r.cost[k - a];
-          if (v < c.cost[k]) c.cost[k] = v, c.split[k - 1] = a;
-        }
+  Costs plan(uint32_t b) {
+    const gpu::BvhNode& n = bvh_.nodes[b];
+    Costs c;
+    if (node_is_leaf(n)) return c;  // a leaf is one slot and no wide node: cost 0
+    const Costs l = plan(b + 1);
+    const Costs r = plan(static_cast<uint32_t>(n.offset));
+    std::array<uint8_t, 4>& split = split_[b];
+    // As a wide node: its box plus the cheapest four-slot split between the children.
+    double own = std::numeric_limits<double>::infinity();
+    for (int a = 1; a <= 3; ++a) {
+      const double v = l.cost[a] + r.cost[4 - a];
+      if (v < own) own = v, split[3] = static_cast<uint8_t>(a);
+    }
+    c.cost[0] = box_area(n) + own;
+    // As at most k slots: itself (one slot, a wide node below), or opened into its children.
+    c.cost[1] = c.cost[0];
+    for (int k = 2; k <= 3; ++k) {
+      c.cost[k] = c.cost[0];
+      split[k - 1] = 0;
+      for (int a = 1; a < k; ++a) {
+        const double v = l.cost[a] + r.cost[k - a];
+        if (v < c.cost[k]) c.cost[k] = v, split[k - 1] = static_cast<uint8_t>(a);
       }
     }
+    return c;
   }
 
   /// Appends the slots standing for binary node b with at most k of them, in left-to-right order.
   void cut(uint32_t b, int k, int (&slots)[4], int& occupied) const {
     const gpu::BvhNode& n = bvh_.nodes[b];
-    const int a = k >= 2 && !node_is_leaf(n) ? best_[b].split[k - 1] : 0;
+    const int a = k >= 2 && !node_is_leaf(n) ? split_[b][k - 1] : 0;
     if (a == 0) {
       slots[occupied++] = static_cast<int>(b);
       return;
@@ -160,20 +162,37 @@ class Converter {
     return e.x * e.y + e.y * e.z + e.z * e.x;
   }
 
-  /// Appends to `order` (2 bits per position) the slots of the binary subtree under node b in the binary
-  /// traversal's order for a ray of octant `octant` (bit a set: negative on axis a): at each binary node the
-  /// second child first where the ray is negative on its split axis.
-  void order_slots(uint32_t b, uint32_t octant, const int (&slots)[4], uint32_t& order, int& pos) const {
-    for (int k = 0; k < 4; ++k) {
-      if (slots[k] == static_cast<int>(b)) {
-        order |= static_cast<uint32_t>(k) << (2 * pos++);
-        return;
-      }
-    }
+  /// The binary nodes between a wide node's binary node and its slots (at most three: four slots are the
+  /// leaves of a binary tree of three interior nodes), each with its split axis and its two sides, a side
+  /// being a slot (0-3) or another fork (4 + its index).
+  struct Fork {
+    uint32_t axis;
+    int side[2];
+  };
+  /// Records the forks under binary node b down to the slots; returns b's code (slot, or 4 + fork). The walk
+  /// is depth first, first child first, as cut() laid the slots out, so the next slot is the one to meet
+  /// (a slot is recognised by position, which also holds where one binary node fills two slots).
+  int forks(uint32_t b, const int (&slots)[4], Fork (&f)[3], int& count, int& next) const {
+    if (slots[next] == static_cast<int>(b)) return next++;
     const gpu::BvhNode& n = bvh_.nodes[b];
-    const bool second_first = ((octant >> node_axis(n)) & 1u) != 0;
-    order_slots(second_first ? static_cast<uint32_t>(n.offset) : b + 1, octant, slots, order, pos);
-    order_slots(second_first ? b + 1 : static_cast<uint32_t>(n.offset), octant, slots, order, pos);
+    const int i = count++;
+    f[i].axis = node_axis(n);
+    f[i].side[0] = forks(b + 1, slots, f, count, next);
+    f[i].side[1] = forks(static_cast<uint32_t>(n.offset), slots, f, count, next);
+    return 4 + i;
+  }
+  /// Appends to `order` (2 bits per position) the slots under `code` in the binary traversal's order for a
+  /// ray of octant `octant` (bit a set: negative on axis a): at each fork the second side first where the ray
+  /// is negative on its split axis.
+  static void order_slots(int code, uint32_t octant, const Fork (&f)[3], uint32_t& order, int& pos) {
+    if (code < 4) {
+      order |= static_cast<uint32_t>(code) << (2 * pos++);
+      return;
+    }
+    const Fork& x = f[code - 4];
+    const int first = static_cast<int>((octant >> x.axis) & 1u);
+    order_slots(x.side[first], octant, f, order, pos);
+    order_slots(x.side[1 - first], octant, f, order, pos);
   }
 
   /// Writes wide node `index`: frame = `frame`'s box, the slots' quantized boxes, leaf words (interior
@@ -193,14 +212,14 @@ class Converter {
                         std::bit_cast<uint32_t>(frame.bmin.z), e[0] | e[1] << 8 | e[2] << 16);
     // The visiting order per ray octant, a byte each (octants 0-3 in w[2].z, 4-7 in w[2].w): the occupied
     // slots in the binary order, then the empty ones.
+    // The root leaf alone is its own slot 0, so its code is that slot.
+    Fork f[3];
+    int fork_count = 0, next_slot = 0;
+    const int top = forks(p, slots, f, fork_count, next_slot);
     for (uint32_t octant = 0; octant < 8; ++octant) {
       uint32_t order = 0;
       int pos = 0;
-      if (slots[1] < 0) {
-        order_slots(static_cast<uint32_t>(slots[0]), octant, slots, order, pos);  // the root leaf alone
-      } else {
-        order_slots(p, octant, slots, order, pos);
-      }
+      order_slots(top, octant, f, order, pos);
       for (int k = 0; k < 4; ++k) {
         if (slots[k] < 0) order |= static_cast<uint32_t>(k) << (2 * pos++);
       }
@@ -234,7 +253,7 @@ class Converter {
 
   const Bvh& bvh_;
   WideBvh& out_;
-  std::vector<Choice> best_;
+  std::vector<std::array<uint8_t, 4>> split_;  // plan()
 };
 
 inline bool neg(const PreparedRay& r, uint32_t axis) { return r.near_at[axis] >= 4; }
