@@ -112,8 +112,8 @@ class Converter {
   /// the slots with at most k slots, cost[0] as a wide node of its own; it keeps only the splits, split_[b][k]
   /// = 0 where b itself is the one slot, else how many of the k + 1 slots go to its first child, and
   /// split_[b][3] the wide node's own split of four slots. Depth first, so the costs live on the recursion's
-  /// stack (the tree's depth, at most 64) and the splits take 4 bytes a node: a cost table for every node
-  /// was fresh memory whose page faults cost more than the arithmetic on this VM.
+  /// stack (as deep as the tree: build_bvh caps it at 64) and the splits take 4 bytes a node; a cost table
+  /// for every node (3.3 MB on pica) was fresh memory whose page faults cost more than the arithmetic.
   struct Costs {
     double cost[4] = {0, 0, 0, 0};
   };
@@ -195,7 +195,7 @@ class Converter {
     order_slots(x.side[1 - first], octant, f, order, pos);
   }
 
-  /// Writes wide node `index`: frame = `frame`'s box, the slots' quantized boxes, leaf words (interior
+  /// Writes wide node `index` for binary node p: frame = p's box, the slots' quantized boxes, leaf words (interior
   /// words are set by emit once the child exists).
   void fill(uint32_t index, uint32_t p, const int (&slots)[4], int stack_here) {
     const gpu::BvhNode& frame = bvh_.nodes[p];

@@ -53,7 +53,7 @@ double expect_wide_matches(const Bvh& bvh, const WideBvh& w) {
     if (node_is_leaf(n)) {
       lo[i] = static_cast<uint32_t>(n.offset), hi[i] = lo[i] + node_count(n);
     } else {
-      EXPECT_EQ(hi[i + 1], lo[n.offset]) << "binary node " << i << " covers a split range";
+      EXPECT_EQ(hi[i + 1], lo[n.offset]) << "binary node " << i << ": its children's leaf ranges are not adjacent";
       lo[i] = lo[i + 1], hi[i] = hi[n.offset];
     }
   }
@@ -133,11 +133,10 @@ double expect_wide_matches(const Bvh& bvh, const WideBvh& w) {
         uint32_t x = bin[a], y = bin[b];
         while (depth[x] > depth[y]) x = parent[x];
         while (depth[y] > depth[x]) y = parent[y];
-        uint32_t xc = x, yc = y;  // the two sides' children of the common ancestor
-        while (x != y) xc = x, yc = y, x = parent[x], y = parent[y];
+        uint32_t xc = x;  // a's side: the child of the common ancestor above a
+        while (x != y) xc = x, x = parent[x], y = parent[y];
         const bool a_first_child = xc == x + 1;
         const bool second_first = ((octant >> node_axis(bvh.nodes[x])) & 1u) != 0;
-        (void)yc;
         return a_first_child != second_first;
       };
       std::stable_sort(want, want + 4, before);
