@@ -167,8 +167,14 @@ struct BuildParams {
   int threads;
 };
 
-/// Binned SAH over `prims` (reordered in place into leaf order).
-PairTree build_binned(std::span<PrimRef> prims, const BuildParams& params);
+/// The code the binned builder runs: `automatic` is AVX2 where the CPU has it, else the baseline x86-64
+/// code. Both build the same tree to the bit (tests/unit/bvh/build_test.cpp compares them).
+enum class BinnedIsa { automatic, baseline, avx2 };
+/// Binned SAH over `prims` (reordered in place into leaf order). Asking for AVX2 on a CPU without it is a
+/// logic error.
+PairTree build_binned(std::span<PrimRef> prims, const BuildParams& params, BinnedIsa isa = BinnedIsa::automatic);
+/// Whether this CPU (and its OS) runs AVX2 code.
+bool binned_avx2_available();
 /// Exact full-sweep SAH over all three axes.
 PairTree build_full_sweep(std::span<const PrimRef> prims, const BuildParams& params);
 

@@ -3,6 +3,7 @@
 // metrics (BVH shape, cache counts) and the GPU = CPU agreement depend on the exact tree, so a faster
 // builder must make exactly the same decisions (bins, splits, ties, partition order) whatever the thread
 // count. A failure here means the tree changed: a new tree is a new, non-default option, not a new default.
+#include "bvh/build_common.hpp"
 #include "bvh/bvh.hpp"
 #include "bvh_test_scenes.hpp"
 
@@ -11,6 +12,7 @@
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -137,6 +139,59 @@ TEST(BvhBuildIdentity, SignedZerosBuildThePinnedTree) {
   for (const int threads : {1, 2, 3}) {
     expect_pinned(("signed zeros threads " + std::to_string(threads)).c_str(), build_bvh(sphere, with_threads(threads)),
                   Pinned{277967, 0, 0xed00d3cded988acbull});
+  }
+}
+
+/// The binned builder's input for `tris`: one reference per non-degenerate triangle, in scene order.
+std::vector<detail::PrimRef> prim_refs(const std::vector<Triangle>& tris) {
+  std::vector<detail::PrimRef> refs;
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    const Triangle& t = tris[i];
+    if (is_degenerate(t)) continue;
+    refs.push_back(
+        {glm::min(t.v0, glm::min(t.v1, t.v2)), static_cast<uint32_t>(i), glm::max(t.v0, glm::max(t.v1, t.v2)), 0});
+  }
+  return refs;
+}
+
+TEST(BvhBuildIdentity, AvxAndBaselineCodeBuildTheSameTree) {
+  // The identity tests above run the code this CPU picks; this one runs both on the same input, so that the
+  // pinned trees hold for the baseline code on AVX2 hosts too.
+  if (!detail::binned_avx2_available()) GTEST_SKIP() << "this CPU has no AVX2: only the baseline code runs here";
+  auto zeros = uv_sphere(120, 160).triangles();
+  std::size_t k = 0;
+  for (auto& t : zeros) {
+    for (glm::vec3* v : {&t.v0, &t.v1, &t.v2}) {
+      for (int a = 0; a < 3; ++a) {
+        if (std::abs((*v)[a]) < 0.02f) (*v)[a] = (k++ % 2) ? -0.0f : 0.0f;
+      }
+    }
+  }
+  const std::vector<std::pair<const char*, std::vector<Triangle>>> scenes = {
+      {"sphere", uv_sphere(300, 400).triangles()},
+      {"terrain", terrain(200).triangles()},
+      {"soup", random_soup(50000, 7)},
+      {"clusters", exponential_clusters(-6, 6, 3000, 11)},
+      {"signed zeros", zeros},
+  };
+  for (const auto& [name, tris] : scenes) {
+    for (const bool all_axes : {true, false}) {
+      for (const int threads : {1, 2}) {
+        BuildOptions o;
+        const detail::BuildParams p{o.buckets,   all_axes, o.traversal_cost, static_cast<uint32_t>(o.max_leaf_size),
+                                    o.max_depth, threads};
+        auto base_refs = prim_refs(tris), avx_refs = base_refs;
+        const detail::PairTree base = detail::build_binned(base_refs, p, detail::BinnedIsa::baseline);
+        const detail::PairTree avx = detail::build_binned(avx_refs, p, detail::BinnedIsa::avx2);
+        const std::string what =
+            std::string(name) + (all_axes ? ", all axes" : ", largest axis") + ", threads " + std::to_string(threads);
+        ASSERT_EQ(base.flat.size(), avx.flat.size()) << what;
+        EXPECT_EQ(0, std::memcmp(base.flat.data(), avx.flat.data(), base.flat.size() * sizeof(gpu::BvhNode))) << what;
+        EXPECT_EQ(base.order, avx.order) << what;
+        EXPECT_EQ(base.flat_max_depth, avx.flat_max_depth) << what;
+        EXPECT_EQ(base.depth_limited_splits, avx.depth_limited_splits) << what;
+      }
+    }
   }
 }
 
