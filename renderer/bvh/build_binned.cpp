@@ -36,9 +36,14 @@ namespace baseline {
 // The same code for AVX2 CPUs: VEX encodings (three operands, fewer register copies) make the builder a few
 // percent faster (docs/bvh-performance.md) and compute the same floats: the target brings no fused
 // multiply-add, and the intrinsics are the same operations. Everything included above keeps the baseline
-// target, so no shared inline function is ever emitted for AVX2 alone.
+// target, so no shared inline function is ever emitted for AVX2 alone. (Clang takes the target as an
+// attribute pushed onto every function of the region.)
+#if defined(__clang__)
+#pragma clang attribute push(__attribute__((target("avx2"))), apply_to = function)
+#else
 #pragma GCC push_options
 #pragma GCC target("avx2")
+#endif
 namespace {
 namespace avx2 {
 #define HP_BINNED_BLENDV 1
@@ -46,7 +51,11 @@ namespace avx2 {
 #undef HP_BINNED_BLENDV
 }  // namespace avx2
 }  // namespace
+#if defined(__clang__)
+#pragma clang attribute pop
+#else
 #pragma GCC pop_options
+#endif
 
 PairTree build_binned(std::span<PrimRef> prims, const BuildParams& params, BinnedIsa isa) {
   if (isa == BinnedIsa::automatic) isa = binned_avx2_available() ? BinnedIsa::avx2 : BinnedIsa::baseline;
