@@ -123,18 +123,24 @@ TEST(BvhBuildIdentity, ProceduralScenesBuildThePinnedTrees) {
   }
 }
 
-TEST(BvhBuildIdentity, SignedZerosBuildThePinnedTree) {
-  // min/max keep the later operand on ties, so with +0 and -0 in the input the boxes' zero signs follow the
-  // order in which the builder folds primitives and bins: that order is part of the pinned tree too.
-  auto sphere = uv_sphere(300, 400).triangles();
-  std::size_t k = 0;
+/// A sphere whose coordinates near zero are set to +0 and -0 in turn; `zeroed` counts them.
+std::vector<Triangle> signed_zero_sphere(int rings, int segments, std::size_t& zeroed) {
+  auto sphere = uv_sphere(rings, segments).triangles();
   for (auto& t : sphere) {
     for (glm::vec3* v : {&t.v0, &t.v1, &t.v2}) {
       for (int a = 0; a < 3; ++a) {
-        if (std::abs((*v)[a]) < 0.02f) (*v)[a] = (k++ % 2) ? -0.0f : 0.0f;
+        if (std::abs((*v)[a]) < 0.02f) (*v)[a] = (zeroed++ % 2) ? -0.0f : 0.0f;
       }
     }
   }
+  return sphere;
+}
+
+TEST(BvhBuildIdentity, SignedZerosBuildThePinnedTree) {
+  // min/max keep the later operand on ties, so with +0 and -0 in the input the boxes' zero signs follow the
+  // order in which the builder folds primitives and bins: that order is part of the pinned tree too.
+  std::size_t k = 0;
+  const auto sphere = signed_zero_sphere(300, 400, k);
   ASSERT_EQ(k, 76008u);
   for (const int threads : {1, 2, 3}) {
     expect_pinned(("signed zeros threads " + std::to_string(threads)).c_str(), build_bvh(sphere, with_threads(threads)),
@@ -158,15 +164,9 @@ TEST(BvhBuildIdentity, AvxAndBaselineCodeBuildTheSameTree) {
   // The identity tests above run the code this CPU picks; this one runs both on the same input, so that the
   // pinned trees hold for the baseline code on AVX2 hosts too.
   if (!detail::binned_avx2_available()) GTEST_SKIP() << "this CPU has no AVX2: only the baseline code runs here";
-  auto zeros = uv_sphere(120, 160).triangles();
-  std::size_t k = 0;
-  for (auto& t : zeros) {
-    for (glm::vec3* v : {&t.v0, &t.v1, &t.v2}) {
-      for (int a = 0; a < 3; ++a) {
-        if (std::abs((*v)[a]) < 0.02f) (*v)[a] = (k++ % 2) ? -0.0f : 0.0f;
-      }
-    }
-  }
+  std::size_t zeroed = 0;
+  const auto zeros = signed_zero_sphere(120, 160, zeroed);
+  ASSERT_GT(zeroed, 0u);
   const std::vector<std::pair<const char*, std::vector<Triangle>>> scenes = {
       {"sphere", uv_sphere(300, 400).triangles()},
       {"terrain", terrain(200).triangles()},
