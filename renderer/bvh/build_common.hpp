@@ -168,7 +168,7 @@ struct BuildParams {
 };
 
 /// The code the binned builder runs: `automatic` is AVX2 where the CPU has it, else the baseline x86-64
-/// code. Both build the same tree to the bit (tests/unit/bvh/build_test.cpp compares them).
+/// code. Both build the same tree to the bit (tests/unit/bvh/build_identity_test.cpp compares them).
 enum class BinnedIsa { automatic, baseline, avx2 };
 /// Binned SAH over `prims` (reordered in place into leaf order). Asking for AVX2 on a CPU without it is a
 /// logic error.
