@@ -96,8 +96,11 @@ inline __m128i bin_index(__m128 c, __m128 cmin, __m128 scale, __m128 last) {
   return _mm_cvttps_epi32(_mm_min_ps(_mm_mul_ps(_mm_sub_ps(c, cmin), scale), last));
 }
 
-/// Nodes at least this large are binned in runs (bin_runs).
-constexpr uint32_t kRunBinning = 64;
+/// Nodes at least this large are binned in runs (bin_runs). Below it runs are short and their ends hard to
+/// predict; two bin sets (see the binning loop) were measured faster there (docs/bvh-performance.md).
+constexpr uint32_t kRunBinning = 1024;
+/// Nodes at most this large are partitioned through a bit mask (partition_small).
+constexpr uint32_t kSmallPartition = 64;
 
 class BinnedBuilder {
  public:
@@ -301,33 +304,69 @@ class BinnedBuilder {
     const auto goes_left = [&](const PrimRef* q) {
       return ((&q->lo.x)[best_axis] + (&q->hi.x)[best_axis] - part_min) * part_scale < part_limit;
     };
-    PrimRef* lp = prims_.data() + r.begin;
-    PrimRef* rp = prims_.data() + r.end;
-    // Register copies of the children's centroid bounds (left and right live in memory).
-    Box4 lc, rc;
-    for (;;) {
-      while (lp < rp) {
-        if (!goes_left(lp)) break;
-        lc.grow_point(_mm_add_ps(load3(lp->lo), load3(lp->hi)));
-        ++lp;
+    Box4 lc, rc;  // the children's centroid bounds
+    if (n <= kSmallPartition) {
+      partition_small(r, best_axis, vmin, vscale, part_limit, best_left_count, lc, rc);
+    } else {
+      PrimRef* lp = prims_.data() + r.begin;
+      PrimRef* rp = prims_.data() + r.end;
+      for (;;) {
+        while (lp < rp) {
+          if (!goes_left(lp)) break;
+          lc.grow_point(_mm_add_ps(load3(lp->lo), load3(lp->hi)));
+          ++lp;
+        }
+        while (lp < rp) {
+          if (goes_left(rp - 1)) break;
+          rc.grow_point(_mm_add_ps(load3((rp - 1)->lo), load3((rp - 1)->hi)));
+          --rp;
+        }
+        if (lp >= rp) break;
+        std::swap(*lp, *(rp - 1));  // now *lp goes left and *(rp - 1) right; the loops above take them
       }
-      while (lp < rp) {
-        if (goes_left(rp - 1)) break;
-        rc.grow_point(_mm_add_ps(load3((rp - 1)->lo), load3((rp - 1)->hi)));
-        --rp;
-      }
-      if (lp >= rp) break;
-      std::swap(*lp, *(rp - 1));  // now *lp goes left and *(rp - 1) right; the loops above take them
     }
     left.cbox = lc;
     right.cbox = rc;
     const Bin* ab = bins + best_axis * nb;
     for (int b = 0; b < nb; ++b) (b <= best_bin ? left : right).box.grow(ab[b].lo, ab[b].box_hi());
     left.begin = r.begin;
-    left.end = static_cast<uint32_t>(lp - prims_.data());
+    left.end = r.begin + best_left_count;  // where the partition ends: the bins counted the left side
     right.begin = left.end;
     right.end = r.end;
     finish_interior(index, r, best_axis, left, right, depth, s);
+  }
+
+  /// The Hoare partition above, to the same permutation and the same centroid folds, for a node small
+  /// enough for a bit mask. Its branches on each primitive's side are hard to predict in small nodes; here
+  /// the sides go to a mask first, then Hoare's swaps are read off it: the i-th primitive from
+  /// the start that is left of k = left_count but goes right trades places with the i-th from the end that
+  /// is right of k but goes left. Hoare grows the left centroid bounds over the final [begin, begin + k)
+  /// in ascending order and the right ones over the rest in descending order, and so does this.
+  void partition_small(const Range& r, int axis, __m128 vmin, __m128 vscale, float limit, uint32_t left_count, Box4& lc,
+                       Box4& rc) {
+    PrimRef* p = prims_.data() + r.begin;
+    const uint32_t n = r.end - r.begin;
+    const __m128 vlimit = _mm_set1_ps(limit);
+    uint64_t goes_left = 0;
+    // Lane `axis` of the vector test is the scalar test of goes_left (the same three operations).
+    for (uint32_t i = 0; i < n; ++i) {
+      const __m128 c = _mm_add_ps(load3(p[i].lo), load3(p[i].hi));
+      const auto m =
+          static_cast<uint32_t>(_mm_movemask_ps(_mm_cmplt_ps(_mm_mul_ps(_mm_sub_ps(c, vmin), vscale), vlimit)));
+      goes_left |= static_cast<uint64_t>((m >> axis) & 1u) << i;
+    }
+    const uint64_t low = (uint64_t{1} << left_count) - 1;  // left_count < n <= 64
+    uint64_t stray_left = ~goes_left & low;                // in [0, k) but going right
+    uint64_t stray_right = goes_left & ~low;               // in [k, n) but going left
+    while (stray_left != 0) {
+      const int i = __builtin_ctzll(stray_left);
+      const int j = 63 - __builtin_clzll(stray_right);
+      std::swap(p[i], p[j]);
+      stray_left &= stray_left - 1;
+      stray_right ^= uint64_t{1} << j;
+    }
+    for (uint32_t i = 0; i < left_count; ++i) lc.grow_point(_mm_add_ps(load3(p[i].lo), load3(p[i].hi)));
+    for (uint32_t i = n; i-- > left_count;) rc.grow_point(_mm_add_ps(load3(p[i].lo), load3(p[i].hi)));
   }
 
   /// Binning of a large node as runs: consecutive primitives usually fall into the same bin on all three

@@ -13,6 +13,8 @@
 #include <thread>
 #include <vector>
 
+#include <emmintrin.h>
+
 #if defined(__linux__)
 #include <sys/mman.h>
 #endif
@@ -43,6 +45,43 @@ struct PrimRef {
   uint32_t pad;
 };
 static_assert(sizeof(PrimRef) == 32);
+
+/// A triangle's reference, or false where is_degenerate(tri) holds: the same results as is_degenerate and
+/// a box of glm::min / glm::max over the vertices, computed in SSE registers without a branch per vertex
+/// (tests/unit/bvh/build_identity_test.cpp compares the two on edge cases). glm::min(x, y) is (y < x) ? y : x,
+/// which is _mm_min_ps(y, x), so even the signs of zeros agree; the cross product is is_degenerate's
+/// double arithmetic, component by component. The three loads stay inside the 36-byte triangle.
+inline bool make_triangle_ref(const Triangle& tri, uint32_t id, PrimRef& out) {
+  const float* f = &tri.v0.x;
+  const __m128 a = _mm_loadu_ps(f);      // x0 y0 z0 x1
+  const __m128 b = _mm_loadu_ps(f + 3);  // x1 y1 z1 x2
+  const __m128 c = _mm_loadu_ps(f + 5);  // z1 x2 y2 z2
+  const __m128i exponent = _mm_set1_epi32(0x7f800000);
+  const auto non_finite = [&](__m128 v) {
+    return _mm_cmpeq_epi32(_mm_and_si128(_mm_castps_si128(v), exponent), exponent);
+  };
+  if (_mm_movemask_epi8(_mm_or_si128(non_finite(a), _mm_or_si128(non_finite(b), non_finite(c)))) != 0) return false;
+  const __m128 xyz = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
+  const __m128 v0 = _mm_and_ps(a, xyz), v1 = _mm_and_ps(b, xyz);
+  const __m128 v2 = _mm_castsi128_ps(_mm_srli_si128(_mm_castps_si128(c), 4));
+  // e = v - v0 in double: (x, y) and (z, 0).
+  const __m128d d0 = _mm_cvtps_pd(v0), d0z = _mm_cvtps_pd(_mm_movehl_ps(v0, v0));
+  const __m128d e1 = _mm_sub_pd(_mm_cvtps_pd(v1), d0), e1z = _mm_sub_pd(_mm_cvtps_pd(_mm_movehl_ps(v1, v1)), d0z);
+  const __m128d e2 = _mm_sub_pd(_mm_cvtps_pd(v2), d0), e2z = _mm_sub_pd(_mm_cvtps_pd(_mm_movehl_ps(v2, v2)), d0z);
+  // glm::cross(e1, e2) = (e1.y e2.z - e2.y e1.z, e1.z e2.x - e2.z e1.x, e1.x e2.y - e2.x e1.y).
+  const __m128d nxy = _mm_sub_pd(_mm_mul_pd(_mm_shuffle_pd(e1, e1z, 1), _mm_shuffle_pd(e2z, e2, 0)),
+                                 _mm_mul_pd(_mm_shuffle_pd(e2, e2z, 1), _mm_shuffle_pd(e1z, e1, 0)));
+  const __m128d nz = _mm_sub_sd(_mm_mul_sd(e1, _mm_unpackhi_pd(e2, e2)), _mm_mul_sd(e2, _mm_unpackhi_pd(e1, e1)));
+  const __m128d zero = _mm_setzero_pd();
+  if (_mm_movemask_pd(_mm_cmpeq_pd(nxy, zero)) == 3 && (_mm_movemask_pd(_mm_cmpeq_sd(nz, zero)) & 1) != 0) {
+    return false;
+  }
+  // Lane 3 of both corners is +0: the id goes into the low corner's, the padding stays 0.
+  const __m128 lo = _mm_min_ps(_mm_min_ps(v2, v1), v0), hi = _mm_max_ps(_mm_max_ps(v2, v1), v0);
+  _mm_storeu_ps(&out.lo.x, _mm_or_ps(lo, _mm_castsi128_ps(_mm_set_epi32(static_cast<int>(id), 0, 0, 0))));
+  _mm_storeu_ps(&out.hi.x, hi);
+  return true;
+}
 
 /// Half the surface area: the SAH only compares ratios, so the factor 2 is dropped.
 inline float half_area(const glm::vec3& lo, const glm::vec3& hi) {

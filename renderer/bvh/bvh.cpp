@@ -55,15 +55,6 @@ detail::BuildParams validate(const BuildOptions& o, std::size_t primitives) {
   return p;
 }
 
-PrimRef triangle_ref(const Triangle& t, uint32_t id) {
-  PrimRef r;
-  r.lo = glm::min(t.v0, glm::min(t.v1, t.v2));
-  r.hi = glm::max(t.v0, glm::max(t.v1, t.v2));
-  r.id = id;
-  r.pad = 0;
-  return r;
-}
-
 /// Primitive references for the valid primitives, in scene order, built in parallel chunks.
 struct Refs {
   std::unique_ptr<PrimRef[]> data;  // uninitialised beyond size: 32 MB per million need no zero fill
@@ -80,14 +71,14 @@ Refs make_refs(std::span<const Triangle> tris, std::span<const uint32_t> object_
     std::size_t k = b;
     for (std::size_t i = b; i < e; ++i) {
       if (!objects) {
-        if (!is_degenerate(tris[i])) refs.data[k++] = triangle_ref(tris[i], static_cast<uint32_t>(i));
+        k += detail::make_triangle_ref(tris[i], static_cast<uint32_t>(i), refs.data[k]) ? 1 : 0;
         continue;
       }
       PrimRef r{glm::vec3(kInf), static_cast<uint32_t>(i), glm::vec3(-kInf), 0};
       bool any = false;
       for (uint32_t t = object_first[i]; t < object_first[i + 1]; ++t) {
-        if (is_degenerate(tris[t])) continue;
-        const PrimRef tr = triangle_ref(tris[t], t);
+        PrimRef tr;
+        if (!detail::make_triangle_ref(tris[t], t, tr)) continue;
         r.lo = glm::min(r.lo, tr.lo);
         r.hi = glm::max(r.hi, tr.hi);
         any = true;

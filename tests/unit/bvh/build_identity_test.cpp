@@ -13,6 +13,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -158,6 +160,52 @@ std::vector<detail::PrimRef> prim_refs(const std::vector<Triangle>& tris) {
         {glm::min(t.v0, glm::min(t.v1, t.v2)), static_cast<uint32_t>(i), glm::max(t.v0, glm::max(t.v1, t.v2)), 0});
   }
   return refs;
+}
+
+TEST(BvhBuildIdentity, TriangleRefsMatchTheScalarDefinition) {
+  // build_bvh makes its references with detail::make_triangle_ref; they must be prim_refs' to the bit (the
+  // zero signs included), with the same triangles left out. Vertices are drawn from values that stress both:
+  // signed zeros (min/max ties), non-finite values in every position, denormals, extremes, and collinear
+  // triangles (exactly degenerate in double).
+  const float inf = std::numeric_limits<float>::infinity();
+  const std::vector<float> values = {0.0f,  -0.0f,  1.0f,    -1.0f,   2.0f,     0.5f, 3.0f, 1e-30f,       -1e-30f,
+                                     1e30f, 1e-40f, -1e-40f, 3.4e38f, -3.4e38f, inf,  -inf, std::nanf("")};
+  std::mt19937 rng(12345);
+  std::uniform_int_distribution<std::size_t> pick(0, values.size() - 1);
+  std::uniform_int_distribution<int> small(-3, 3);
+  std::vector<Triangle> tris;
+  for (int i = 0; i < 200000; ++i) {
+    Triangle t;
+    for (float* f : {&t.v0.x, &t.v0.y, &t.v0.z, &t.v1.x, &t.v1.y, &t.v1.z, &t.v2.x, &t.v2.y, &t.v2.z})
+      *f = values[pick(rng)];
+    tris.push_back(t);
+    // Collinear: v1 = v0 + d, v2 = v0 + 2d in small integers, with zeros of either sign.
+    const glm::vec3 v0(small(rng), small(rng), small(rng)), d(small(rng), small(rng), small(rng));
+    Triangle c{v0, v0 + d, v0 + 2.0f * d};
+    for (float* f : {&c.v0.x, &c.v1.y, &c.v2.z}) {
+      if (*f == 0.0f && (i & 1)) *f = -0.0f;
+    }
+    tris.push_back(c);
+  }
+  const auto sphere = uv_sphere(40, 60).triangles();
+  tris.insert(tris.end(), sphere.begin(), sphere.end());
+  const std::vector<detail::PrimRef> expected = prim_refs(tris);
+  std::vector<detail::PrimRef> got;
+  std::size_t degenerate = 0;
+  for (std::size_t i = 0; i < tris.size(); ++i) {
+    detail::PrimRef r;
+    if (detail::make_triangle_ref(tris[i], static_cast<uint32_t>(i), r)) {
+      got.push_back(r);
+    } else {
+      ++degenerate;
+    }
+  }
+  EXPECT_GT(degenerate, 100000u);  // the draws above give both kinds in numbers
+  ASSERT_EQ(got.size(), expected.size());
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    ASSERT_EQ(0, std::memcmp(&got[i], &expected[i], sizeof(detail::PrimRef)))
+        << "reference " << i << " (triangle " << expected[i].id << ")";
+  }
 }
 
 TEST(BvhBuildIdentity, AvxAndBaselineCodeBuildTheSameTree) {
