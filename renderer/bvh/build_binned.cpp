@@ -57,13 +57,13 @@ namespace avx2 {
 #pragma GCC pop_options
 #endif
 
-PairTree build_binned(std::span<PrimRef> prims, const BuildParams& params, BinnedIsa isa) {
+PairTree build_binned(std::span<PrimRef> prims, const BuildParams& params, BinnedIsa isa, const RefBounds* bounds) {
   if (isa == BinnedIsa::automatic) isa = binned_avx2_available() ? BinnedIsa::avx2 : BinnedIsa::baseline;
   if (isa == BinnedIsa::avx2) {
     if (!binned_avx2_available()) throw std::logic_error("bvh build: AVX2 asked for on a CPU without it");
-    return avx2::BinnedBuilder(prims, params).run();
+    return avx2::BinnedBuilder(prims, params).run(bounds);
   }
-  return baseline::BinnedBuilder(prims, params).run();
+  return baseline::BinnedBuilder(prims, params).run(bounds);
 }
 
 bool binned_avx2_available() {

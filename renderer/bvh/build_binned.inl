@@ -106,30 +106,27 @@ class BinnedBuilder {
  public:
   BinnedBuilder(std::span<PrimRef> prims, const BuildParams& p) : prims_(prims), p_(p), forker_(p.threads) {}
 
-  PairTree run() {
+  /// `given`: the references' bounds folded by the caller, or null.
+  PairTree run(const RefBounds* given) {
     Range root;
-    std::vector<Range> parts(std::max(1, p_.threads));
-    std::vector<int> zeros(parts.size(), 0);
-    Forker::parallel_chunks(prims_.size(), p_.threads, [&](std::size_t b, std::size_t e, std::size_t c) {
-      Box4 box, cbox;
-      const __m128i neg_zero = _mm_set1_epi32(static_cast<int>(0x80000000u));
-      __m128i z = _mm_setzero_si128();
-      for (std::size_t i = b; i < e; ++i) {
-        const __m128 lo = load3(prims_[i].lo), hi = load3(prims_[i].hi);
-        box.grow(lo, hi);
-        cbox.grow_point(_mm_add_ps(lo, hi));
-        z = _mm_or_si128(z, _mm_or_si128(_mm_cmpeq_epi32(_mm_castps_si128(lo), neg_zero),
-                                         _mm_cmpeq_epi32(_mm_castps_si128(hi), neg_zero)));
-      }
-      parts[c].box = box;
-      parts[c].cbox = cbox;
-      zeros[c] = _mm_movemask_epi8(z) != 0;
-    });
-    for (std::size_t c = 0; c < parts.size(); ++c) {
-      root.box.grow(parts[c].box);
-      root.cbox.grow(parts[c].cbox);
-      signed_zeros_ = signed_zeros_ || zeros[c];
+    RefBounds all;
+    if (given != nullptr && !given->signed_zeros()) {
+      all = *given;  // without -0.0 every fold order gives the same bits
+    } else {
+      // The reference order of the folds: chunks in order, each in primitive order.
+      std::vector<RefBounds> parts(std::max(1, p_.threads));
+      Forker::parallel_chunks(prims_.size(), p_.threads, [&](std::size_t b, std::size_t e, std::size_t c) {
+        RefBounds part;
+        for (std::size_t i = b; i < e; ++i) part.add(prims_[i]);
+        parts[c] = part;
+      });
+      for (const RefBounds& part : parts) all.add(part);
     }
+    root.box.lo = all.lo;
+    root.box.hi = all.hi;
+    root.cbox.lo = all.clo;
+    root.cbox.hi = all.chi;
+    signed_zeros_ = all.signed_zeros();
     root.begin = 0;
     root.end = static_cast<uint32_t>(prims_.size());
     // Nodes are appended depth first, in the final layout (a node's first child right after it, the second

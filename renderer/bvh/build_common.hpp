@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cstdint>
 #include <exception>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <span>
@@ -46,12 +47,45 @@ struct PrimRef {
 };
 static_assert(sizeof(PrimRef) == 32);
 
+/// Bounds of a set of references, folded one reference at a time: their box, the box of their doubled
+/// centroids (lo + hi), and whether any bound is -0.0. Lane 3 of every corner is 0.
+struct RefBounds {
+  __m128 lo = _mm_set1_ps(std::numeric_limits<float>::infinity());
+  __m128 hi = _mm_set1_ps(-std::numeric_limits<float>::infinity());
+  __m128 clo = lo, chi = hi;
+  __m128i neg_zero = _mm_setzero_si128();
+  /// Corners with lane 3 = 0.
+  void add(__m128 l, __m128 h) {
+    lo = _mm_min_ps(lo, l);
+    hi = _mm_max_ps(hi, h);
+    const __m128 c = _mm_add_ps(l, h);
+    clo = _mm_min_ps(clo, c);
+    chi = _mm_max_ps(chi, c);
+    const __m128i nz = _mm_set1_epi32(static_cast<int>(0x80000000u));
+    neg_zero = _mm_or_si128(neg_zero, _mm_or_si128(_mm_cmpeq_epi32(_mm_castps_si128(l), nz),
+                                                   _mm_cmpeq_epi32(_mm_castps_si128(h), nz)));
+  }
+  void add(const PrimRef& r) {
+    const __m128 xyz = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
+    add(_mm_and_ps(_mm_loadu_ps(&r.lo.x), xyz), _mm_and_ps(_mm_loadu_ps(&r.hi.x), xyz));
+  }
+  void add(const RefBounds& o) {
+    lo = _mm_min_ps(lo, o.lo);
+    hi = _mm_max_ps(hi, o.hi);
+    clo = _mm_min_ps(clo, o.clo);
+    chi = _mm_max_ps(chi, o.chi);
+    neg_zero = _mm_or_si128(neg_zero, o.neg_zero);
+  }
+  bool signed_zeros() const { return _mm_movemask_epi8(neg_zero) != 0; }
+};
+
 /// A triangle's reference, or false where is_degenerate(tri) holds: the same results as is_degenerate and
 /// a box of glm::min / glm::max over the vertices, computed in SSE registers without a branch per vertex
 /// (tests/unit/bvh/build_identity_test.cpp compares the two on edge cases). glm::min(x, y) is (y < x) ? y : x,
 /// which is _mm_min_ps(y, x), so even the signs of zeros agree; the cross product is is_degenerate's
-/// double arithmetic, component by component. The three loads stay inside the 36-byte triangle.
-inline bool make_triangle_ref(const Triangle& tri, uint32_t id, PrimRef& out) {
+/// double arithmetic, component by component. The three loads stay inside the 36-byte triangle. A reference
+/// made is also folded into `bounds`.
+inline bool make_triangle_ref(const Triangle& tri, uint32_t id, PrimRef& out, RefBounds& bounds) {
   const float* f = &tri.v0.x;
   const __m128 a = _mm_loadu_ps(f);      // x0 y0 z0 x1
   const __m128 b = _mm_loadu_ps(f + 3);  // x1 y1 z1 x2
@@ -80,6 +114,7 @@ inline bool make_triangle_ref(const Triangle& tri, uint32_t id, PrimRef& out) {
   const __m128 lo = _mm_min_ps(_mm_min_ps(v2, v1), v0), hi = _mm_max_ps(_mm_max_ps(v2, v1), v0);
   _mm_storeu_ps(&out.lo.x, _mm_or_ps(lo, _mm_castsi128_ps(_mm_set_epi32(static_cast<int>(id), 0, 0, 0))));
   _mm_storeu_ps(&out.hi.x, hi);
+  bounds.add(lo, hi);
   return true;
 }
 
@@ -211,7 +246,10 @@ struct BuildParams {
 enum class BinnedIsa { automatic, baseline, avx2 };
 /// Binned SAH over `prims` (reordered in place into leaf order). Asking for AVX2 on a CPU without it is a
 /// logic error.
-PairTree build_binned(std::span<PrimRef> prims, const BuildParams& params, BinnedIsa isa = BinnedIsa::automatic);
+/// `bounds`, where given, are those of `prims` (RefBounds folded over them in any order); without them, or
+/// where they saw a -0.0 (whose sign depends on the fold order), the builder folds its own.
+PairTree build_binned(std::span<PrimRef> prims, const BuildParams& params, BinnedIsa isa = BinnedIsa::automatic,
+                      const RefBounds* bounds = nullptr);
 /// Whether this CPU (and its OS) runs AVX2 code.
 bool binned_avx2_available();
 /// Exact full-sweep SAH over all three axes.

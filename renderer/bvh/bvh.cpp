@@ -55,40 +55,49 @@ detail::BuildParams validate(const BuildOptions& o, std::size_t primitives) {
   return p;
 }
 
-/// Primitive references for the valid primitives, in scene order, built in parallel chunks.
+/// Primitive references for the valid primitives, in scene order, built in parallel chunks, and their bounds.
 struct Refs {
   std::unique_ptr<PrimRef[]> data;  // uninitialised beyond size: 32 MB per million need no zero fill
   std::size_t size = 0;
+  detail::RefBounds bounds;
 };
 Refs make_refs(std::span<const Triangle> tris, std::span<const uint32_t> object_first, int threads) {
   const bool objects = !object_first.empty();
   const std::size_t n = objects ? object_first.size() - 1 : tris.size();
-  Refs refs{std::unique_ptr<PrimRef[]>(new PrimRef[std::max<std::size_t>(n, 1)]), 0};
+  Refs refs{std::unique_ptr<PrimRef[]>(new PrimRef[std::max<std::size_t>(n, 1)]), 0, {}};
   detail::advise_huge_pages(refs.data.get(), n * sizeof(PrimRef));
   // Each chunk compacts its valid primitives to the front of its own slice; the slices are then joined.
   std::vector<std::size_t> chunk_begin(std::max(threads, 1)), chunk_count(std::max(threads, 1));
+  std::vector<detail::RefBounds> chunk_bounds(chunk_begin.size());
   detail::Forker::parallel_chunks(n, threads, [&](std::size_t b, std::size_t e, std::size_t c) {
     std::size_t k = b;
+    detail::RefBounds bounds;
     for (std::size_t i = b; i < e; ++i) {
       if (!objects) {
-        k += detail::make_triangle_ref(tris[i], static_cast<uint32_t>(i), refs.data[k]) ? 1 : 0;
+        k += detail::make_triangle_ref(tris[i], static_cast<uint32_t>(i), refs.data[k], bounds) ? 1 : 0;
         continue;
       }
       PrimRef r{glm::vec3(kInf), static_cast<uint32_t>(i), glm::vec3(-kInf), 0};
       bool any = false;
+      detail::RefBounds triangle_bounds;  // not needed: the object's reference is folded below
       for (uint32_t t = object_first[i]; t < object_first[i + 1]; ++t) {
         PrimRef tr;
-        if (!detail::make_triangle_ref(tris[t], t, tr)) continue;
+        if (!detail::make_triangle_ref(tris[t], t, tr, triangle_bounds)) continue;
         r.lo = glm::min(r.lo, tr.lo);
         r.hi = glm::max(r.hi, tr.hi);
         any = true;
       }
-      if (any) refs.data[k++] = r;
+      if (any) {
+        refs.data[k++] = r;
+        bounds.add(r);
+      }
     }
     chunk_begin[c] = b;
     chunk_count[c] = k - b;
+    chunk_bounds[c] = bounds;
   });
   for (std::size_t c = 0; c < chunk_begin.size(); ++c) {
+    refs.bounds.add(chunk_bounds[c]);
     if (chunk_count[c] == 0) continue;
     if (chunk_begin[c] != refs.size) {
       std::memmove(&refs.data[refs.size], &refs.data[chunk_begin[c]], chunk_count[c] * sizeof(PrimRef));
@@ -156,8 +165,9 @@ Bvh build_bvh(std::span<const Triangle> triangles, const BuildOptions& options,
   }
 
   const std::span<PrimRef> prims(refs.data.get(), refs.size);
-  detail::PairTree tree =
-      options.full_sweep ? detail::build_full_sweep(prims, params) : detail::build_binned(prims, params);
+  detail::PairTree tree = options.full_sweep
+                              ? detail::build_full_sweep(prims, params)
+                              : detail::build_binned(prims, params, detail::BinnedIsa::automatic, &refs.bounds);
   if (tree.nodes) {
     bvh.nodes.reserve(tree.node_count);
     Flattener f{tree.nodes.get(), bvh.nodes};
