@@ -333,12 +333,12 @@ class BinnedBuilder {
     finish_interior(index, r, best_axis, left, right, depth, s);
   }
 
-  /// The Hoare partition above, to the same permutation and the same centroid folds, for a node small
-  /// enough for a bit mask. Its branches on each primitive's side are hard to predict in small nodes; here
-  /// the sides go to a mask first, then Hoare's swaps are read off it: the i-th primitive from
-  /// the start that is left of k = left_count but goes right trades places with the i-th from the end that
-  /// is right of k but goes left. Hoare grows the left centroid bounds over the final [begin, begin + k)
-  /// in ascending order and the right ones over the rest in descending order, and so does this.
+  /// The Hoare partition above, to the same permutation and the same centroid folds, for a node small enough for
+  /// a bit mask. Its branches on each primitive's side are hard to predict in small nodes; here the sides go to a
+  /// mask first, then Hoare's swaps are read off it: the i-th primitive from the start that is left of k =
+  /// left_count but goes right trades places with the i-th from the end that is right of k but goes left. Hoare
+  /// grows the left centroid bounds over the final [begin, begin + k) in ascending order and the right ones over
+  /// the rest in descending order, and so does this.
   void partition_small(const Range& r, int axis, __m128 vmin, __m128 vscale, float limit, uint32_t left_count, Box4& lc,
                        Box4& rc) {
     PrimRef* p = prims_.data() + r.begin;
