@@ -84,8 +84,8 @@ struct RefBounds {
 /// (tests/unit/bvh/build_identity_test.cpp compares the two on edge cases). glm::min(x, y) is (y < x) ? y : x,
 /// which is _mm_min_ps(y, x), so even the signs of zeros agree; the cross product is is_degenerate's
 /// double arithmetic, component by component. The three loads stay inside the 36-byte triangle. A reference
-/// made is also folded into `bounds`.
-inline bool make_triangle_ref(const Triangle& tri, uint32_t id, PrimRef& out, RefBounds& bounds) {
+/// made is also folded into `bounds` where given.
+inline bool make_triangle_ref(const Triangle& tri, uint32_t id, PrimRef& out, RefBounds* bounds = nullptr) {
   const float* f = &tri.v0.x;
   const __m128 a = _mm_loadu_ps(f);      // x0 y0 z0 x1
   const __m128 b = _mm_loadu_ps(f + 3);  // x1 y1 z1 x2
@@ -114,7 +114,7 @@ inline bool make_triangle_ref(const Triangle& tri, uint32_t id, PrimRef& out, Re
   const __m128 lo = _mm_min_ps(_mm_min_ps(v2, v1), v0), hi = _mm_max_ps(_mm_max_ps(v2, v1), v0);
   _mm_storeu_ps(&out.lo.x, _mm_or_ps(lo, _mm_castsi128_ps(_mm_set_epi32(static_cast<int>(id), 0, 0, 0))));
   _mm_storeu_ps(&out.hi.x, hi);
-  bounds.add(lo, hi);
+  if (bounds != nullptr) bounds->add(lo, hi);
   return true;
 }
 

@@ -74,15 +74,14 @@ Refs make_refs(std::span<const Triangle> tris, std::span<const uint32_t> object_
     detail::RefBounds bounds;
     for (std::size_t i = b; i < e; ++i) {
       if (!objects) {
-        k += detail::make_triangle_ref(tris[i], static_cast<uint32_t>(i), refs.data[k], bounds) ? 1 : 0;
+        k += detail::make_triangle_ref(tris[i], static_cast<uint32_t>(i), refs.data[k], &bounds) ? 1 : 0;
         continue;
       }
       PrimRef r{glm::vec3(kInf), static_cast<uint32_t>(i), glm::vec3(-kInf), 0};
       bool any = false;
-      detail::RefBounds triangle_bounds;  // not needed: the object's reference is folded below
       for (uint32_t t = object_first[i]; t < object_first[i + 1]; ++t) {
         PrimRef tr;
-        if (!detail::make_triangle_ref(tris[t], t, tr, triangle_bounds)) continue;
+        if (!detail::make_triangle_ref(tris[t], t, tr)) continue;  // the object's reference is folded below
         r.lo = glm::min(r.lo, tr.lo);
         r.hi = glm::max(r.hi, tr.hi);
         any = true;

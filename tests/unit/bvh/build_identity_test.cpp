@@ -195,7 +195,7 @@ TEST(BvhBuildIdentity, TriangleRefsMatchTheScalarDefinition) {
   detail::RefBounds bounds;
   for (std::size_t i = 0; i < tris.size(); ++i) {
     detail::PrimRef r;
-    if (detail::make_triangle_ref(tris[i], static_cast<uint32_t>(i), r, bounds)) {
+    if (detail::make_triangle_ref(tris[i], static_cast<uint32_t>(i), r, &bounds)) {
       got.push_back(r);
     } else {
       ++degenerate;
@@ -212,7 +212,7 @@ TEST(BvhBuildIdentity, TriangleRefsMatchTheScalarDefinition) {
   detail::RefBounds sphere_bounds, sphere_refold;
   for (std::size_t i = 0; i < sphere.size(); ++i) {
     detail::PrimRef r;
-    ASSERT_TRUE(detail::make_triangle_ref(sphere[i], static_cast<uint32_t>(i), r, sphere_bounds));
+    ASSERT_TRUE(detail::make_triangle_ref(sphere[i], static_cast<uint32_t>(i), r, &sphere_bounds));
   }
   for (const detail::PrimRef& r : prim_refs(sphere)) sphere_refold.add(r);
   EXPECT_TRUE(same(sphere_bounds.lo, sphere_refold.lo) && same(sphere_bounds.hi, sphere_refold.hi) &&
