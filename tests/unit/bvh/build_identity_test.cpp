@@ -204,9 +204,11 @@ TEST(BvhBuildIdentity, TriangleRefsMatchTheScalarDefinition) {
   // The bounds folded on the way are the builder's own fold over the references (the same order).
   detail::RefBounds refold;
   for (const detail::PrimRef& r : expected) refold.add(r);
-  const auto same = [](__m128 a, __m128 b) { return std::memcmp(&a, &b, sizeof(a)) == 0; };
-  EXPECT_TRUE(same(bounds.lo, refold.lo) && same(bounds.hi, refold.hi) && same(bounds.clo, refold.clo) &&
-              same(bounds.chi, refold.chi));
+  const auto same = [](const detail::RefBounds& a, const detail::RefBounds& b) {
+    const auto eq = [](__m128 x, __m128 y) { return std::memcmp(&x, &y, sizeof(x)) == 0; };
+    return eq(a.lo, b.lo) && eq(a.hi, b.hi) && eq(a.clo, b.clo) && eq(a.chi, b.chi);
+  };
+  EXPECT_TRUE(same(bounds, refold));
   EXPECT_TRUE(bounds.signed_zeros() && refold.signed_zeros());
   // The draws above reach the extremes in every coordinate; a sphere alone has bounds of its own.
   detail::RefBounds sphere_bounds, sphere_refold;
@@ -215,8 +217,7 @@ TEST(BvhBuildIdentity, TriangleRefsMatchTheScalarDefinition) {
     ASSERT_TRUE(detail::make_triangle_ref(sphere[i], static_cast<uint32_t>(i), r, &sphere_bounds));
   }
   for (const detail::PrimRef& r : prim_refs(sphere)) sphere_refold.add(r);
-  EXPECT_TRUE(same(sphere_bounds.lo, sphere_refold.lo) && same(sphere_bounds.hi, sphere_refold.hi) &&
-              same(sphere_bounds.clo, sphere_refold.clo) && same(sphere_bounds.chi, sphere_refold.chi));
+  EXPECT_TRUE(same(sphere_bounds, sphere_refold));
   EXPECT_GT(degenerate, 100000u);  // the draws above give both kinds in numbers
   ASSERT_EQ(got.size(), expected.size());
   for (std::size_t i = 0; i < got.size(); ++i) {
