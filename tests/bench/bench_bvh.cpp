@@ -8,6 +8,9 @@
 // Mrays/s, nodes/ray, tris/ray, hit_% (traversal); differ_from_binary (trace8 closest: rays whose hit is not
 // bit for bit the binary traversal's, counted once outside the timing; must be 0).
 //
+// build_scaling/<scene>/threads:2vs1 alternates one-thread and two-thread builds and reports the median of the
+// pairs' ratio with its 95% interval (speedup, speedup_lo, speedup_hi), the measure of the two-thread target.
+//
 // With --benchmark_repetitions=N the build rows also print _min and _max (bench_extremes.hpp): the best build of
 // N is the _min row's time and the _max row's Mtri/s.
 //
@@ -27,6 +30,9 @@
 
 #include <benchmark/benchmark.h>
 
+#include "timing/stats.hpp"
+
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -283,6 +289,66 @@ void build_bench(benchmark::State& state, const BenchScene* s, int threads, bool
   if (!full_sweep) state.counters["sah_largest_axis_vs_sweep_%"] = 100.0 * (s->sah_largest_axis / s->sah_sweep - 1.0);
 }
 
+/// Every pair of scaling_bench, per row, over all repetitions: one-thread and N-thread wall times (ms).
+struct ScalingPairs {
+  std::vector<double> one, many;
+};
+std::map<std::string, ScalingPairs>& scaling_pairs() {
+  static std::map<std::string, ScalingPairs> pairs;
+  return pairs;
+}
+
+/// Two-thread scaling by alternation: each iteration builds the scene once on one thread and once on `threads`
+/// (the order alternating, wall time each), so both builds of a pair see the same minutes of a noisy host.
+/// speedup is the median of the pairs' one-thread / N-thread ratios, speedup_lo and speedup_hi its 95%
+/// order-statistic interval; ms_1thread and ms_Nthreads the medians. print_scaling() pools the repetitions.
+void scaling_bench(benchmark::State& state, const BenchScene* s, int threads) {
+  BuildOptions one, many;
+  one.threads = 1;
+  many.threads = threads;
+  const auto wall_ms = [&](const BuildOptions& o) {
+    const auto start = std::chrono::steady_clock::now();
+    Bvh b = build_bvh(s->tris, o);
+    benchmark::DoNotOptimize(b.nodes.data());
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  };
+  std::vector<double> ratio, t1, tn;
+  for (auto _ : state) {
+    const bool many_first = ratio.size() % 2 == 1;
+    const double first = wall_ms(many_first ? many : one);
+    const double second = wall_ms(many_first ? one : many);
+    t1.push_back(many_first ? second : first);
+    tn.push_back(many_first ? first : second);
+    ratio.push_back(t1.back() / tn.back());
+  }
+  ScalingPairs& pooled = scaling_pairs()["build_scaling/" + s->name + "/threads:2vs1"];
+  pooled.one.insert(pooled.one.end(), t1.begin(), t1.end());
+  pooled.many.insert(pooled.many.end(), tn.begin(), tn.end());
+  const hp::Summary r = hp::summarize(ratio);
+  state.counters["speedup"] = r.median;
+  state.counters["speedup_lo"] = r.median_ci.low;
+  state.counters["speedup_hi"] = r.median_ci.high;
+  state.counters["ms_1thread"] = hp::quantile(t1, 0.5);
+  state.counters["ms_" + std::to_string(threads) + "threads"] = hp::quantile(tn, 0.5);
+}
+
+/// After the runs: each scaling row's pairs pooled over its repetitions.
+void print_scaling() {
+  if (scaling_pairs().empty()) return;
+  std::printf(
+      "\nbuild scaling, pairs pooled over repetitions (wall time; median and 95%% interval of one / two "
+      "threads)\n");
+  std::printf("%-44s %6s %11s %11s %8s %16s\n", "row", "pairs", "1 thread ms", "2 threads ms", "speedup",
+              "95% interval");
+  for (const auto& [row, p] : scaling_pairs()) {
+    std::vector<double> ratio(p.one.size());
+    for (std::size_t i = 0; i < ratio.size(); ++i) ratio[i] = p.one[i] / p.many[i];
+    const hp::Summary r = hp::summarize(ratio);
+    std::printf("%-44s %6zu %11.1f %11.1f %8.3f %7.3f - %6.3f\n", row.c_str(), ratio.size(), hp::quantile(p.one, 0.5),
+                hp::quantile(p.many, 0.5), r.median, r.median_ci.low, r.median_ci.high);
+  }
+}
+
 void trace_bench(benchmark::State& state, const BenchScene* s, bool primary, bool any, bool wide) {
   const std::vector<Ray>& rays = primary ? s->primary : s->random;
   TraversalStats ts;
@@ -382,10 +448,10 @@ class RatioReporter : public benchmark::ConsoleReporter {
     for (auto& [row, by] : values_) {
       for (auto& [ours, ov] : by) {
         if (ours.rfind("embree", 0) == 0) continue;
-        const double o = median(ov);
+        const double o = hp::quantile(ov, 0.5);
         for (auto& [theirs, tv] : by) {
           if (theirs.rfind("embree", 0) != 0) continue;
-          const double e = median(tv);
+          const double e = hp::quantile(tv, 0.5);
           std::printf("%-40s %-8s %-14s %10.3f %10.3f %7.2f\n", row.c_str(), ours.c_str(), theirs.c_str(), o, e,
                       e > 0.0 ? o / e : 0.0);
         }
@@ -394,11 +460,6 @@ class RatioReporter : public benchmark::ConsoleReporter {
   }
 
  private:
-  static double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    const std::size_t n = v.size();
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-  }
   std::map<std::string, std::map<std::string, std::vector<double>>> values_;
 };
 #endif
@@ -413,14 +474,12 @@ void generate_bench(benchmark::State& state, const char* spec) {
 }  // namespace
 
 int main(int argc, char** argv) {
-#if HP_BENCH_HAVE_EMBREE
-  // The ratio table rides on the console reporter; another --benchmark_format keeps its own reporter.
+  // The ratio and scaling tables ride on the console output; another --benchmark_format keeps stdout its own.
   bool console = true;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a.rfind("--benchmark_format=", 0) == 0 && a != "--benchmark_format=console") console = false;
   }
-#endif
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   const auto scenes = load_scenes();
@@ -436,6 +495,12 @@ int main(int argc, char** argv) {
                                      all, false))
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
+    // The two-thread target is a ratio to the one-thread rate: measured pairwise (the rows above run minutes
+    // apart when repetitions are not interleaved).
+    benchmark::RegisterBenchmark(("build_scaling/" + s->name + "/threads:2vs1").c_str(), scaling_bench, s, 2)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime()
+        ->Iterations(12);
     benchmark::RegisterBenchmark(("build_full_sweep/" + s->name + "/threads:" + std::to_string(all)).c_str(),
                                  build_bench, s, all, true)
         ->Unit(benchmark::kMillisecond)
@@ -487,6 +552,7 @@ int main(int argc, char** argv) {
 #else
   benchmark::RunSpecifiedBenchmarks();
 #endif
+  if (console) print_scaling();
   benchmark::Shutdown();
   return 0;
 }
