@@ -321,7 +321,7 @@ void scaling_bench(benchmark::State& state, const BenchScene* s, int threads) {
     tn.push_back(many_first ? first : second);
     ratio.push_back(t1.back() / tn.back());
   }
-  ScalingPairs& pooled = scaling_pairs()["build_scaling/" + s->name + "/threads:2vs1"];
+  ScalingPairs& pooled = scaling_pairs()["build_scaling/" + s->name + "/threads:" + std::to_string(threads) + "vs1"];
   pooled.one.insert(pooled.one.end(), t1.begin(), t1.end());
   pooled.many.insert(pooled.many.end(), tn.begin(), tn.end());
   const hp::Summary r = hp::summarize(ratio);
