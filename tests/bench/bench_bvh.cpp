@@ -289,6 +289,11 @@ void build_bench(benchmark::State& state, const BenchScene* s, int threads, bool
   if (!full_sweep) state.counters["sah_largest_axis_vs_sweep_%"] = 100.0 * (s->sah_largest_axis / s->sah_sweep - 1.0);
 }
 
+/// The name of a scene's scaling row: what it is registered as and what print_scaling() lists it as.
+std::string scaling_row(const BenchScene& s, int threads) {
+  return "build_scaling/" + s.name + "/threads:" + std::to_string(threads) + "vs1";
+}
+
 /// Every pair of scaling_bench, per row, over all repetitions: one-thread and N-thread wall times (ms).
 struct ScalingPairs {
   std::vector<double> one, many;
@@ -321,7 +326,7 @@ void scaling_bench(benchmark::State& state, const BenchScene* s, int threads) {
     tn.push_back(many_first ? first : second);
     ratio.push_back(t1.back() / tn.back());
   }
-  ScalingPairs& pooled = scaling_pairs()["build_scaling/" + s->name + "/threads:" + std::to_string(threads) + "vs1"];
+  ScalingPairs& pooled = scaling_pairs()[scaling_row(*s, threads)];
   pooled.one.insert(pooled.one.end(), t1.begin(), t1.end());
   pooled.many.insert(pooled.many.end(), tn.begin(), tn.end());
   const hp::Summary r = hp::summarize(ratio);
@@ -497,7 +502,7 @@ int main(int argc, char** argv) {
         ->UseRealTime();
     // The two-thread target is a ratio to the one-thread rate: measured pairwise (the rows above run minutes
     // apart when repetitions are not interleaved).
-    benchmark::RegisterBenchmark(("build_scaling/" + s->name + "/threads:2vs1").c_str(), scaling_bench, s, 2)
+    benchmark::RegisterBenchmark(scaling_row(*s, 2).c_str(), scaling_bench, s, 2)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime()
         ->Iterations(12);
