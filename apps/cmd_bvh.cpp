@@ -3,7 +3,8 @@
 // another ray tracer (formats in renderer/bvh/ray_io.hpp); with --gpu, casts them on the Vulkan device too,
 // through the passes' own traversal, times that and checks every ray against the reference.
 //   hybridprof bvh --scene S [--buckets N | --full-sweep] [--largest-axis-only] [--granularity triangle|object]
-//                  [--leaf-size K] [--node-layout binary32|wide4] [--threads T] [--export-triangles FILE]
+//                  [--leaf-size K] [--node-layout binary32|wide4] [--threads T] [--build-repeats N]
+//                  [--export-triangles FILE]
 //                  [--rays FILE --hits FILE [--any-hit]
 //                  [--gpu [--geometry indexed|soup] [--traversal compute|ray-query|pipeline [--as-layout L]
 //                  [--as-order O] [--as-compaction]] [--device D] [--validate]]]
@@ -19,6 +20,8 @@
 #include "rt_scene.hpp"
 #include "scene/load.hpp"
 #include "scene/scene.hpp"
+#include "timing/environment.hpp"
+#include "timing/stats.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -28,6 +31,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace hp::cli {
 namespace {
@@ -41,6 +45,7 @@ struct BvhArgs {
   int leaf_size = 4;
   std::string node_layout = "binary32";
   int threads = 0;
+  int build_repeats = 1;
   std::string export_triangles;
   std::string rays;
   uint32_t make_rays = 0;  ///< write this many camera rays into --rays first
@@ -57,16 +62,53 @@ double ms_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-// What `bvh` prints of the build: time and rate, method, node counts, SAH cost, the leaf-size histogram.
-void print_build(const BvhArgs& a, const bvh::BuildOptions& o, const bvh::Bvh& tree, size_t triangles,
-                 double build_ms) {
+// The build's wall times: the first build of the process, then the --build-repeats - 1 after it.
+struct BuildTimes {
+  double first_ms = 0.0;
+  std::vector<double> later_ms;
+};
+
+// The first build of a process also touches its memory for the first time (page faults, and on VMs whose host
+// reclaims freed memory, the host's faults too), so it is reported apart from the later builds, whose median
+// and 95% interval (order statistics, hp_timing) stand for the build itself.
+void print_build_time(const BuildTimes& t, size_t triangles, const bvh::BuildOptions& o) {
+  // Milliseconds with three or four significant digits, from a small scene's microseconds to a large one's seconds.
+  const auto ms = [](double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.*f", v < 1.0 ? 4 : v < 100.0 ? 2 : 1, v);
+    return std::string(buf);
+  };
+  const auto rate = [&](double v) { return v > 0 ? static_cast<double>(triangles) / v / 1e3 : 0.0; };
+  const std::string cpu = capture_environment().cpu_model;
+  const std::string threads = o.threads == 0   ? std::string("all threads")
+                              : o.threads == 1 ? std::string("1 thread")
+                                               : std::to_string(o.threads) + " threads";
+  if (t.later_ms.empty()) {
+    std::printf(
+        "build time: %s ms (%.2f M triangles/s), one build, %s, %s; the first build of a process also "
+        "touches its memory for the first time: --build-repeats 7 or more gives a median with its 95%% "
+        "interval\n",
+        ms(t.first_ms).c_str(), rate(t.first_ms), threads.c_str(), cpu.c_str());
+    return;
+  }
+  const Summary s = summarize(t.later_ms);
+  const std::string interval = s.median_ci.valid
+                                   ? "95% interval " + ms(s.median_ci.low) + "-" + ms(s.median_ci.high) + " ms"
+                                   : std::string("no 95% interval below 6 builds");
+  std::printf(
+      "build time: %s ms (%.2f M triangles/s), median of the %zu builds after the first (%s; min %s, max %s); "
+      "the first %s ms; %s, %s\n",
+      ms(s.median).c_str(), rate(s.median), s.count, interval.c_str(), ms(s.min).c_str(), ms(s.max).c_str(),
+      ms(t.first_ms).c_str(), threads.c_str(), cpu.c_str());
+}
+
+// What `bvh` prints of the build: method, node counts, SAH cost, the leaf-size histogram.
+void print_build(const BvhArgs& a, const bvh::BuildOptions& o, const bvh::Bvh& tree) {
   const bvh::BvhStats s = bvh::bvh_stats(tree);
   std::string method = a.full_sweep ? std::string("full-sweep SAH (3 axes)")
                                     : "binned SAH, " + std::to_string(a.buckets) + " buckets, " +
                                           (a.largest_axis_only ? "largest centroid axis" : "3 axes");
-  std::printf("build: %.2f ms (%.2f M triangles/s), %s, %s granularity, leaf size <= %d, %s threads\n", build_ms,
-              build_ms > 0 ? static_cast<double>(triangles) / build_ms / 1e3 : 0.0, method.c_str(),
-              a.granularity.c_str(), a.leaf_size, a.threads > 0 ? std::to_string(a.threads).c_str() : "all");
+  std::printf("build: %s, %s granularity, leaf size <= %d\n", method.c_str(), a.granularity.c_str(), a.leaf_size);
   std::printf("nodes: %zu, leaves: %zu, primitives: %zu (%zu triangles), max depth: %d (stack %d)\n", s.nodes, s.leaves,
               s.primitives, s.triangles, s.max_depth, HP_BVH_STACK_SIZE);
   if (tree.depth_limited_splits > 0) {
@@ -229,9 +271,16 @@ void run_bvh(const BvhArgs& a) {
                                                 ? std::span<const uint32_t>(world.instance_first_triangle)
                                                 : std::span<const uint32_t>();
 
-  const auto build_start = std::chrono::steady_clock::now();
-  bvh::Bvh tree = bvh::build_bvh(tris, o, objects);
-  print_build(a, o, tree, tris.size(), ms_since(build_start));
+  // Every build makes the same tree (tests/unit/bvh/build_identity_test.cpp); the last one is kept.
+  BuildTimes times;
+  bvh::Bvh tree;
+  for (int i = 0; i < a.build_repeats; ++i) {
+    const auto build_start = std::chrono::steady_clock::now();
+    tree = bvh::build_bvh(tris, o, objects);
+    (i == 0 ? times.first_ms : times.later_ms.emplace_back()) = ms_since(build_start);
+  }
+  print_build(a, o, tree);
+  print_build_time(times, tris.size(), o);
   RtGeometry g;
   g.node_layout = parse_node_layout(a.node_layout);
   if (g.node_layout == bvh::NodeLayout::wide4) {
@@ -281,6 +330,11 @@ void add_bvh_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "build and cast threads (0 = all cores)")
       ->check(CLI::Range(0, 1024))
+      ->capture_default_str();
+  cmd->add_option("--build-repeats", args->build_repeats,
+                  "build the BVH this many times: the first build is timed apart (it touches its memory for the "
+                  "first time), the later ones as a median with its 95% interval")
+      ->check(CLI::Range(1, 1000))
       ->capture_default_str();
   cmd->add_option("--export-triangles", args->export_triangles,
                   "write world-space triangles in scene order (float32 x 9 each, little-endian, no header)");

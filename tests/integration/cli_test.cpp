@@ -210,6 +210,26 @@ TEST(Cli, BvhMakesItsOwnRays) {
   fs::remove_all(d);
 }
 
+// `bvh` times its build: one build by default, said to be the process's first; with --build-repeats the first
+// apart and the median of the later builds with its 95% interval (none below 6 later builds).
+TEST(Cli, BvhBuildTimeSaysWhatItMeasured) {
+  CmdResult r = run("bvh --scene builtin:cornell");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("one build, all threads, "), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("median of"), std::string::npos) << r.output;
+  r = run("bvh --scene builtin:cornell --threads 1 --build-repeats 8");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("median of the 7 builds after the first (95% interval "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("; the first "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("; 1 thread, "), std::string::npos) << r.output;
+  r = run("bvh --scene builtin:cornell --build-repeats 3");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("median of the 2 builds after the first (no 95% interval below 6 builds"), std::string::npos)
+      << r.output;
+  expect_bad_input(run("bvh --scene builtin:cornell --build-repeats 0"), "--build-repeats");
+  expect_bad_input(run("bvh --scene builtin:cornell --build-repeats 1001"), "--build-repeats");
+}
+
 // A long render says how far it is (off a terminal: a plain line at the end and at most every 5 s); --quiet
 // says nothing.
 TEST(Cli, RenderShowsProgressUnlessQuiet) {
