@@ -3,7 +3,7 @@
 // another ray tracer (formats in renderer/bvh/ray_io.hpp); with --gpu, casts them on the Vulkan device too,
 // through the passes' own traversal, times that and checks every ray against the reference.
 //   hybridprof bvh --scene S [--buckets N | --full-sweep] [--largest-axis-only] [--granularity triangle|object]
-//                  [--leaf-size K] [--node-layout binary32|wide4] [--threads T] [--build-repeats N]
+//                  [--leaf-size K] [--node-layout binary32|wide4] [--threads T] [--repeats N]
 //                  [--export-triangles FILE]
 //                  [--rays FILE --hits FILE [--any-hit]
 //                  [--gpu [--geometry indexed|soup] [--traversal compute|ray-query|pipeline [--as-layout L]
@@ -46,7 +46,7 @@ struct BvhArgs {
   int leaf_size = 4;
   std::string node_layout = "binary32";
   int threads = 0;
-  int build_repeats = 1;
+  int repeats = 1;  ///< builds, and casts on the CPU, each timed
   std::string export_triangles;
   std::string rays;
   uint32_t make_rays = 0;  ///< write this many camera rays into --rays first
@@ -63,44 +63,58 @@ double ms_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-// The build's wall times: the first build of the process, then the --build-repeats - 1 after it.
-struct BuildTimes {
+// Wall times of a step run --repeats times: the first run of the process, then the later ones.
+struct RunTimes {
   double first_ms = 0.0;
   std::vector<double> later_ms;
 };
 
-// The first build of a process also touches its memory for the first time (page faults, and on VMs whose host
-// reclaims freed memory, the host's faults too), so it is reported apart from the later builds, whose median
-// and 95% interval (order statistics, hp_timing) stand for the build itself.
-void print_build_time(const BuildTimes& t, size_t triangles, const bvh::BuildOptions& o) {
+// Runs `step` `repeats` times, timing each run, and returns the last run's result. The clock stops before the
+// previous result is dropped (freeing it is not part of the step).
+template <class Step>
+auto timed_runs(int repeats, RunTimes& times, Step&& step) {
+  decltype(step()) last{};
+  for (int i = 0; i < repeats; ++i) {
+    const auto start = std::chrono::steady_clock::now();
+    auto result = step();
+    (i == 0 ? times.first_ms : times.later_ms.emplace_back()) = ms_since(start);
+    last = std::move(result);
+  }
+  return last;
+}
+
+// "<step> time: ..." for `items` done per run (triangles built, rays cast). The first run of a process also
+// touches its memory for the first time (page faults, and on VMs whose host reclaims freed memory, the host's
+// faults too), so it is reported apart from the later runs, whose median and 95% interval (order statistics,
+// hp_timing) stand for the step itself.
+void print_run_time(const char* step, const RunTimes& t, std::size_t items, const char* unit, int threads) {
   // Milliseconds to 4 decimals below 1 ms, 2 below 100 ms and 1 above: a small scene's microseconds show.
   const auto ms = [](double v) {
     char buf[32];
     std::snprintf(buf, sizeof buf, "%.*f", v < 1.0 ? 4 : v < 100.0 ? 2 : 1, v);
     return std::string(buf);
   };
-  const auto rate = [&](double v) { return v > 0 ? static_cast<double>(triangles) / v / 1e3 : 0.0; };
+  const auto rate = [&](double v) { return v > 0 ? static_cast<double>(items) / v / 1e3 : 0.0; };
   const std::string cpu = capture_environment().cpu_model;
-  const std::string threads = o.threads == 0   ? std::string("all threads")
-                              : o.threads == 1 ? std::string("1 thread")
-                                               : std::to_string(o.threads) + " threads";
+  const std::string on = threads == 0   ? std::string("all threads")
+                         : threads == 1 ? std::string("1 thread")
+                                        : std::to_string(threads) + " threads";
   if (t.later_ms.empty()) {
     std::printf(
-        "build time: %s ms (%.2f M triangles/s), one build, %s, %s; the first build of a process also "
-        "touches its memory for the first time: --build-repeats 7 or more gives a median with its 95%% "
-        "interval\n",
-        ms(t.first_ms).c_str(), rate(t.first_ms), threads.c_str(), cpu.c_str());
+        "%s time: %s ms (%.2f M %s/s), one %s, %s, %s; the first %s of a process also touches its memory for the "
+        "first time: --repeats 7 or more gives a median with its 95%% interval\n",
+        step, ms(t.first_ms).c_str(), rate(t.first_ms), unit, step, on.c_str(), cpu.c_str(), step);
     return;
   }
   const Summary s = summarize(t.later_ms);
   const std::string interval = s.median_ci.valid
                                    ? "95% interval " + ms(s.median_ci.low) + "-" + ms(s.median_ci.high) + " ms"
-                                   : std::string("no 95% interval below 6 builds");
+                                   : std::string("no 95% interval below 6");
   std::printf(
-      "build time: %s ms (%.2f M triangles/s), median of the %zu builds after the first (%s; min %s, max %s); "
-      "the first %s ms; %s, %s\n",
-      ms(s.median).c_str(), rate(s.median), s.count, interval.c_str(), ms(s.min).c_str(), ms(s.max).c_str(),
-      ms(t.first_ms).c_str(), threads.c_str(), cpu.c_str());
+      "%s time: %s ms (%.2f M %s/s), median of the %zu after the first (%s; min %s, max %s); the first %s "
+      "ms; %s, %s\n",
+      step, ms(s.median).c_str(), rate(s.median), unit, s.count, interval.c_str(), ms(s.min).c_str(), ms(s.max).c_str(),
+      ms(t.first_ms).c_str(), on.c_str(), cpu.c_str());
 }
 
 // What `bvh` prints of the build: method, node counts, SAH cost, the leaf-size histogram.
@@ -131,23 +145,23 @@ void print_build(const BvhArgs& a, const bvh::BuildOptions& o, const bvh::Bvh& t
   std::printf("\n");
 }
 
-// The rays through the reference traversal of the chosen node layout; the hits go to --hits.
+// The rays through the reference traversal of the chosen node layout, --repeats times; the hits go to --hits.
 void cast_on_cpu(const BvhArgs& a, const RtGeometry& g, const std::vector<bvh::Ray>& rays) {
   bvh::TraversalStats ts;
-  const auto cast_start = std::chrono::steady_clock::now();
-  const std::vector<bvh::Hit> hits =
-      cast_reference(g, rays, a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest, a.threads, &ts);
-  const double cast_ms = ms_since(cast_start);
+  RunTimes times;
+  const std::vector<bvh::Hit> hits = timed_runs(a.repeats, times, [&] {
+    ts = {};
+    return cast_reference(g, rays, a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest, a.threads, &ts);
+  });
   bvh::write_hits(a.hits, hits);
   std::size_t hit_count = 0;
   for (const auto& h : hits) hit_count += h.hit();
   const double n = rays.empty() ? 1.0 : static_cast<double>(rays.size());
-  std::printf(
-      "rays: %zu (%s, %s nodes), %zu hits (%.2f%%), %.2f ms (%.2f M rays/s), %.2f nodes and %.2f triangles per ray\n",
-      rays.size(), a.any_hit ? "any hit" : "closest hit", to_string(g.node_layout), hit_count,
-      100.0 * static_cast<double>(hit_count) / n, cast_ms,
-      cast_ms > 0 ? static_cast<double>(rays.size()) / cast_ms / 1e3 : 0.0, static_cast<double>(ts.nodes_visited) / n,
-      static_cast<double>(ts.triangles_tested) / n);
+  std::printf("rays: %zu (%s, %s nodes), %zu hits (%.2f%%), %.2f nodes and %.2f triangles per ray\n", rays.size(),
+              a.any_hit ? "any hit" : "closest hit", to_string(g.node_layout), hit_count,
+              100.0 * static_cast<double>(hit_count) / n, static_cast<double>(ts.nodes_visited) / n,
+              static_cast<double>(ts.triangles_tested) / n);
+  print_run_time("cast", times, rays.size(), "rays", a.threads);
   std::printf("hits written to %s\n", a.hits.c_str());
 }
 
@@ -272,18 +286,11 @@ void run_bvh(const BvhArgs& a) {
                                                 ? std::span<const uint32_t>(world.instance_first_triangle)
                                                 : std::span<const uint32_t>();
 
-  // Every build makes the same tree (tests/unit/bvh/build_identity_test.cpp); the last one is kept. The clock
-  // stops before the previous tree is freed, which is not part of a build.
-  BuildTimes times;
-  bvh::Bvh tree;
-  for (int i = 0; i < a.build_repeats; ++i) {
-    const auto build_start = std::chrono::steady_clock::now();
-    bvh::Bvh built = bvh::build_bvh(tris, o, objects);
-    (i == 0 ? times.first_ms : times.later_ms.emplace_back()) = ms_since(build_start);
-    tree = std::move(built);
-  }
+  // Every build makes the same tree (tests/unit/bvh/build_identity_test.cpp); the last one is kept.
+  RunTimes times;
+  bvh::Bvh tree = timed_runs(a.repeats, times, [&] { return bvh::build_bvh(tris, o, objects); });
   print_build(a, o, tree);
-  print_build_time(times, tris.size(), o);
+  print_run_time("build", times, tris.size(), "triangles", o.threads);
   RtGeometry g;
   g.node_layout = parse_node_layout(a.node_layout);
   if (g.node_layout == bvh::NodeLayout::wide4) {
@@ -334,9 +341,9 @@ void add_bvh_command(CLI::App& app) {
   cmd->add_option("--threads", args->threads, "build and cast threads (0 = all cores)")
       ->check(CLI::Range(0, 1024))
       ->capture_default_str();
-  cmd->add_option("--build-repeats", args->build_repeats,
-                  "build the BVH this many times: the first build is timed apart (it touches its memory for the "
-                  "first time), the later ones as a median with its 95% interval")
+  cmd->add_option("--repeats", args->repeats,
+                  "build the BVH, and cast the rays on the CPU, this many times each: the first run is timed apart "
+                  "(it touches its memory for the first time), the later ones as a median with its 95% interval")
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
   cmd->add_option("--export-triangles", args->export_triangles,

@@ -210,24 +210,35 @@ TEST(Cli, BvhMakesItsOwnRays) {
   fs::remove_all(d);
 }
 
-// `bvh` times its build: one build by default, said to be the process's first; with --build-repeats the first
-// apart and the median of the later builds with its 95% interval (none below 6 later builds).
-TEST(Cli, BvhBuildTimeSaysWhatItMeasured) {
-  CmdResult r = run("bvh --scene builtin:cornell");
+// `bvh` times its build and its CPU cast: one run each by default, said to be the process's first; with --repeats
+// the first apart and the median of the later runs with its 95% interval (none below 6 later runs).
+TEST(Cli, BvhTimesSayWhatTheyMeasured) {
+  const fs::path d = temp_dir() / "bvh_repeats";
+  fs::remove_all(d);
+  fs::create_directories(d);
+  const std::string rays = " --make-rays 500 --rays " + (d / "r.bin").string() + " --hits " + (d / "h.bin").string();
+  CmdResult r = run("bvh --scene builtin:cornell" + rays);
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("one build, all threads, "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("M triangles/s), one build, all threads, "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("M rays/s), one cast, all threads, "), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("median of"), std::string::npos) << r.output;
-  r = run("bvh --scene builtin:cornell --threads 1 --build-repeats 8");
+  r = run("bvh --scene builtin:cornell --threads 1 --repeats 8" + rays);
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("median of the 7 builds after the first (95% interval "), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("; the first "), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("; 1 thread, "), std::string::npos) << r.output;
-  r = run("bvh --scene builtin:cornell --build-repeats 3");
+  for (const char* step : {"build time: ", "cast time: "}) {
+    const std::size_t at = r.output.find(step);
+    ASSERT_NE(at, std::string::npos) << r.output;
+    const std::string line = r.output.substr(at, r.output.find('\n', at) - at);
+    EXPECT_NE(line.find("median of the 7 after the first (95% interval "), std::string::npos) << line;
+    EXPECT_NE(line.find("; the first "), std::string::npos) << line;
+    EXPECT_NE(line.find("; 1 thread, "), std::string::npos) << line;
+  }
+  EXPECT_EQ(fs::file_size(d / "h.bin"), 500u * 16u);
+  r = run("bvh --scene builtin:cornell --repeats 3");
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("median of the 2 builds after the first (no 95% interval below 6 builds"), std::string::npos)
-      << r.output;
-  expect_bad_input(run("bvh --scene builtin:cornell --build-repeats 0"), "--build-repeats");
-  expect_bad_input(run("bvh --scene builtin:cornell --build-repeats 1001"), "--build-repeats");
+  EXPECT_NE(r.output.find("median of the 2 after the first (no 95% interval below 6;"), std::string::npos) << r.output;
+  expect_bad_input(run("bvh --scene builtin:cornell --repeats 0"), "--repeats");
+  expect_bad_input(run("bvh --scene builtin:cornell --repeats 1001"), "--repeats");
+  fs::remove_all(d);
 }
 
 // A long render says how far it is (off a terminal: a plain line at the end and at most every 5 s); --quiet
