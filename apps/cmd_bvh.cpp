@@ -46,7 +46,7 @@ struct BvhArgs {
   int leaf_size = 4;
   std::string node_layout = "binary32";
   int threads = 0;
-  int repeats = 1;  ///< builds, and casts on the CPU, each timed
+  int repeats = 1;  ///< builds and CPU casts, each timed; GPU casts after an untimed one: max(3, repeats - 1)
   std::string export_triangles;
   std::string rays;
   uint32_t make_rays = 0;  ///< write this many camera rays into --rays first
@@ -87,13 +87,21 @@ auto timed_runs(int repeats, RunTimes& times, Step&& step) {
 // touches its memory for the first time (page faults, and on VMs whose host reclaims freed memory, the host's
 // faults too), so it is reported apart from the later runs, whose median and 95% interval (order statistics,
 // hp_timing) stand for the step itself.
+// Milliseconds to 4 decimals below 1 ms, 2 below 100 ms and 1 above: a small scene's microseconds show.
+std::string ms(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.*f", v < 1.0 ? 4 : v < 100.0 ? 2 : 1, v);
+  return buf;
+}
+
+// "95% interval a-b ms" of a summary's median, or what stands in for it: the range where there are too few
+// samples for the interval.
+std::string median_interval(const Summary& s) {
+  if (s.median_ci.valid) return "95% interval " + ms(s.median_ci.low) + "-" + ms(s.median_ci.high) + " ms";
+  return "too few for a 95% interval; range " + ms(s.min) + "-" + ms(s.max) + " ms";
+}
+
 void print_run_time(const char* step, const RunTimes& t, std::size_t items, const char* unit, int threads) {
-  // Milliseconds to 4 decimals below 1 ms, 2 below 100 ms and 1 above: a small scene's microseconds show.
-  const auto ms = [](double v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.*f", v < 1.0 ? 4 : v < 100.0 ? 2 : 1, v);
-    return std::string(buf);
-  };
   const auto rate = [&](double v) { return v > 0 ? static_cast<double>(items) / v / 1e3 : 0.0; };
   const std::string cpu = capture_environment().cpu_model;
   const std::string on = threads == 0   ? std::string("all threads")
@@ -107,14 +115,9 @@ void print_run_time(const char* step, const RunTimes& t, std::size_t items, cons
     return;
   }
   const Summary s = summarize(t.later_ms);
-  const std::string interval = s.median_ci.valid
-                                   ? "95% interval " + ms(s.median_ci.low) + "-" + ms(s.median_ci.high) + " ms"
-                                   : std::string("no 95% interval below 6");
-  std::printf(
-      "%s time: %s ms (%.2f M %s/s), median of the %zu after the first (%s; min %s, max %s); the first %s "
-      "ms; %s, %s\n",
-      step, ms(s.median).c_str(), rate(s.median), unit, s.count, interval.c_str(), ms(s.min).c_str(), ms(s.max).c_str(),
-      ms(t.first_ms).c_str(), on.c_str(), cpu.c_str());
+  std::printf("%s time: %s ms (%.2f M %s/s), median of the %zu after the first (%s); the first %s ms; %s, %s\n", step,
+              ms(s.median).c_str(), rate(s.median), unit, s.count, median_interval(s).c_str(), ms(t.first_ms).c_str(),
+              on.c_str(), cpu.c_str());
 }
 
 // What `bvh` prints of the build: method, node counts, SAH cost, the leaf-size histogram.
@@ -187,7 +190,8 @@ void report_driver_agreement(const BvhArgs& a, const DriverAgreement& d, const s
 }
 
 // The same rays through the passes' traversal on the device (shaders/trace_rays.comp): one untimed cast
-// (pipeline compilation, caches), then three timed by GPU timestamps, and the answers checked against the
+// (pipeline compilation, caches), then max(3, --repeats - 1) timed by GPU timestamps (their median with its 95%
+// interval, or their range where they are too few), and the answers checked against the
 // reference: bit for bit for the compute traversal, by agreement for the driver's (ray queries or a
 // ray-tracing pipeline through its acceleration structure), whose hits then go to --hits.
 void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeometry g,
@@ -204,14 +208,15 @@ void trace_on_gpu(const BvhArgs& a, vk::Context& ctx, const Scene& scene, RtGeom
   RayBatchTracer tracer(ctx, rts, rays, as.get(), rt.traversal);
   const bvh::HitMode mode = a.any_hit ? bvh::HitMode::any : bvh::HitMode::closest;
   tracer.trace(ctx, mode);
-  std::vector<double> ms;
-  for (int i = 0; i < 3; ++i) ms.push_back(double(tracer.trace(ctx, mode)) * 1e-6);
-  std::sort(ms.begin(), ms.end());
-  if (ms[1] > 0.0) {
+  std::vector<double> times;
+  for (int i = 0; i < std::max(3, a.repeats - 1); ++i) times.push_back(double(tracer.trace(ctx, mode)) * 1e-6);
+  const Summary s = summarize(times);
+  if (s.median > 0.0) {
     std::printf(
-        "gpu: %s, %s traversal, %s layout, %s nodes: %.2f ms median of 3 (%.2f-%.2f) by timestamps, %.2f M rays/s\n",
-        ctx.info().name.c_str(), a.traversal.traversal.c_str(), a.geometry.c_str(), to_string(g.node_layout), ms[1],
-        ms[0], ms[2], double(rays.size()) / ms[1] / 1e3);
+        "gpu: %s, %s traversal, %s layout, %s nodes: %s ms median of %zu after an untimed first (%s) by timestamps, "
+        "%.2f M rays/s\n",
+        ctx.info().name.c_str(), a.traversal.traversal.c_str(), a.geometry.c_str(), to_string(g.node_layout),
+        ms(s.median).c_str(), s.count, median_interval(s).c_str(), double(rays.size()) / s.median / 1e3);
   } else {
     std::printf("gpu: %s, %s traversal, %s layout: no timestamps on this queue, not timed\n", ctx.info().name.c_str(),
                 a.traversal.traversal.c_str(), a.geometry.c_str());
@@ -343,7 +348,8 @@ void add_bvh_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--repeats", args->repeats,
                   "build the BVH, and cast the rays on the CPU, this many times each: the first run is timed apart "
-                  "(it touches its memory for the first time), the later ones as a median with its 95% interval")
+                  "(it touches its memory for the first time), the later ones as a median with its 95% interval; "
+                  "with --gpu, max(3, N - 1) casts are timed after an untimed one")
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
   cmd->add_option("--export-triangles", args->export_triangles,

@@ -211,7 +211,7 @@ TEST(Cli, BvhMakesItsOwnRays) {
 }
 
 // `bvh` times its build and its CPU cast: one run each by default, said to be the process's first; with --repeats
-// the first apart and the median of the later runs with its 95% interval (none below 6 later runs).
+// the first apart and the median of the later runs with its 95% interval (their range below 6 later runs).
 TEST(Cli, BvhTimesSayWhatTheyMeasured) {
   const fs::path d = temp_dir() / "bvh_repeats";
   fs::remove_all(d);
@@ -235,7 +235,8 @@ TEST(Cli, BvhTimesSayWhatTheyMeasured) {
   EXPECT_EQ(fs::file_size(d / "h.bin"), 500u * 16u);
   r = run("bvh --scene builtin:cornell --repeats 3");
   ASSERT_EQ(r.code, 0) << r.output;
-  EXPECT_NE(r.output.find("median of the 2 after the first (no 95% interval below 6;"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("median of the 2 after the first (too few for a 95% interval; range "), std::string::npos)
+      << r.output;
   expect_bad_input(run("bvh --scene builtin:cornell --repeats 0"), "--repeats");
   expect_bad_input(run("bvh --scene builtin:cornell --repeats 1001"), "--repeats");
   fs::remove_all(d);
@@ -503,7 +504,16 @@ TEST(Cli, BvhGpuCastsTheRaysAndAgreesWithTheReference) {
     EXPECT_NE(r.output.find("gpu vs reference: 1000 of 1000 rays equal"), std::string::npos) << extra << "\n"
                                                                                              << r.output;
     EXPECT_NE(r.output.find("by timestamps"), std::string::npos) << extra << "\n" << r.output;
+    EXPECT_NE(r.output.find("median of 3 after an untimed first (too few for a 95% interval; range "),
+              std::string::npos)
+        << extra << "\n"
+        << r.output;
   }
+  // --repeats N times N - 1 GPU casts after the untimed one, enough for the median's 95% interval from 7 on.
+  const CmdResult r = run("bvh --scene builtin:cornell --rays " + rays.string() + " --hits " +
+                          (dir / "hits.bin").string() + " --gpu --repeats 8");
+  EXPECT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("median of 7 after an untimed first (95% interval "), std::string::npos) << r.output;
   fs::remove_all(dir);
 }
 
