@@ -83,10 +83,6 @@ auto timed_runs(int repeats, RunTimes& times, Step&& step) {
   return last;
 }
 
-// "<step> time: ..." for `items` done per run (triangles built, rays cast). The first run of a process also
-// touches its memory for the first time (page faults, and on VMs whose host reclaims freed memory, the host's
-// faults too), so it is reported apart from the later runs, whose median and 95% interval (order statistics,
-// hp_timing) stand for the step itself.
 // Milliseconds to 4 decimals below 1 ms, 2 below 100 ms and 1 above: a small scene's microseconds show.
 std::string ms(double v) {
   char buf[32];
@@ -101,6 +97,10 @@ std::string median_interval(const Summary& s) {
   return "too few for a 95% interval; range " + ms(s.min) + "-" + ms(s.max) + " ms";
 }
 
+// "<step> time: ..." for `items` done per run (triangles built, rays cast). The first run of a process also
+// touches its memory for the first time (page faults, and on VMs whose host reclaims freed memory, the host's
+// faults too), so it is reported apart from the later runs, whose median and 95% interval (order statistics,
+// hp_timing) stand for the step itself.
 void print_run_time(const char* step, const RunTimes& t, std::size_t items, const char* unit, int threads) {
   const auto rate = [&](double v) { return v > 0 ? static_cast<double>(items) / v / 1e3 : 0.0; };
   const std::string cpu = capture_environment().cpu_model;
