@@ -103,7 +103,7 @@ std::string median_interval(const Summary& s) {
 // hp_timing) stand for the step itself.
 void print_run_time(const char* step, const RunTimes& t, std::size_t items, const char* unit, int threads) {
   const auto rate = [&](double v) { return v > 0 ? static_cast<double>(items) / v / 1e3 : 0.0; };
-  const std::string cpu = capture_environment().cpu_model;
+  static const std::string cpu = capture_environment().cpu_model;  // read once for the build and the cast lines
   const std::string on = threads == 0   ? std::string("all threads")
                          : threads == 1 ? std::string("1 thread")
                                         : std::to_string(threads) + " threads";

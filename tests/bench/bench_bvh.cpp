@@ -303,6 +303,13 @@ std::map<std::string, ScalingPairs>& scaling_pairs() {
   return pairs;
 }
 
+/// Each pair's one-thread / N-thread ratio.
+std::vector<double> pair_ratios(const std::vector<double>& one, const std::vector<double>& many) {
+  std::vector<double> ratio(one.size());
+  for (std::size_t i = 0; i < ratio.size(); ++i) ratio[i] = one[i] / many[i];
+  return ratio;
+}
+
 /// Two-thread scaling by alternation: each iteration builds the scene once on one thread and once on `threads`
 /// (the order alternating, wall time each), so both builds of a pair see the same minutes of a noisy host.
 /// speedup is the median of the pairs' one-thread / N-thread ratios, speedup_lo and speedup_hi its 95%
@@ -317,19 +324,18 @@ void scaling_bench(benchmark::State& state, const BenchScene* s, int threads) {
     benchmark::DoNotOptimize(b.nodes.data());
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   };
-  std::vector<double> ratio, t1, tn;
+  std::vector<double> t1, tn;
   for (auto _ : state) {
-    const bool many_first = ratio.size() % 2 == 1;
+    const bool many_first = t1.size() % 2 == 1;
     const double first = wall_ms(many_first ? many : one);
     const double second = wall_ms(many_first ? one : many);
     t1.push_back(many_first ? second : first);
     tn.push_back(many_first ? first : second);
-    ratio.push_back(t1.back() / tn.back());
   }
   ScalingPairs& pooled = scaling_pairs()[scaling_row(*s, threads)];
   pooled.one.insert(pooled.one.end(), t1.begin(), t1.end());
   pooled.many.insert(pooled.many.end(), tn.begin(), tn.end());
-  const hp::Summary r = hp::summarize(ratio);
+  const hp::Summary r = hp::summarize(pair_ratios(t1, tn));
   state.counters["speedup"] = r.median;
   state.counters["speedup_lo"] = r.median_ci.low;
   state.counters["speedup_hi"] = r.median_ci.high;
@@ -346,10 +352,8 @@ void print_scaling() {
   std::printf("%-44s %6s %11s %11s %8s %16s\n", "row", "pairs", "1 thread ms", "2 threads ms", "speedup",
               "95% interval");
   for (const auto& [row, p] : scaling_pairs()) {
-    std::vector<double> ratio(p.one.size());
-    for (std::size_t i = 0; i < ratio.size(); ++i) ratio[i] = p.one[i] / p.many[i];
-    const hp::Summary r = hp::summarize(ratio);
-    std::printf("%-44s %6zu %11.1f %11.1f %8.3f %7.3f - %6.3f\n", row.c_str(), ratio.size(), hp::quantile(p.one, 0.5),
+    const hp::Summary r = hp::summarize(pair_ratios(p.one, p.many));
+    std::printf("%-44s %6zu %11.1f %11.1f %8.3f %7.3f - %6.3f\n", row.c_str(), r.count, hp::quantile(p.one, 0.5),
                 hp::quantile(p.many, 0.5), r.median, r.median_ci.low, r.median_ci.high);
   }
 }
