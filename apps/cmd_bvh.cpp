@@ -30,6 +30,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -118,6 +119,36 @@ void print_run_time(const char* step, const RunTimes& t, std::size_t items, cons
   std::printf("%s time: %s ms (%.2f M %s/s), median of the %zu after the first (%s); the first %s ms; %s, %s\n", step,
               ms(s.median).c_str(), rate(s.median), unit, s.count, median_interval(s).c_str(), ms(t.first_ms).c_str(),
               on.c_str(), cpu.c_str());
+}
+
+// "build phases: ..." where the builds forked: where their wall time went, as medians over the same runs as the
+// build time (the first apart when there are later ones). Nothing for builds that never forked (one thread, a
+// small scene, the full sweep).
+void print_phases(const std::vector<bvh::BuildPhases>& runs) {
+  const std::span<const bvh::BuildPhases> used =
+      runs.size() > 1 ? std::span<const bvh::BuildPhases>(runs).subspan(1) : std::span<const bvh::BuildPhases>(runs);
+  if (used.empty() || !std::all_of(used.begin(), used.end(), [](const bvh::BuildPhases& p) { return p.forked; })) {
+    return;
+  }
+  const auto median = [&](auto field) {
+    std::vector<double> v;
+    for (const bvh::BuildPhases& p : used) v.push_back(field(p));
+    return summarize(v).median;
+  };
+  const double first = median([](const bvh::BuildPhases& p) { return p.first_ms; });
+  const double second = median([](const bvh::BuildPhases& p) { return p.second_ms; });
+  const double wait = median([](const bvh::BuildPhases& p) { return std::abs(p.first_ms - p.second_ms); });
+  const std::string of =
+      used.size() == 1 ? "the one build" : "medians of the " + std::to_string(used.size()) + " after the first";
+  std::printf(
+      "build phases: references %s ms; the top of the tree, on one thread, %s ms; below its first fork, side by side, "
+      "%zu primitives in %s ms and %zu in %s ms (the one done first waited %s ms); the second's nodes appended in %s "
+      "ms; the tree %s ms in all; %s\n",
+      ms(median([](const bvh::BuildPhases& p) { return p.references_ms; })).c_str(),
+      ms(median([](const bvh::BuildPhases& p) { return p.top_ms; })).c_str(), used.back().first_primitives,
+      ms(first).c_str(), used.back().second_primitives, ms(second).c_str(), ms(wait).c_str(),
+      ms(median([](const bvh::BuildPhases& p) { return p.append_ms; })).c_str(),
+      ms(median([](const bvh::BuildPhases& p) { return p.tree_ms; })).c_str(), of.c_str());
 }
 
 // What `bvh` prints of the build: method, node counts, SAH cost, the leaf-size histogram.
@@ -293,9 +324,15 @@ void run_bvh(const BvhArgs& a) {
 
   // Every build makes the same tree (tests/unit/bvh/build_identity_test.cpp); the last one is kept.
   RunTimes times;
-  bvh::Bvh tree = timed_runs(a.repeats, times, [&] { return bvh::build_bvh(tris, o, objects); });
+  std::vector<bvh::BuildPhases> phases;
+  bvh::Bvh tree = timed_runs(a.repeats, times, [&] {
+    bvh::Bvh b = bvh::build_bvh(tris, o, objects);
+    phases.push_back(b.phases);
+    return b;
+  });
   print_build(a, o, tree);
   print_run_time("build", times, tris.size(), "triangles", o.threads);
+  print_phases(phases);
   RtGeometry g;
   g.node_layout = parse_node_layout(a.node_layout);
   if (g.node_layout == bvh::NodeLayout::wide4) {

@@ -15,6 +15,7 @@
 #include "bvh/build_common.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <limits>

@@ -108,6 +108,7 @@ class BinnedBuilder {
 
   /// `given`: the references' bounds folded by the caller, or null.
   PairTree run(const RefBounds* given) {
+    start_ = std::chrono::steady_clock::now();
     Range root;
     RefBounds all;
     if (given != nullptr && !given->signed_zeros()) {
@@ -144,6 +145,7 @@ class BinnedBuilder {
     tree.flat = std::move(flat);
     tree.flat_max_depth = scratch.max_depth;
     tree.depth_limited_splits = depth_limited_.load();
+    tree.phases = phases_;
     return tree;
   }
 
@@ -584,6 +586,17 @@ class BinnedBuilder {
     std::vector<gpu::BvhNode> sub;
     std::exception_ptr error;
     int right_depth = 0;
+    // The build's first fork (always on the thread that called run(), before any other exists) is timed.
+    using Clock = std::chrono::steady_clock;
+    const bool timed = !phases_.forked;
+    const Clock::time_point fork_at = Clock::now();
+    double second_ms = 0.0;
+    if (timed) {
+      phases_.forked = true;
+      phases_.top_ms = ms_between(start_, fork_at);
+      phases_.first_primitives = left.end - left.begin;
+      phases_.second_primitives = nr;
+    }
     std::thread t([&] {
       try {
         reserve_nodes(sub, nr);
@@ -592,6 +605,7 @@ class BinnedBuilder {
         own.out = &sub;
         build(0, right, depth + 1, own);
         right_depth = own.max_depth;
+        second_ms = ms_between(fork_at, Clock::now());
       } catch (...) {
         error = std::current_exception();
       }
@@ -603,8 +617,10 @@ class BinnedBuilder {
       t.join();
       throw;
     }
+    const double first_ms = ms_between(fork_at, Clock::now());
     t.join();
     if (error) std::rethrow_exception(error);
+    const Clock::time_point append_at = Clock::now();
     s.max_depth = std::max(s.max_depth, right_depth);
     const auto second = static_cast<uint32_t>(out.size());
     out[index].offset = static_cast<int>(second);
@@ -612,6 +628,15 @@ class BinnedBuilder {
     for (std::size_t i = second; i < out.size(); ++i) {
       if ((out[i].prim_axis >> HP_BVH_AXIS_BITS) == 0) out[i].offset += static_cast<int>(second);
     }
+    if (timed) {
+      phases_.first_ms = first_ms;
+      phases_.second_ms = second_ms;
+      phases_.append_ms = ms_between(append_at, Clock::now());
+    }
+  }
+
+  static double ms_between(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+    return std::chrono::duration<double, std::milli>(b - a).count();
   }
 
   std::span<PrimRef> prims_;
@@ -619,6 +644,10 @@ class BinnedBuilder {
   BuildParams p_;
   Forker forker_;
   std::atomic<std::size_t> depth_limited_{0};
+  std::chrono::steady_clock::time_point start_;
+  /// Written by the thread that called run() only: at its first fork (before the forked thread exists) and after
+  /// that fork's join. Later forks, on any thread, only read `forked`.
+  BuildPhases phases_;
   /// Some primitive bound is -0.0. Folding boxes with min/max in another order can then change a box's
   /// zero sign (min and max keep their second operand on ties), so the builder keeps the reference order:
   /// the paths that regroup the folds are only taken without signed zeros, where every order gives the

@@ -145,6 +145,7 @@ struct PairTree {
   int flat_max_depth = 0;          ///< with `flat`: interior nodes above the deepest leaf
   std::vector<uint32_t> order;     ///< leaf order -> scene index
   std::size_t depth_limited_splits = 0;
+  BuildPhases phases;  ///< the fork's part (forked, top, first, second, append); build_bvh sets the rest
 };
 
 inline gpu::BvhNode make_leaf(const glm::vec3& lo, const glm::vec3& hi, uint32_t first, uint32_t count) {

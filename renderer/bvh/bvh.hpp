@@ -21,6 +21,21 @@
 
 namespace hp::bvh {
 
+/// Where one build's wall time went (steady clock, milliseconds). The tree's serial top, its two subtrees and
+/// the join are those of the binned builder's first fork, which is at the root whenever the root's second child
+/// is large enough to fork (8192 primitives) and a second thread is allowed; `forked` is false otherwise (one
+/// thread, a small scene, the full-sweep builder), and then only references_ms and tree_ms are set.
+struct BuildPhases {
+  double references_ms = 0.0;  ///< the primitive references and their bounds (parallel chunks)
+  double tree_ms = 0.0;        ///< the tree, from the references to the end
+  bool forked = false;
+  double top_ms = 0.0;     ///< from the tree's start to its first fork, on one thread (the root's binning, partition)
+  double first_ms = 0.0;   ///< the fork's first subtree, on the thread that forked (it may fork again inside)
+  double second_ms = 0.0;  ///< its second subtree, on a thread of its own
+  std::size_t first_primitives = 0, second_primitives = 0;
+  double append_ms = 0.0;  ///< after both: the second subtree's nodes appended after the first's
+};
+
 /// A flattened BVH. Plain data: upload `nodes` as they are, and primitives in leaf order (leaf_order()).
 struct Bvh {
   std::vector<gpu::BvhNode> nodes;  ///< depth-first; empty scene: one node with an empty (inverted) box
@@ -36,6 +51,7 @@ struct Bvh {
   int max_depth = 0;            ///< interior nodes above the deepest leaf (= worst-case stack use)
   /// Nodes where the SAH split was replaced by a median split to keep the depth within max_depth.
   std::size_t depth_limited_splits = 0;
+  BuildPhases phases;  ///< how long the build that made it took, by phase
 };
 
 /// Builds a BVH over `triangles` (scene order).

@@ -237,6 +237,19 @@ TEST(Cli, BvhTimesSayWhatTheyMeasured) {
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("median of the 2 after the first (too few for a 95% interval; range "), std::string::npos)
       << r.output;
+  EXPECT_EQ(r.output.find("build phases:"), std::string::npos) << r.output;  // cornell is too small to fork
+  // A two-thread build of a scene large enough to fork says where its time went; one thread never forks.
+  r = run("bvh --scene builtin:pica --threads 2 --repeats 3");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::size_t at = r.output.find("build phases: references ");
+  ASSERT_NE(at, std::string::npos) << r.output;
+  const std::string line = r.output.substr(at, r.output.find('\n', at) - at);
+  EXPECT_NE(line.find(" ms; the top of the tree, on one thread, "), std::string::npos) << line;
+  EXPECT_NE(line.find("; below its first fork, side by side, "), std::string::npos) << line;
+  EXPECT_NE(line.find("; medians of the 2 after the first"), std::string::npos) << line;
+  r = run("bvh --scene builtin:pica --threads 1");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(r.output.find("build phases:"), std::string::npos) << r.output;
   expect_bad_input(run("bvh --scene builtin:cornell --repeats 0"), "--repeats");
   expect_bad_input(run("bvh --scene builtin:cornell --repeats 1001"), "--repeats");
   fs::remove_all(d);

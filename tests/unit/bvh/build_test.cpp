@@ -193,6 +193,46 @@ TEST(BvhBuild, SameTreeForAnyThreadCount) {
   }
 }
 
+// The phases of a two-thread build are those of its fork at the root: the two subtrees hold the root's two
+// children, and the top, the longer subtree and the append fit inside the tree's time. One thread and the full
+// sweep never fork, so only the references and the tree are timed.
+TEST(BvhBuild, PhasesSayWhereTheWallTimeWent) {
+  const auto tris = terrain(200).triangles();  // 80k triangles: the root's children are large enough to fork
+  // With three threads the first child forks again at once: the phases stay the root's.
+  for (const int threads : {2, 3}) {
+    BuildOptions o;
+    o.threads = threads;
+    const Bvh b = build_bvh(tris, o);
+    const BuildPhases& p = b.phases;
+    ASSERT_TRUE(p.forked) << threads;
+    // The first child's subtree is [1, root.offset) in the depth-first layout.
+    std::size_t under_first = 0;
+    for (int i = 1; i < b.nodes[0].offset; ++i) {
+      if (node_is_leaf(b.nodes[i])) under_first += node_count(b.nodes[i]);
+    }
+    EXPECT_EQ(p.first_primitives, under_first) << threads;
+    EXPECT_EQ(p.first_primitives + p.second_primitives, b.prim_ids.size()) << threads;
+    EXPECT_GT(p.references_ms, 0.0) << threads;
+    EXPECT_GT(p.top_ms, 0.0) << threads;
+    EXPECT_GT(p.first_ms, 0.0) << threads;
+    EXPECT_GT(p.second_ms, 0.0) << threads;
+    EXPECT_GT(p.append_ms, 0.0) << threads;
+    EXPECT_LE(p.top_ms + std::max(p.first_ms, p.second_ms) + p.append_ms, p.tree_ms) << threads;
+  }
+
+  for (const bool sweep : {false, true}) {
+    BuildOptions o;
+    o.threads = sweep ? 2 : 1;
+    o.full_sweep = sweep;
+    const BuildPhases q = build_bvh(tris, o).phases;
+    EXPECT_FALSE(q.forked) << sweep;
+    EXPECT_GT(q.references_ms, 0.0) << sweep;
+    EXPECT_GT(q.tree_ms, 0.0) << sweep;
+    EXPECT_EQ(q.top_ms + q.first_ms + q.second_ms + q.append_ms, 0.0) << sweep;
+    EXPECT_EQ(q.first_primitives + q.second_primitives, 0u) << sweep;
+  }
+}
+
 TEST(BvhBuild, InvalidOptionsAreInputErrors) {
   const auto tris = random_soup(100, 1);
   const auto bad = [&](auto change) {
