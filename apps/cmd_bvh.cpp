@@ -141,7 +141,7 @@ void print_phases(const std::vector<bvh::BuildPhases>& runs) {
   const std::string of =
       used.size() == 1 ? "the one build" : "medians of the " + std::to_string(used.size()) + " after the first";
   std::printf(
-      "build phases: references %s ms; the top of the tree, on one thread, %s ms; below its first fork, side by side, "
+      "build phases: references %s ms; the top of the tree %s ms; below its first fork, side by side, "
       "%zu primitives in %s ms and %zu in %s ms (the one done first waited %s ms); the second's nodes appended in %s "
       "ms; the tree %s ms in all; %s\n",
       ms(median([](const bvh::BuildPhases& p) { return p.references_ms; })).c_str(),

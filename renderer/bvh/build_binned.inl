@@ -101,6 +101,9 @@ inline __m128i bin_index(__m128 c, __m128 cmin, __m128 scale, __m128 last) {
 constexpr uint32_t kRunBinning = 1024;
 /// Nodes at most this large are partitioned through a bit mask (partition_small).
 constexpr uint32_t kSmallPartition = 64;
+/// Nodes at least this large are binned in two halves on two threads when a worker slot is free: in a threaded
+/// build only the root (and on more threads the nodes just below it) qualify, whose binning is otherwise serial.
+constexpr uint32_t kParallelBinning = 131072;
 
 class BinnedBuilder {
  public:
@@ -247,7 +250,21 @@ class BinnedBuilder {
       };
       uint32_t i = r.begin;
       if (runs) {
-        bin_runs(r, nb, vmin, vscale, vlast, bins);
+        if (n >= kParallelBinning && forker_.try_fork(n)) {
+          // A large node with a worker slot free (the root of a threaded build): the back half is binned on
+          // another thread into the second bin set, then merged. min/max are exact and the counts add, so the
+          // bins are those of one pass (runs are only taken without signed zeros).
+          std::memcpy(static_cast<void*>(bins2), s.empty_bins.data(), 3 * static_cast<std::size_t>(nb) * sizeof(Bin));
+          Range front = r, back = r;
+          front.end = back.begin = r.begin + n / 2;
+          std::thread t([&] { bin_runs(back, nb, vmin, vscale, vlast, bins2); });
+          bin_runs(front, nb, vmin, vscale, vlast, bins);
+          t.join();
+          forker_.release();
+          for (int b = 0; b < 3 * nb; ++b) bins[b].merge(bins2[b]);
+        } else {
+          bin_runs(r, nb, vmin, vscale, vlast, bins);
+        }
         i = r.end;
       } else if (n >= 64) {
         for (; i + 1 < r.end; i += 2) {
@@ -597,6 +614,7 @@ class BinnedBuilder {
       phases_.first_primitives = left.end - left.begin;
       phases_.second_primitives = nr;
     }
+    std::atomic<bool> second_done{false};
     std::thread t([&] {
       try {
         reserve_nodes(sub, nr);
@@ -609,6 +627,7 @@ class BinnedBuilder {
       } catch (...) {
         error = std::current_exception();
       }
+      second_done.store(true, std::memory_order_release);
       forker_.release();
     });
     try {
@@ -618,6 +637,15 @@ class BinnedBuilder {
       throw;
     }
     const double first_ms = ms_between(fork_at, Clock::now());
+    if (!second_done.load(std::memory_order_acquire)) {
+      // Waiting anyway: fault in the pages the append will write, as many nodes as the second subtree should
+      // need at this subtree's nodes per primitive, so that the copy at the join takes no page faults. Done
+      // from the forked thread when it ends first, the same call took up to 60 ms on a VM (bvh-performance.md).
+      const std::size_t at = out.size();
+      const double per_prim = static_cast<double>(at - first) / (left.end - left.begin);
+      const std::size_t end = std::min(out.capacity(), at + static_cast<std::size_t>(1.02 * per_prim * nr));
+      if (end > at) populate_for_write(out.data() + at, (end - at) * sizeof(gpu::BvhNode));
+    }
     t.join();
     if (error) std::rethrow_exception(error);
     const Clock::time_point append_at = Clock::now();

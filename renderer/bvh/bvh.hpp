@@ -21,7 +21,7 @@
 
 namespace hp::bvh {
 
-/// Where one build's wall time went (steady clock, milliseconds). The tree's serial top, its two subtrees and
+/// Where one build's wall time went (steady clock, milliseconds). The top of the tree, its two subtrees and
 /// the join are those of the binned builder's first fork, which is at the root whenever the root's second child
 /// is large enough to fork (8192 primitives) and a second thread is allowed; `forked` is false otherwise (one
 /// thread, a small scene, the full-sweep builder), and then only references_ms and tree_ms are set.
@@ -29,7 +29,7 @@ struct BuildPhases {
   double references_ms = 0.0;  ///< the primitive references and their bounds (parallel chunks)
   double tree_ms = 0.0;        ///< the tree, from the references to the end
   bool forked = false;
-  double top_ms = 0.0;     ///< from the tree's start to its first fork, on one thread (the root's binning, partition)
+  double top_ms = 0.0;     ///< from the tree's start to its first fork (the root: its split search, partition)
   double first_ms = 0.0;   ///< the fork's first subtree, on the thread that forked (it may fork again inside)
   double second_ms = 0.0;  ///< its second subtree, on a thread of its own
   std::size_t first_primitives = 0, second_primitives = 0;
