@@ -663,10 +663,6 @@ class BinnedBuilder {
     }
   }
 
-  static double ms_between(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
-    return std::chrono::duration<double, std::milli>(b - a).count();
-  }
-
   std::span<PrimRef> prims_;
   uint32_t* order_ = nullptr;  // the tree's order: each leaf writes its own range
   BuildParams p_;

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <exception>
 #include <limits>
@@ -35,6 +36,11 @@ inline void advise_huge_pages([[maybe_unused]] const void* data, [[maybe_unused]
   const std::uintptr_t last = (begin + bytes) & ~(kHuge - 1);
   if (last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_HUGEPAGE);
 #endif
+}
+
+/// Milliseconds from a to b on the steady clock (the build's phases).
+inline double ms_between(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
 /// Faults in the pages of [data, data + bytes) for writing without writing them (MADV_POPULATE_WRITE, Linux

@@ -158,12 +158,9 @@ Bvh build_bvh(std::span<const Triangle> triangles, const BuildOptions& options,
   if (objects) bvh.object_first.assign(object_first.begin(), object_first.end());
 
   using Clock = std::chrono::steady_clock;
-  const auto ms_since = [](Clock::time_point t) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-  };
   const Clock::time_point refs_start = Clock::now();
   Refs refs = make_refs(triangles, objects ? object_first : std::span<const uint32_t>{}, params.threads);
-  bvh.phases.references_ms = ms_since(refs_start);
+  bvh.phases.references_ms = detail::ms_between(refs_start, Clock::now());
   if (refs.size == 0) {
     // An inverted box fails every slab test, so a traversal that tests the root's box ends at once.
     bvh.nodes.push_back(gpu::BvhNode{glm::vec3(kInf), 0, glm::vec3(-kInf), 0});
@@ -186,10 +183,9 @@ Bvh build_bvh(std::span<const Triangle> triangles, const BuildOptions& options,
   }
   bvh.prim_ids = std::move(tree.order);
   bvh.depth_limited_splits = tree.depth_limited_splits;
-  const double references_ms = bvh.phases.references_ms;
+  tree.phases.references_ms = bvh.phases.references_ms;
+  tree.phases.tree_ms = detail::ms_between(tree_start, Clock::now());
   bvh.phases = tree.phases;
-  bvh.phases.references_ms = references_ms;
-  bvh.phases.tree_ms = ms_since(tree_start);
   if (bvh.max_depth > options.max_depth) {
     // The builders bound the depth by construction; this is a guard against a bug, not an input error.
     throw std::logic_error("bvh build: depth " + std::to_string(bvh.max_depth) + " exceeds the bound " +
